@@ -1,0 +1,30 @@
+# Two commands do everything on a fresh machine: `make demo` and `make test`.
+# Both build .venv from PyPI first (`make setup`), so nothing comes from the system package manager.
+
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.lost-installed
+
+.PHONY: setup demo test bench clean
+
+setup: $(STAMP)
+
+# Reinstall when the dependencies or the C kernel change (an editable install does not rebuild it).
+$(STAMP): pyproject.toml host/_sad.c
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $@
+
+demo: setup
+	$(BIN)/python -m lost.host.demo
+
+test: setup
+	$(BIN)/python -m pytest
+
+bench: setup
+	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+clean:
+	rm -rf build .pytest_cache .hypothesis

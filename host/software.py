@@ -1,0 +1,54 @@
+"""The fast software correlator: the golden model's integers, from a SIMD and OpenMP C kernel.
+
+``lost.host._sad`` (``host/_sad.c``) computes every term in 32-bit lanes. That is exact only while
+a sum of terms fits 32 unsigned bits, so this wrapper takes the bounds from
+:func:`lost.model.correlator_widths` and hands the kernel the number of terms it may add before
+spilling into the int64 output.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lost.model import correlator_widths
+
+from . import _sad
+
+__all__ = ["KERNEL", "software_surface"]
+
+#: The instruction set the kernel dispatched to on this machine ("avx512", "avx2" or "generic").
+KERNEL: str = _sad.KERNEL
+
+_LANE_MAX = 2**32 - 1
+
+
+def _terms_per_chunk(h: int, w: int, mean_compensation: bool) -> int:
+    """How many terms the 32-bit lane accumulator adds exactly before spilling to int64."""
+    widths = correlator_widths(h, w)
+    if widths.abs_term.hi >= 2**31:
+        raise ValueError(f"a {h} x {w} patch is too large for the software correlator's 32-bit terms")
+    total = widths.surface if mean_compensation else widths.surface_plain
+    if total.hi <= _LANE_MAX:
+        return h * w
+    term = widths.abs_term if mean_compensation else widths.abs_difference
+    return _LANE_MAX // term.hi
+
+
+def software_surface(terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray, mean_compensation: bool) -> np.ndarray:
+    """Correlation surface of already-validated int16 terrain and patch and bool mask."""
+    (H, W), (h, w) = terrain.shape, patch.shape
+    chunk = _terms_per_chunk(h, w, mean_compensation)
+    out = np.empty((H - h + 1, W - w + 1), dtype=np.int64)
+    _sad.surface(
+        np.ascontiguousarray(terrain, dtype=np.int16),
+        np.ascontiguousarray(patch, dtype=np.int16),
+        np.ascontiguousarray(mask, dtype=np.uint8),
+        H,
+        W,
+        h,
+        w,
+        bool(mean_compensation),
+        chunk,
+        out,
+    )
+    return out

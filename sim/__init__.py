@@ -1,0 +1,1 @@
+"""Running the gateware: Amaranth simulator helpers, cocotb benches, the Verilator runner."""
