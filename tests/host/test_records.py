@@ -1,0 +1,31 @@
+import numpy as np
+import pytest
+
+from lost.host.records import NavRecords
+
+FIELDS = ["ship_x_m", "ship_y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps", "slant_range_m", "cable_out_m"]
+
+
+def _records(**override):
+    values = {"t_s": np.arange(4.0)} | {name: np.zeros(4) for name in FIELDS}
+    return NavRecords(**(values | override))
+
+
+def test_valid_records():
+    records = _records(truth_x_m=np.ones(4), truth_y_m=np.ones(4))
+    assert len(records) == 4 and records.has_truth
+
+
+def test_time_going_backwards_is_located():
+    with pytest.raises(ValueError, match=r"record 2: t=0.5 s after 1.0 s"):
+        _records(t_s=np.array([0.0, 1.0, 0.5, 3.0]))
+
+
+def test_length_mismatch_is_named():
+    with pytest.raises(ValueError, match=r"altitude_m has shape \(3,\)"):
+        _records(altitude_m=np.zeros(3))
+
+
+def test_half_truth_is_refused():
+    with pytest.raises(ValueError, match="together"):
+        _records(truth_x_m=np.zeros(4))
