@@ -87,7 +87,7 @@ class NavRecords:
         if backwards.size:
             k = int(backwards[0])
             raise ValueError(
-                f"time does not increase at record {k + 1}: t={self.t_s[k + 1]!r} s after {self.t_s[k]!r} s "
+                f"time does not increase at record {k + 1}: t={float(self.t_s[k + 1])} s after {float(self.t_s[k])} s "
                 f"({backwards.size} such record(s))"
             )
 
