@@ -5,8 +5,9 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
+FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test bench synth clean
 
 setup: $(STAMP)
 
@@ -25,6 +26,14 @@ test: setup
 
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+# The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
+$(FPGA_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[dev,fpga]'
+	touch $@
+
+synth: $(FPGA_STAMP)
+	$(BIN)/python -m pytest -m fpga tests
 
 clean:
 	rm -rf build .pytest_cache .hypothesis
