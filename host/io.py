@@ -511,12 +511,17 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m) -> Grid:
     reproject = file_crs is not None and target is not None and not _same_crs(file_crs, target)
     if xs.size < 2 or ys.size < 2:
         raise ValueError(f"a grid needs at least 2 x 2 nodes to be georeferenced, got {ys.size} x {xs.size}")
-    dx, dy = float(np.mean(np.diff(xs))), float(np.mean(np.diff(ys)))
-    uniform = np.allclose(np.diff(xs), dx, rtol=1e-6, atol=0) and np.allclose(np.diff(ys), dy, rtol=1e-6, atol=0)
+    dx, dy = (float(c[-1] - c[0]) / (c.size - 1) for c in (xs, ys))
+    # Uniform when every node lies within a thousandth of a node, or a float32 rounding, of its place:
+    # float32 coordinate variables (common in NetCDF) must not force a resampling.
+    slack_x, slack_y = _slack(xs, dx), _slack(ys, dy)
+    uniform = _off_place(xs, dx) <= slack_x and _off_place(ys, dy) <= slack_y
     if not reproject:
-        square = math.isclose(dx, dy, rel_tol=1e-6)
-        if uniform and square and (node_m is None or math.isclose(node_m, dx, rel_tol=1e-9)):
-            return Grid(depth_m=values, x0_m=float(xs[0]), y0_m=float(ys[0]), node_m=dx, crs=target)
+        # Square when one spacing, the better known of the two, puts every node of both axes within its slack.
+        node = dx if slack_x / (xs.size - 1) <= slack_y / (ys.size - 1) else dy
+        square = abs(node - dx) * (xs.size - 1) <= slack_x and abs(node - dy) * (ys.size - 1) <= slack_y
+        if uniform and square and (node_m is None or math.isclose(node_m, node, rel_tol=1e-9)):
+            return Grid(depth_m=values, x0_m=float(xs[0]), y0_m=float(ys[0]), node_m=node, crs=target)
         node_m = node_m or min(dx, dy)
         x_lo, x_hi, y_lo, y_hi = xs[0], xs[-1], ys[0], ys[-1]
         transformer = None
@@ -545,6 +550,15 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m) -> Grid:
         qx, qy = transformer.transform(qx, qy, direction=TransformDirection.INVERSE)
     depth = _interpolate_keeping_holes(values, xs, ys, np.asarray(qx), np.asarray(qy))
     return Grid(depth_m=depth, x0_m=float(x0), y0_m=float(y0), node_m=float(node_m), crs=target)
+
+
+def _slack(coords: np.ndarray, step: float) -> float:
+    return max(1e-3 * abs(step), float(np.spacing(np.float32(np.max(np.abs(coords))))))
+
+
+def _off_place(coords: np.ndarray, step: float) -> float:
+    """How far the farthest node lies from a uniform spacing of ``step``."""
+    return float(np.max(np.abs(coords - (coords[0] + np.arange(coords.size) * step))))
 
 
 def _interpolate_keeping_holes(values, xs, ys, qx, qy) -> np.ndarray:

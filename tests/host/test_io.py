@@ -369,3 +369,16 @@ def test_utm_zone_of_a_point():
     assert utm_crs(LON0, LAT0) == "EPSG:32631"
     assert utm_crs(-70.5, -33.4) == "EPSG:32719"
     assert utm_crs(183.0, 10.0) == "EPSG:32601"
+
+
+def test_float32_coordinates_do_not_force_a_resampling(tmp_path):
+    # At UTM northings float32 keeps half a metre: 12.3 m nodes are stored up to 4 % of a node off.
+    x = (430_000.0 + np.arange(50) * 12.3).astype(np.float32)
+    y = (5_760_000.0 + np.arange(40) * 12.3).astype(np.float32)
+    assert np.ptp(np.diff(y.astype(np.float64))) > 0.4
+    z = np.random.default_rng(2).normal(500.0, 5.0, (40, 50))
+    path = tmp_path / "f32.nc"
+    xr.Dataset({"depth": (("y", "x"), z)}, coords={"x": x, "y": y}).to_netcdf(path)
+    grid = read_grid(path)
+    assert grid.shape == (40, 50) and abs(grid.node_m - 12.3) < 1e-3
+    np.testing.assert_array_equal(grid.depth_m, z)
