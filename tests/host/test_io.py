@@ -382,3 +382,10 @@ def test_float32_coordinates_do_not_force_a_resampling(tmp_path):
     grid = read_grid(path)
     assert grid.shape == (40, 50) and abs(grid.node_m - 12.3) < 1e-3
     np.testing.assert_array_equal(grid.depth_m, z)
+
+
+def test_soundings_on_one_line_cannot_be_gridded(tmp_path):
+    path = tmp_path / "line.csv"
+    path.write_text("x,y,depth\n" + "\n".join(f"{i * 5.0},0.0,{100 + i}" for i in range(10)) + "\n")
+    with pytest.raises(ValueError, match="cannot be triangulated"):
+        read_grid(path, node_m=5.0)
