@@ -16,6 +16,9 @@ file                      how it is read
                           empty for a local frame).
 ========================  =======================================================================
 
+``bounds=(west, south, east, north)``, in the file's own coordinates, reads only a window (from
+NetCDF and GeoTIFF without loading the rest), so a region can be cut from a global GEBCO grid.
+
 Binary files are recognised by content (NetCDF, HDF5, TIFF and zip signatures), so a GMT ``.grd``
 that is really NetCDF reads whatever its name; text files by extension.
 
@@ -92,6 +95,7 @@ def read_grid(
     variable: str | None = None,
     positive: str | None = None,
     max_gap_m: float | None = None,
+    bounds: tuple[float, float, float, float] | None = None,
 ) -> Grid:
     """Read a bathymetry file into a projected, square-node :class:`Grid`.
 
@@ -117,6 +121,10 @@ def read_grid(
     max_gap_m : float, optional
         Soundings only: the farthest a node may be from its nearest sounding and still get a depth.
         Default ``node_m``.
+    bounds : (west, south, east, north), optional
+        Read only the nodes (or soundings) inside this box, given in the file's own coordinates
+        (degrees for a geographic file, as its longitudes run): a region of a global GEBCO grid without
+        loading the whole file.
 
     Returns
     -------
@@ -140,29 +148,39 @@ def read_grid(
     for name, value in (("node_m", node_m), ("max_gap_m", max_gap_m)):
         if value is not None and not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive number of metres, got {value!r}")
+    if bounds is not None:
+        bounds = _check_bounds(bounds)
     kind = _format_of(path)
     if kind == "npz":
         if variable is not None or positive is not None or source_crs is not None:
             raise ValueError("an .npz grid is already depth in a known frame; variable, positive and source_crs do not apply")
         grid = _read_npz(path)
-        if (crs is None or _same_crs(crs, grid.crs)) and node_m in (None, grid.node_m):
+        if bounds is None and (crs is None or _same_crs(crs, grid.crs)) and node_m in (None, grid.node_m):
             return grid
         rows, cols = grid.shape
         ys = grid.y0_m + np.arange(rows) * grid.node_m
         xs = grid.x0_m + np.arange(cols) * grid.node_m
-        return _regular_to_grid(grid.depth_m, xs, ys, grid.crs, crs=crs, node_m=node_m)
+        values = grid.depth_m
+        if bounds is not None:
+            sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
+            values, xs, ys = values[sy, sx], xs[sx], ys[sy]
+        return _regular_to_grid(values, xs, ys, grid.crs, crs=crs, node_m=node_m)
     if kind == "xyz":
         if variable is not None:
             raise ValueError("variable= names a NetCDF variable; an XYZ file has columns x, y, z")
-        return _read_xyz(path, crs=crs, node_m=node_m, source_crs=source_crs, positive=positive, max_gap_m=max_gap_m)
+        return _read_xyz(
+            path, crs=crs, node_m=node_m, source_crs=source_crs, positive=positive, max_gap_m=max_gap_m, bounds=bounds
+        )
     if max_gap_m is not None:
         raise ValueError("max_gap_m applies to scattered soundings (XYZ files), not to gridded files")
     if kind == "netcdf":
-        values, xs, ys, file_crs = _read_netcdf(path, variable=variable, positive=positive, source_crs=source_crs)
+        values, xs, ys, file_crs = _read_netcdf(
+            path, variable=variable, positive=positive, source_crs=source_crs, bounds=bounds
+        )
     else:
         if variable is not None:
             raise ValueError("variable= names a NetCDF variable; a GeoTIFF is read from its band 1")
-        values, xs, ys, file_crs = _read_geotiff(path, positive=positive, source_crs=source_crs)
+        values, xs, ys, file_crs = _read_geotiff(path, positive=positive, source_crs=source_crs, bounds=bounds)
     return _regular_to_grid(values, xs, ys, file_crs, crs=crs, node_m=node_m)
 
 
@@ -244,7 +262,7 @@ def _read_npz(path: Path) -> Grid:
         )
 
 
-def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, source_crs: str | None):
+def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, source_crs: str | None, bounds):
     import xarray as xr
 
     with xr.open_dataset(path, engine="netcdf4", mask_and_scale=True, decode_times=False) as ds:
@@ -276,7 +294,10 @@ def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, sour
         file_crs = _netcdf_crs(ds, da)
         if _is_geographic(ds[x_name], x_name) != _is_geographic(ds[y_name], y_name):
             raise ValueError(f"{path.name}: one coordinate ({x_name}, {y_name}) is geographic and the other is not")
-        values = np.asarray(da.values, dtype=np.float64)
+        if bounds is not None:
+            sx, sy = _window(xs, bounds[0], bounds[2], path, x_name), _window(ys, bounds[1], bounds[3], path, y_name)
+            da, xs, ys = da.isel({x_dim: sx, y_dim: sy}), xs[sx], ys[sy]
+        values = np.asarray(da.values, dtype=np.float64)  # the file is read here, and only the window
         sign_hint = _sign_from_metadata(da.attrs, variable)
     if geographic:
         if file_crs is not None and not _crs(file_crs).is_geographic:
@@ -327,18 +348,23 @@ def _sign_from_metadata(attrs: dict, variable: str) -> str | None:
     return None
 
 
-def _read_geotiff(path: Path, *, positive: str | None, source_crs: str | None):
+def _read_geotiff(path: Path, *, positive: str | None, source_crs: str | None, bounds):
     import rasterio
+    from rasterio.windows import Window
 
     with rasterio.open(path) as src:
         t = src.transform
         if t.b != 0 or t.d != 0:
             raise ValueError(f"{path.name} is rotated or sheared (transform {tuple(t)[:6]}); LOST reads north-up rasters only")
-        band = src.read(1, masked=True)
-        values = np.ma.filled(band.astype(np.float64), np.nan)
         # rasterio's transform maps pixel corners; a value belongs to its pixel's centre.
         xs = t.c + (np.arange(src.width) + 0.5) * t.a
         ys = t.f + (np.arange(src.height) + 0.5) * t.e
+        sx, sy = slice(0, src.width), slice(0, src.height)
+        if bounds is not None:
+            sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
+            xs, ys = xs[sx], ys[sy]
+        band = src.read(1, masked=True, window=Window.from_slices((sy.start, sy.stop), (sx.start, sx.stop)))
+        values = np.ma.filled(band.astype(np.float64), np.nan)
         file_crs = src.crs.to_string() if src.crs else None
         description = (src.descriptions[0] or "") if src.descriptions else ""
         tags = src.tags(1)
@@ -348,7 +374,7 @@ def _read_geotiff(path: Path, *, positive: str | None, source_crs: str | None):
     return (*_ascending(values, xs, ys, path.name), file_crs)
 
 
-def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m) -> Grid:
+def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bounds) -> Grid:
     import pandas as pd
 
     first = _first_data_line(path)
@@ -382,6 +408,9 @@ def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m) -> Gr
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         bad = int(np.flatnonzero(~(np.isfinite(x) & np.isfinite(y)))[0])
         raise ValueError(f"{path.name}: sounding {bad + 1} has no position (NaN or empty x/y)")
+    if bounds is not None:
+        inside = (x >= bounds[0]) & (x <= bounds[2]) & (y >= bounds[1]) & (y <= bounds[3])
+        x, y, z = x[inside], y[inside], z[inside]
     keep = np.isfinite(z)
     if not keep.all():
         log.warning("%s: skipped %d of %d soundings with no depth (NaN)", path.name, int((~keep).sum()), z.size)
@@ -409,6 +438,27 @@ def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m) -> Gr
         x, y = _transformer(file_crs, target).transform(x, y)
         x, y = np.asarray(x), np.asarray(y)
     return _grid_soundings(x, y, z, node_m=node_m, max_gap_m=max_gap_m, crs=target, name=path.name)
+
+
+def _check_bounds(bounds) -> tuple[float, float, float, float]:
+    try:
+        west, south, east, north = (float(v) for v in bounds)
+    except (TypeError, ValueError):
+        raise ValueError(f"bounds must be four numbers (west, south, east, north), got {bounds!r}") from None
+    if not (np.all(np.isfinite([west, south, east, north])) and west < east and south < north):
+        raise ValueError(f"bounds must be finite with west < east and south < north, got {bounds!r}")
+    return west, south, east, north
+
+
+def _window(coords: np.ndarray, lo: float, hi: float, path: Path, axis: str) -> slice:
+    """The contiguous index range of monotonic coordinates inside [lo, hi]."""
+    inside = np.flatnonzero((coords >= lo) & (coords <= hi))
+    if inside.size < 2:
+        raise ValueError(
+            f"{path.name}: bounds {lo:g} to {hi:g} hold {inside.size} node(s) of {axis}, whose values run "
+            f"{coords.min():g} to {coords.max():g}; a grid needs at least 2"
+        )
+    return slice(int(inside[0]), int(inside[-1]) + 1)
 
 
 def _first_data_line(path: Path) -> str:

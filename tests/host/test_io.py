@@ -232,6 +232,9 @@ def test_regular_xyz_export_grids_exactly(tmp_path):
     grid = read_grid(path, positive="down")
     assert (grid.x0_m, grid.y0_m, grid.node_m, grid.crs) == (1000.0, 3000.0, 20.0, None)
     np.testing.assert_allclose(grid.depth_m, plane(x, y), atol=1e-9)
+    part = read_grid(path, positive="down", bounds=(1010.0, 3000.0, 1080.0, 3040.0))
+    assert (part.x0_m, part.y0_m, part.shape) == (1020.0, 3000.0, (3, 4))
+    np.testing.assert_allclose(part.depth_m, plane(x, y)[:3, 1:], atol=1e-9)
 
 
 def test_scattered_soundings_leave_gaps_as_holes(tmp_path):
@@ -389,3 +392,23 @@ def test_soundings_on_one_line_cannot_be_gridded(tmp_path):
     path.write_text("x,y,depth\n" + "\n".join(f"{i * 5.0},0.0,{100 + i}" for i in range(10)) + "\n")
     with pytest.raises(ValueError, match="cannot be triangulated"):
         read_grid(path, node_m=5.0)
+
+
+def test_bounds_read_only_a_window(tmp_path):
+    nc, tif = tmp_path / "g.nc", tmp_path / "g.tif"
+    lonlat_dataset(north_up=True).to_netcdf(nc)
+    north_up = np.arange(60, dtype=np.float32).reshape(6, 10) + 100.0
+    write_tif(tif, north_up, crs=UTM31N, transform=from_origin(430_000, 5_760_600, 100, 100))
+    window = read_grid(tif, bounds=(430_200, 5_760_100, 430_500, 5_760_300), positive="down")
+    # Pixel centres 430250..430450 east, 5760150..5760250 north: 2 rows (south first) x 3 columns.
+    assert (window.x0_m, window.y0_m, window.shape) == (430_250.0, 5_760_150.0, (2, 3))
+    np.testing.assert_array_equal(window.depth_m, north_up[::-1][1:3, 2:5])
+    part = read_grid(nc, node_m=50.0, bounds=(LON0 - 0.01, LAT0 - 0.01, LON0 + 0.01, LAT0 + 0.01))
+    lon, lat = node_lonlat(part)
+    finite = np.isfinite(part.depth_m)
+    assert finite.mean() > 0.8 and lon[finite].min() > LON0 - 0.011 and lat[finite].max() < LAT0 + 0.011
+    np.testing.assert_allclose(part.depth_m[finite], -elevation_of(lon, lat)[finite], atol=1e-6)
+    with pytest.raises(ValueError, match="hold 0 node"):
+        read_grid(tif, bounds=(0, 0, 1, 1))
+    with pytest.raises(ValueError, match="west < east"):
+        read_grid(tif, bounds=(5, 0, 1, 1))
