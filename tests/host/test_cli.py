@@ -1,0 +1,82 @@
+"""The ``lost`` command: run, demo and correlate, end to end on files."""
+
+import json
+
+import numpy as np
+import pytest
+
+from lost.host.cli import main
+from lost.host.grid import Grid
+from lost.host.scenario import builtin_scenario_path
+from lost.host.terrain import synthetic_terrain
+
+
+def test_run_a_scenario_writes_the_track_summary_and_plots(tmp_path, capsys):
+    out = tmp_path / "short"
+    assert main(["run", str(builtin_scenario_path("short")), "--out", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "map.png", "error.png"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["methods"]) == {"lost", "layback", "dead_reckoning"}
+    for stats in summary["methods"].values():
+        assert {"rms_m", "p95_m", "max_m"} <= set(stats)
+    assert summary["parameters"]["backend"] == "software"
+    assert (out / "map.png").read_bytes()[:4] == b"\x89PNG"
+    printed = capsys.readouterr().out
+    assert "LOST converged after" in printed and "layback" in printed
+
+
+def test_run_by_builtin_name_with_backend_and_matching(tmp_path):
+    out = tmp_path / "point"
+    assert main(["run", "short", "--out", str(out), "--backend", "model", "--matching", "point"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["parameters"]["backend"] == "model" and summary["parameters"]["matching"] == "point"
+
+
+def test_run_needs_a_scenario_or_log_and_bathy(capsys):
+    assert main(["run", "--log", "nav.csv"]) == 2
+    assert "needs a scenario file, or both --log" in capsys.readouterr().err
+
+
+def test_a_scenario_with_an_unknown_navigation_field_is_refused(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text("duration_s = 10\n[navigation]\nkay = 3\n")
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "kay" in capsys.readouterr().err
+
+
+def _map_file(tmp_path):
+    from lost.host.io import write_npz
+
+    depth = synthetic_terrain((60, 70), seed=11, roughness_m=10.0, hurst=0.5)
+    grid = Grid(depth, 1000.0, 2000.0, 10.0)
+    return depth, write_npz(grid, tmp_path / "map.npz")
+
+
+def test_correlate_files_prints_best_fit_and_runner_up(tmp_path, capsys):
+    depth, map_path = _map_file(tmp_path)
+    patch = depth[20:30, 33:43] + 4.0
+    patch[0, 0] = np.nan
+    np.save(tmp_path / "patch.npy", patch)
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.npy"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["best"]["i"] == 20 and result["best"]["j"] == 33 and result["best"]["value"] <= 99 * 99
+    assert result["valid_nodes"] == 99 and result["runner_up"]["value"] > result["best"]["value"]
+    np.savetxt(tmp_path / "patch.csv", patch, delimiter=",")
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.csv"), "--backend", "model"]) == 0
+    printed = capsys.readouterr().out
+    assert "best fit   (i, j) = (20, 33)" in printed and "centre x = 1375.0 m, y = 2245.0 m" in printed
+
+
+def test_correlate_rejects_a_bad_patch_file(tmp_path, capsys):
+    _, map_path = _map_file(tmp_path)
+    (tmp_path / "patch.json").write_text("[]")
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.json")]) == 2
+    assert ".npy, .npz or .csv" in capsys.readouterr().err
+
+
+def test_demo_runs_into_its_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["demo"]) == 0
+    summary = json.loads((tmp_path / "runs" / "demo" / "summary.json").read_text())
+    assert summary["name"] == "demo" and summary["convergence"]["converged"]
+    assert summary["methods"]["lost"]["rms_m"] < 5.0
