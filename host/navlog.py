@@ -3,7 +3,8 @@
 The navigation log
     A CSV file with a header row, one row per record, ``#`` comment lines allowed. Column names are
     matched without regard to case or surrounding spaces; a cell left empty, or ``NaN``, is a missing
-    reading: it stays NaN in the records and is counted per column in the :class:`LoadReport`.
+    reading: it stays NaN in the records and is counted per column in the :class:`LoadReport` (so are
+    the trailing cells of a row cut short; a row with more cells than the header is an error).
 
     ==========================  ===========  ===================================================
     column(s)                   required     meaning

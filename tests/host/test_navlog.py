@@ -212,3 +212,11 @@ def test_missing_or_empty_files_are_named(tmp_path):
         read_navlog(tmp_path / "absent.csv")
     with pytest.raises(ValueError, match="is empty"):
         read_navlog(write(tmp_path, ""))
+
+
+def test_short_row_is_missing_readings_and_long_row_an_error(tmp_path):
+    records, report = read_navlog(write(tmp_path, "\n".join([HEADER, ROWS[0], "1,1,2,3,4,5,6,7"]) + "\n"))
+    assert np.isnan(records.slant_range_m[1]) and np.isnan(records.cable_out_m[1])
+    assert report.nan_counts["cable_out_m"] == 1
+    with pytest.raises(ValueError, match="not a well-formed CSV"):
+        read_navlog(write(tmp_path, "\n".join([HEADER, ROWS[0], ROWS[1] + ",99"]) + "\n"))
