@@ -9,8 +9,11 @@ file                      how it is read
 ``.xyz .txt .csv``        ASCII soundings, one per line: ``x y z`` or ``lon lat z`` (whitespace,
                           comma or semicolon separated, ``#`` comments, optional header naming the
                           columns). Scattered soundings are gridded (below).
-``.nc .grd .nc4 .cdf``    GMT or GEBCO NetCDF through xarray (classic and NetCDF-4 files).
+``.nc .grd .nc4 .cdf``    GMT or GEBCO NetCDF through xarray (classic and NetCDF-4 files; also
+                          GMT's pre-4.1 layout with ``x_range``, ``dimension`` and a 1-D ``z``).
 ``.tif .tiff``            GeoTIFF through rasterio, band 1, with its CRS, transform and nodata.
+``.asc``                  ESRI ASCII grid (EMODnet ships these) through rasterio, with a ``.prj``
+                          beside it for the CRS.
 ``.npz``                  LOST's own cache, written by :func:`write_npz`; keys ``depth_m`` (2-D,
                           row 0 south), ``x0_m``, ``y0_m``, ``node_m`` and ``crs`` (a CRS string,
                           empty for a local frame).
@@ -71,7 +74,8 @@ log = logging.getLogger(__name__)
 _XYZ_SUFFIXES = (".xyz", ".txt", ".csv")
 _NETCDF_SUFFIXES = (".nc", ".grd", ".nc4", ".cdf")
 _TIFF_SUFFIXES = (".tif", ".tiff")
-GRID_SUFFIXES = _XYZ_SUFFIXES + _NETCDF_SUFFIXES + _TIFF_SUFFIXES + (".npz",)
+_ESRI_ASCII_SUFFIXES = (".asc",)
+GRID_SUFFIXES = _XYZ_SUFFIXES + _NETCDF_SUFFIXES + _TIFF_SUFFIXES + _ESRI_ASCII_SUFFIXES + (".npz",)
 
 # Above this many nodes a grid is almost surely a mistaken node_m (1e8 float64 nodes are 800 MB).
 _MAX_NODES = 100_000_000
@@ -179,8 +183,8 @@ def read_grid(
         )
     else:
         if variable is not None:
-            raise ValueError("variable= names a NetCDF variable; a GeoTIFF is read from its band 1")
-        values, xs, ys, file_crs = _read_geotiff(path, positive=positive, source_crs=source_crs, bounds=bounds)
+            raise ValueError("variable= names a NetCDF variable; a GeoTIFF or ESRI ASCII grid is read from its band 1")
+        values, xs, ys, file_crs = _read_raster(path, positive=positive, source_crs=source_crs, bounds=bounds)
     return _regular_to_grid(values, xs, ys, file_crs, crs=crs, node_m=node_m)
 
 
@@ -230,7 +234,7 @@ def _format_of(path: Path) -> str:
     if magic.startswith(b"CDF") or magic.startswith(b"\x89HDF"):
         return "netcdf"
     if magic[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
-        return "tiff"
+        return "raster"
     if magic.startswith(b"PK"):
         if path.suffix.lower() != ".npz":
             raise ValueError(f"{path.name} is a zip archive; only .npz grids written by write_npz are read as zip")
@@ -238,6 +242,10 @@ def _format_of(path: Path) -> str:
     suffix = path.suffix.lower()
     if suffix in _XYZ_SUFFIXES:
         return "xyz"
+    if suffix in _ESRI_ASCII_SUFFIXES:
+        if not magic.lower().startswith(b"ncols"):
+            raise ValueError(f"{path.name} has an .asc name but no ESRI ASCII grid header (it starts {magic!r})")
+        return "raster"
     if suffix in _NETCDF_SUFFIXES + _TIFF_SUFFIXES + (".npz",):
         raise ValueError(f"{path.name} has a {suffix} name but its content is not {suffix[1:]} (first bytes {magic!r})")
     raise ValueError(f"cannot read {path.name}: unknown grid format {suffix!r}; LOST reads {', '.join(GRID_SUFFIXES)}")
@@ -267,38 +275,14 @@ def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, sour
 
     with xr.open_dataset(path, engine="netcdf4", mask_and_scale=True, decode_times=False) as ds:
         two_d = [name for name, v in ds.data_vars.items() if v.ndim == 2]
-        if variable is None:
-            variable = next((n for n in _DEPTH_VARIABLES if n in two_d), None)
-            if variable is None and len(two_d) == 1:
-                variable = two_d[0]
-            if variable is None:
-                raise ValueError(
-                    f"{path.name}: no depth or elevation variable among the common names "
-                    f"({', '.join(_DEPTH_VARIABLES)}); its 2-D variables are {', '.join(two_d) or 'none'}; pass variable="
-                )
-        elif variable not in ds.data_vars:
-            raise ValueError(f"{path.name} has no variable {variable!r}; it has {', '.join(ds.data_vars) or 'none'}")
-        da = ds[variable]
-        if da.ndim != 2:
-            raise ValueError(f"{path.name}: {variable!r} has dimensions {da.dims}; a grid has two")
-        y_dim, x_dim = da.dims
-        x_name, y_name = _coordinate(ds, x_dim), _coordinate(ds, y_dim)
-        xs = np.asarray(ds[x_name].values if x_name else np.arange(da.shape[1]), dtype=np.float64)
-        ys = np.asarray(ds[y_name].values if y_name else np.arange(da.shape[0]), dtype=np.float64)
-        if x_name is None or y_name is None:
-            raise ValueError(
-                f"{path.name}: {variable!r} has dimensions {da.dims} without coordinate values; "
-                f"LOST needs the node positions in coordinate variables ({', '.join(_X_NAMES)} / {', '.join(_Y_NAMES)})"
-            )
-        geographic = _is_geographic(ds[x_name], x_name) or _is_geographic(ds[y_name], y_name)
-        file_crs = _netcdf_crs(ds, da)
-        if _is_geographic(ds[x_name], x_name) != _is_geographic(ds[y_name], y_name):
-            raise ValueError(f"{path.name}: one coordinate ({x_name}, {y_name}) is geographic and the other is not")
-        if bounds is not None:
-            sx, sy = _window(xs, bounds[0], bounds[2], path, x_name), _window(ys, bounds[1], bounds[3], path, y_name)
-            da, xs, ys = da.isel({x_dim: sx, y_dim: sy}), xs[sx], ys[sy]
-        values = np.asarray(da.values, dtype=np.float64)  # the file is read here, and only the window
-        sign_hint = _sign_from_metadata(da.attrs, variable)
+        if variable is None and not two_d and _LEGACY_GMT_VARIABLES <= set(ds.variables):
+            values, xs, ys, geographic, sign_hint = _legacy_gmt(ds, path)
+            variable, file_crs = "z", None
+            if bounds is not None:
+                sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
+                values, xs, ys = values[sy, sx], xs[sx], ys[sy]
+        else:
+            values, xs, ys, geographic, file_crs, sign_hint, variable = _cf_grid(ds, path, variable, two_d, bounds)
     if geographic:
         if file_crs is not None and not _crs(file_crs).is_geographic:
             raise ValueError(f"{path.name}: coordinates are in degrees but the grid mapping says {file_crs}")
@@ -306,6 +290,65 @@ def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, sour
     file_crs = _agree(path, file_crs, source_crs)
     values = _to_depth(values, positive or sign_hint, path.name, variable)
     return (*_ascending(values, xs, ys, path.name), file_crs)
+
+
+def _cf_grid(ds, path: Path, variable: str | None, two_d: list[str], bounds):
+    """A COARDS/CF grid (GMT 4.1+, GEBCO, GDAL): a 2-D variable on 1-D coordinate variables."""
+    if variable is None:
+        variable = next((n for n in _DEPTH_VARIABLES if n in two_d), None)
+        if variable is None and len(two_d) == 1:
+            variable = two_d[0]
+        if variable is None:
+            raise ValueError(
+                f"{path.name}: no depth or elevation variable among the common names "
+                f"({', '.join(_DEPTH_VARIABLES)}); its 2-D variables are {', '.join(two_d) or 'none'} "
+                f"(all variables: {', '.join(map(str, ds.variables)) or 'none'}); pass variable="
+            )
+    elif variable not in ds.data_vars:
+        raise ValueError(f"{path.name} has no variable {variable!r}; it has {', '.join(map(str, ds.data_vars)) or 'none'}")
+    da = ds[variable]
+    if da.ndim != 2:
+        raise ValueError(f"{path.name}: {variable!r} has dimensions {da.dims}; a grid has two")
+    y_dim, x_dim = da.dims
+    x_name, y_name = _coordinate(ds, x_dim), _coordinate(ds, y_dim)
+    if x_name is None or y_name is None:
+        raise ValueError(
+            f"{path.name}: {variable!r} has dimensions {da.dims} without coordinate values; "
+            f"LOST needs the node positions in coordinate variables ({', '.join(_X_NAMES)} / {', '.join(_Y_NAMES)})"
+        )
+    xs = np.asarray(ds[x_name].values, dtype=np.float64)
+    ys = np.asarray(ds[y_name].values, dtype=np.float64)
+    x_geographic, y_geographic = _is_geographic(ds[x_name], x_name), _is_geographic(ds[y_name], y_name)
+    if x_geographic != y_geographic:
+        raise ValueError(f"{path.name}: one coordinate ({x_name}, {y_name}) is geographic and the other is not")
+    file_crs = _netcdf_crs(ds, da)
+    if bounds is not None:
+        sx, sy = _window(xs, bounds[0], bounds[2], path, x_name), _window(ys, bounds[1], bounds[3], path, y_name)
+        da, xs, ys = da.isel({x_dim: sx, y_dim: sy}), xs[sx], ys[sy]
+    values = np.asarray(da.values, dtype=np.float64)  # the file is read here, and only the window
+    return values, xs, ys, x_geographic, file_crs, _sign_from_metadata(da.attrs, variable), variable
+
+
+_LEGACY_GMT_VARIABLES = {"x_range", "y_range", "spacing", "dimension", "z"}
+
+
+def _legacy_gmt(ds, path: Path):
+    """GMT's pre-4.1 NetCDF layout: a 1-D ``z`` stored north row first, its frame in range variables."""
+    nx, ny = (int(v) for v in ds["dimension"].values)
+    x_min, x_max = (float(v) for v in ds["x_range"].values)
+    y_min, y_max = (float(v) for v in ds["y_range"].values)
+    z = np.asarray(ds["z"].values, dtype=np.float64)
+    if z.size != nx * ny:
+        raise ValueError(f"{path.name}: z holds {z.size} values for dimension {nx} x {ny}")
+    # Pixel registration (node_offset 1) puts values at cell centres, half a spacing inside the range.
+    pixel = int(ds["z"].attrs.get("node_offset", 0)) == 1
+    dx = (x_max - x_min) / (nx if pixel else nx - 1)
+    dy = (y_max - y_min) / (ny if pixel else ny - 1)
+    xs = x_min + (np.arange(nx) + 0.5 * pixel) * dx
+    ys = y_max - (np.arange(ny) + 0.5 * pixel) * dy
+    units = str(ds["x_range"].attrs.get("units", "")).lower()
+    geographic = "degree" in units or "lon" in units
+    return z.reshape(ny, nx), xs, ys, geographic, _sign_from_metadata(ds["z"].attrs, "z")
 
 
 def _coordinate(ds, dim: str) -> str | None:
@@ -348,7 +391,7 @@ def _sign_from_metadata(attrs: dict, variable: str) -> str | None:
     return None
 
 
-def _read_geotiff(path: Path, *, positive: str | None, source_crs: str | None, bounds):
+def _read_raster(path: Path, *, positive: str | None, source_crs: str | None, bounds):
     import rasterio
     from rasterio.windows import Window
 

@@ -163,7 +163,27 @@ def test_contradicting_source_crs_is_refused(tmp_path):
         read_grid(path, source_crs=UTM31N)
 
 
-# ------------------------------------------------------------------ GeoTIFF
+@pytest.mark.parametrize("pixel", [0, 1])
+def test_legacy_gmt_netcdf_layout(tmp_path, pixel):
+    # GMT before 4.1: z flattened north row first; the frame in x_range, y_range, dimension.
+    north_first = np.array([[1.0, 2.0, 3.0], [4.0, np.nan, 6.0]])
+    ranges = ([100.0, 130.0], [200.0, 220.0]) if pixel else ([100.0, 120.0], [200.0, 210.0])
+    xr.Dataset(
+        {
+            "x_range": ("side", ranges[0], {"units": "m"}),
+            "y_range": ("side", ranges[1], {"units": "m"}),
+            "z_range": ("side", [1.0, 6.0]),
+            "spacing": ("side", [10.0, 10.0]),
+            "dimension": ("side", np.array([3, 2], dtype=np.int32)),
+            "z": ("xysize", north_first.ravel(), {"node_offset": np.int32(pixel), "long_name": "depth"}),
+        }
+    ).to_netcdf(tmp_path / "old.grd", format="NETCDF3_CLASSIC")
+    grid = read_grid(tmp_path / "old.grd")
+    assert (grid.x0_m, grid.y0_m, grid.node_m, grid.crs) == (105.0 if pixel else 100.0, 205.0 if pixel else 200.0, 10.0, None)
+    np.testing.assert_array_equal(grid.depth_m, north_first[::-1])
+
+
+# ------------------------------------------------------------------ GeoTIFF and ESRI ASCII
 
 
 def from_origin(west, north, xsize, ysize):
@@ -215,6 +235,19 @@ def test_rotated_geotiff_is_refused(tmp_path):
     write_tif(path, np.ones((2, 2), np.float32), crs=UTM31N, transform=Affine(10, 1, 0, 1, -10, 0))
     with pytest.raises(ValueError, match="rotated or sheared"):
         read_grid(path)
+
+
+def test_esri_ascii_grid_with_prj(tmp_path):
+    path = tmp_path / "emodnet.asc"
+    path.write_text(
+        "ncols 3\nnrows 2\nxllcenter 430000\nyllcenter 5760000\ncellsize 50\nNODATA_value -9999\n"
+        "-40 -41 -9999\n-30 -31 -32\n"
+    )
+    (tmp_path / "emodnet.prj").write_text(__import__("pyproj").CRS(UTM31N).to_wkt(version="WKT1_ESRI"))
+    grid = read_grid(path)
+    assert (grid.x0_m, grid.y0_m, grid.node_m) == (430_000.0, 5_760_000.0, 50.0)
+    assert grid.crs is not None and __import__("pyproj").CRS(grid.crs).to_epsg() == 32631
+    np.testing.assert_array_equal(grid.depth_m, [[30.0, 31.0, 32.0], [40.0, 41.0, np.nan]])
 
 
 # ------------------------------------------------------------------ ASCII XYZ
@@ -334,7 +367,8 @@ def test_npz_can_be_resampled(tmp_path):
 @pytest.mark.parametrize(
     "name, content, message",
     [
-        ("map.asc", b"ncols 2\n", "unknown grid format '.asc'"),
+        ("map.dem", b"ncols 2\n", "unknown grid format '.dem'"),
+        ("map.asc", b"0 0 1\n", "no ESRI ASCII grid header"),
         ("map.tif", b"not a tiff at all", "content is not tif"),
         ("map.nc", b"0 0 1\n", "content is not nc"),
         ("map.zip", b"PK\x03\x04rest", "zip archive"),
