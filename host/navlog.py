@@ -43,6 +43,11 @@ The sonar side file
     Soundings matching no record, belonging to a skipped record, lacking a value, or falling beyond
     the patch are counted in the report, never dropped silently.
 
+Writing
+    :func:`write_navlog` writes records (a simulated tow, say) in this layout, positions as ``x_m``/``y_m``
+    and sonar patches as one sounding per seen node keyed by ``record``, so :func:`read_navlog` reads
+    them back value for value: an example survey to run the command line on.
+
 Errors
     A missing file, a missing required column, a non-numeric cell, latitude/longitude out of range or
     time not increasing raise ``ValueError`` naming the column, data row and file line.
@@ -60,7 +65,7 @@ import numpy as np
 from .records import NavRecords, SonarPatch
 from .sonar import _check_shape, grid_soundings
 
-__all__ = ["LoadReport", "read_navlog", "NAVLOG_COLUMNS", "SONAR_COLUMNS"]
+__all__ = ["LoadReport", "read_navlog", "write_navlog", "NAVLOG_COLUMNS", "SONAR_COLUMNS"]
 
 _SINGLE_REQUIRED = ("t_s", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "cable_out_m")
 _POSITION_FORMS = (("x_m", "y_m"), ("lat", "lon"))
@@ -300,6 +305,51 @@ def read_navlog(
         **sonar_stats,
     )
     return records, report
+
+
+def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | os.PathLike | None = None) -> None:
+    """Write records in the documented layout (and their sonar patches as a side file).
+
+    Parameters
+    ----------
+    records : NavRecords
+    path : path-like
+        The navigation-log CSV to write.
+    sonar : path-like, optional
+        The sonar side file to write; required when the records carry sonar patches, refused otherwise.
+    """
+    import pandas as pd
+
+    has_sonar = any(p is not None for p in records.sonar)
+    if has_sonar and sonar is None:
+        raise ValueError("the records carry sonar patches; pass sonar= to write them, or they would be lost")
+    if sonar is not None and not has_sonar:
+        raise ValueError("sonar= was given but the records carry no sonar patch")
+    names = {
+        "t_s": "t_s", "x_m": "ship_x_m", "y_m": "ship_y_m", "ship_heading_deg": "ship_heading_deg",
+        "vehicle_depth_m": "vehicle_depth_m", "altitude_m": "altitude_m", "vel_x_mps": "vel_x_mps",
+        "vel_y_mps": "vel_y_mps", "slant_range_m": "slant_range_m", "cable_out_m": "cable_out_m",
+    }
+    if records.has_truth:
+        names |= {"truth_x_m": "truth_x_m", "truth_y_m": "truth_y_m"}
+    # pandas writes float64 with repr precision, so the text reads back to the same numbers.
+    pd.DataFrame({column: getattr(records, attribute) for column, attribute in names.items()}).to_csv(
+        path, index=False, na_rep=""
+    )
+    if sonar is not None:
+        parts = []
+        for index, patch in enumerate(records.sonar):
+            if patch is None:
+                continue
+            h, w = patch.depth_m.shape
+            k, l = np.nonzero(np.isfinite(patch.depth_m))
+            parts.append(pd.DataFrame({
+                "record": index,
+                "east_m": (l - (w - 1) / 2) * patch.node_m,
+                "north_m": (k - (h - 1) / 2) * patch.node_m,
+                "depth_m": patch.depth_m[k, l],
+            }))
+        pd.concat(parts, ignore_index=True).to_csv(sonar, index=False)
 
 
 # --------------------------------------------------------------------------------------------

@@ -220,3 +220,34 @@ def test_short_row_is_missing_readings_and_long_row_an_error(tmp_path):
     assert report.nan_counts["cable_out_m"] == 1
     with pytest.raises(ValueError, match="not a well-formed CSV"):
         read_navlog(write(tmp_path, "\n".join([HEADER, ROWS[0], ROWS[1] + ",99"]) + "\n"))
+
+
+def test_written_records_read_back_value_for_value(tmp_path):
+    from lost.host.navlog import write_navlog
+    from lost.host.records import NavRecords, SonarPatch
+
+    rng = np.random.default_rng(3)
+    n = 40
+    columns = {name: rng.normal(100.0, 30.0, n) for name in (
+        "ship_x_m", "ship_y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps",
+        "slant_range_m", "cable_out_m", "truth_x_m", "truth_y_m")}
+    columns["altitude_m"][[3, 17]] = np.nan
+    columns["slant_range_m"][::4] = np.nan
+    patches = []
+    for i in range(n):
+        depth = rng.normal(500.0, 5.0, (6, 8))
+        depth[rng.random((6, 8)) < 0.3] = np.nan
+        patches.append(None if i % 5 == 0 else SonarPatch(depth_m=depth, node_m=7.5))
+    records = NavRecords(t_s=np.cumsum(rng.uniform(0.1, 2.0, n)), sonar=tuple(patches), **columns)
+    write_navlog(records, tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv")
+    back, report = read_navlog(tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv", patch_shape=(6, 8), node_m=7.5)
+    for name in ("t_s", *columns):
+        np.testing.assert_array_equal(getattr(back, name), getattr(records, name), err_msg=name)
+    for mine, theirs in zip(back.sonar, records.sonar):
+        assert (mine is None) == (theirs is None)
+        if mine is not None:
+            np.testing.assert_array_equal(mine.depth_m, theirs.depth_m)
+    assert report.nan_counts["altitude_m"] == 2 and report.nan_counts["slant_range_m"] == 10
+    assert report.soundings == report.soundings_used and report.records_with_sonar == 32
+    with pytest.raises(ValueError, match="pass sonar="):
+        write_navlog(records, tmp_path / "again.csv")
