@@ -231,7 +231,7 @@ def read_navlog(
     kept_rows = np.flatnonzero(keep)
     values = {c: v[keep] for c, v in values.items()}
     _check_time(values["t_s"], kept_rows, lines, path)
-    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in sorted(used - {"t_s"}, key=NAVLOG_COLUMNS.index)}
+    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns if c in used and c != "t_s"}
 
     if "slant_range_m" not in columns:
         values["slant_range_m"] = np.full(keep.sum(), np.nan)
