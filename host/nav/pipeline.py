@@ -283,7 +283,8 @@ def run_lost(
     Raises
     ------
     ValueError
-        No record has a ship position to initialize from, or a sonar patch on other nodes than the map.
+        Patch matching on a tow without sonar patches, a sonar patch on other nodes than the map, a
+        prepared map of another grid.
     """
     # The sub-maps are small (about 70 x 70): an OpenMP team's wake-ups cost more than the work,
     # and far more on a busy machine (7 ms instead of 0.03 ms per correlation measured here).
@@ -291,15 +292,22 @@ def run_lost(
         return _run(records, grid, params, prepared, progress)
 
 
-def _run(records, grid, params, prepared, progress) -> NavResult:
+def _run(
+    records: NavRecords,
+    grid: Grid,
+    params: NavParameters | None,
+    prepared: PreparedMap | None,
+    progress: Callable[[Iterable[int]], Iterable[int]] | None,
+) -> NavResult:
     params = params or NavParameters()
     prepared = prepared or PreparedMap(grid=grid, lsb_m=params.lsb_m)
     if prepared.grid is not grid:
         raise ValueError("the prepared map was made from another grid than the one given")
+    if params.matching == "patch" and not any(patch is not None for patch in records.sonar):
+        raise ValueError("the tow has no sonar patch, so patch matching has nothing to match; use matching='point'")
     n_records = len(records)
     counts: Counter = Counter()
-    nan2 = lambda: np.full((n_records, 2), np.nan)  # noqa: E731
-    estimate, predicted, mle, cat, layback, dead = nan2(), nan2(), nan2(), nan2(), nan2(), nan2()
+    estimate, predicted, mle, cat, layback, dead = (np.full((n_records, 2), np.nan) for _ in range(6))
     mle_source = np.full(n_records, "", dtype="<U5")
     cross_velocity = np.full(n_records, np.nan)
     distinctness = np.full(n_records, np.nan)

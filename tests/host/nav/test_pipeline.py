@@ -161,3 +161,18 @@ def test_a_patch_on_other_nodes_is_an_error():
 def test_parameters_are_validated(kwargs, message):
     with pytest.raises(ValueError, match=message):
         NavParameters(**kwargs)
+
+
+def test_patch_matching_without_any_patch_is_an_error():
+    grid, records, _ = _tow(n=3)
+    with pytest.raises(ValueError, match="no sonar patch"):
+        run_lost(_replace(records, sonar=()), grid, NavParameters())
+
+
+def test_records_before_the_first_ship_fix_wait_uninitialized():
+    grid, records, truth = _tow(n=5)
+    ship_x = records.ship_x_m.copy()
+    ship_x[:2] = np.nan
+    result = run_lost(_replace(records, ship_x_m=ship_x), grid, NavParameters())
+    assert result.counts["before_initialization"] == 2
+    assert np.isnan(result.estimate[:2]).all() and np.allclose(result.estimate[2], truth[2])
