@@ -159,6 +159,8 @@ def read_grid(
         if variable is not None or positive is not None or source_crs is not None:
             raise ValueError("an .npz grid is already depth in a known frame; variable, positive and source_crs do not apply")
         grid = _read_npz(path)
+        if grid.crs is None and crs is not None:
+            raise ValueError(f"{path.name} is in a local frame (no CRS), so it cannot be projected to crs={crs!r}")
         if bounds is None and (crs is None or _same_crs(crs, grid.crs)) and node_m in (None, grid.node_m):
             return grid
         rows, cols = grid.shape
@@ -407,7 +409,9 @@ def _read_raster(path: Path, *, positive: str | None, source_crs: str | None, bo
             sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
             xs, ys = xs[sx], ys[sy]
         band = src.read(1, masked=True, window=Window.from_slices((sy.start, sy.stop), (sx.start, sx.stop)))
-        values = np.ma.filled(band.astype(np.float64), np.nan)
+        # Packed rasters store integers with a scale and offset; nodata is masked before they apply.
+        scale, offset = src.scales[0], src.offsets[0]
+        values = np.ma.filled(band.astype(np.float64) * scale + offset, np.nan)
         file_crs = src.crs.to_string() if src.crs else None
         description = (src.descriptions[0] or "") if src.descriptions else ""
         tags = src.tags(1)

@@ -230,6 +230,16 @@ def test_geographic_geotiff_of_elevation_becomes_utm_depth(tmp_path):
     np.testing.assert_allclose(grid.depth_m[inside], -elevation_of(node_lon, node_lat)[inside], atol=1e-6)
 
 
+def test_packed_geotiff_is_scaled(tmp_path):
+    packed = np.array([[100, 200], [300, -32768]], dtype=np.int16)
+    path = tmp_path / "packed.tif"
+    write_tif(path, packed, crs=UTM31N, transform=from_origin(0, 20, 10, 10), nodata=-32768)
+    with rasterio.open(path, "r+") as dst:
+        dst.scales, dst.offsets = (0.5,), (-1000.0,)
+    grid = read_grid(path)  # elevations -950, -900, -850 by the data's sign
+    np.testing.assert_array_equal(grid.depth_m, [[850.0, np.nan], [950.0, 900.0]])
+
+
 def test_rotated_geotiff_is_refused(tmp_path):
     path = tmp_path / "rot.tif"
     write_tif(path, np.ones((2, 2), np.float32), crs=UTM31N, transform=Affine(10, 1, 0, 1, -10, 0))
@@ -346,6 +356,8 @@ def test_npz_round_trip_is_exact(tmp_path):
     assert (back.x0_m, back.y0_m, back.node_m, back.crs) == (1234.5, -6789.25, 2.5, UTM31N)
     local = read_grid(write_npz(Grid(depth, x0_m=0, y0_m=0, node_m=1), tmp_path / "local.npz"))
     assert local.crs is None
+    with pytest.raises(ValueError, match="local frame"):
+        read_grid(tmp_path / "local.npz", crs=UTM31N)
 
 
 def test_npz_missing_key_is_named(tmp_path):
