@@ -38,8 +38,8 @@ Depth sign
     The sign is taken from, in order: the ``positive=`` argument; the CF ``positive`` attribute; the
     variable's name, standard name or long name (``depth`` means down; ``elevation``, ``height``,
     ``altitude``, ``topo`` mean up); and last the data itself (a negative median means elevation of a
-    sea floor). Elevations are negated to depth and the decision is logged at INFO level on the
-    ``lost.host.io`` logger.
+    sea floor). Elevations are negated to depth. The ``lost.host.io`` logger says which: at INFO when
+    metadata decided, at WARNING when the data's sign did (a guess the user should see).
 
 Holes
     Holes stay holes: NaN in ``Grid.depth_m`` (nodata values, NaN cells, nodes outside a reprojected
@@ -534,8 +534,12 @@ def _to_depth(values: np.ndarray, positive: str | None, name: str, variable: str
         if finite.size == 0:
             raise ValueError(f"{name}: {variable} holds no finite value")
         positive = "up" if np.median(finite) < 0 else "down"
-        log.info("%s: %s has no sign convention in its metadata; its median is %s, so it is read as %s",
-                 name, variable, f"{np.median(finite):g}", "elevation" if positive == "up" else "depth")
+        # A guess from the data, so it is said at WARNING, which Python prints even when logging is not set up.
+        log.warning(
+            "%s: %s has no sign convention in its metadata; its median is %s, so it is read as %s "
+            "(pass positive='up' or 'down' to say otherwise)",
+            name, variable, f"{np.median(finite):g}", "elevation" if positive == "up" else "depth",
+        )
     if positive == "up":
         log.info("%s: %s is elevation (positive up); negated to depth (positive down)", name, variable)
         return -values

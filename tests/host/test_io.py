@@ -128,6 +128,8 @@ def test_sign_comes_from_metadata_then_data(tmp_path, caplog):
     with caplog.at_level(logging.INFO, logger="lost.host.io"):
         assert np.all(read_grid(plain).depth_m == 30.0)
     assert "negated to depth" in caplog.text
+    guesses = [r for r in caplog.records if "no sign convention" in r.getMessage()]
+    assert len(guesses) == 1 and guesses[0].levelno == logging.WARNING
     assert np.all(read_grid(plain, positive="down").depth_m == -30.0)
 
 
