@@ -113,3 +113,11 @@ def test_run_a_recorded_tow_from_log_sonar_and_grid_files(tmp_path, capsys):
     assert summary["name"] == "nav" and summary["truth_known"]
     assert summary["convergence"]["converged"] and summary["methods"]["lost"]["rms_m"] < 7.0
     assert summary["methods"]["layback"]["rms_m"] > 10 * summary["methods"]["lost"]["rms_m"]
+
+
+def test_long_runs_get_a_progress_bar_that_passes_every_record():
+    from lost.host.cli import PROGRESS_RECORDS, _progress
+
+    assert _progress(PROGRESS_RECORDS) is None
+    wrap = _progress(PROGRESS_RECORDS + 1)
+    assert list(wrap(range(PROGRESS_RECORDS + 1))) == list(range(PROGRESS_RECORDS + 1))

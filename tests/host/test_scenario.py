@@ -137,3 +137,20 @@ def test_the_ship_turns_at_its_rate_through_the_waypoints():
     assert turn.max() <= 1.0 + 1e-9
     final = records.ship_heading_deg[-1]
     assert records.ship_heading_deg[0] == pytest.approx(90.0) and min(final, 360.0 - final) < 0.1  # east, then north
+
+
+def test_a_grid_file_replaces_the_synthetic_floor(tmp_path):
+    from lost.host.grid import Grid
+    from lost.host.io import write_npz
+
+    depth = np.full((150, 400), 700.0) + np.arange(400)[None, :] * 0.1
+    write_npz(Grid(depth, 500.0, 0.0, 10.0), tmp_path / "floor.npz")
+    path = tmp_path / "file.toml"
+    path.write_text(
+        'duration_s = 60\n[terrain]\nfile = "floor.npz"\n'
+        "[ship]\nwaypoints_m = [[3000.0, 700.0], [4400.0, 700.0]]\n[cable]\nout_m = 800.0\n"
+    )
+    grid, records = simulate(load_scenario(path))
+    assert grid.x0_m == 500.0 and np.array_equal(grid.depth_m, depth)
+    expected = 700.0 + (records.truth_x_m - 500.0) / 10.0 * 0.1
+    assert np.allclose(records.vehicle_depth_m + records.altitude_m, expected)
