@@ -4,6 +4,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from lost import model
 from lost.host import correlate
@@ -143,3 +145,43 @@ def test_patch_likelihood_agrees_with_model_best_fit_without_prior():
     value = patch_likelihood(np.zeros(surface.shape), np.zeros(surface.shape), surface, valid_nodes=36, lsb_m=0.1, k=100.0)
     fit = model.best_fit(surface)
     assert np.unravel_index(np.argmin(value), value.shape) == (fit.i, fit.j) == (11, 4)
+
+
+finite = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False)
+
+
+@given(
+    u=st.floats(min_value=1e-4, max_value=0.5),
+    max_accel=st.floats(min_value=1e-3, max_value=1.0),
+    max_speed=st.floats(min_value=1e-2, max_value=5.0),
+    steps=st.lists(st.tuples(finite, finite, st.floats(min_value=0.0, max_value=10.0)), min_size=1, max_size=20),
+)
+def test_tracker_never_exceeds_its_thresholds(u, max_accel, max_speed, steps):
+    tracker = CrossTrackTracker(u=u, max_accel_mps2=max_accel, max_speed_mps=max_speed)
+    for predicted, mle, dt in steps:
+        before = tracker.velocity_mps
+        cross = tracker.update(predicted_cross_m=predicted, mle_cross_m=mle, dt_s=dt)
+        assert abs(tracker.velocity_mps) <= max_speed
+        # f_a bounds the change beyond the (1 - u) decay; f_v can only pull it further toward zero.
+        assert abs(tracker.velocity_mps - (1 - u) * before) <= max_accel * dt + 1e-9 or abs(tracker.velocity_mps) == max_speed
+        assert cross == pytest.approx(predicted + tracker.velocity_mps * dt)
+    # From rest, the first correction moves toward the MLE, never away from it.
+    fresh = CrossTrackTracker(u=u, max_accel_mps2=max_accel, max_speed_mps=max_speed)
+    predicted, mle, dt = steps[0]
+    assert (fresh.update(predicted_cross_m=predicted, mle_cross_m=mle, dt_s=dt) - predicted) * (mle - predicted) >= 0
+
+
+@given(
+    position=st.tuples(finite, finite, finite),
+    reference=st.tuples(finite, finite, finite),
+    measured=st.floats(min_value=0.0, max_value=1e4),
+)
+def test_slant_range_correction_lands_on_the_measured_range_along_the_same_ray(position, reference, measured):
+    position, reference = np.array(position), np.array(reference)
+    distance = np.linalg.norm(position - reference)
+    if distance < 1e-3:
+        return
+    corrected = slant_range_correct(position, reference, measured)
+    assert np.linalg.norm(corrected - reference) == pytest.approx(measured, rel=1e-9, abs=1e-6)
+    if measured > 0:
+        assert np.allclose(np.cross(corrected - reference, position - reference), 0.0, atol=1e-6 * max(distance, measured) ** 2)
