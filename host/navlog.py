@@ -9,8 +9,10 @@ The navigation log
     ==========================  ===========  ===================================================
     column(s)                   required     meaning
     ==========================  ===========  ===================================================
-    ``t_s``                     yes          time, seconds, strictly increasing; a row without a
-                                             time is skipped and reported
+    ``t_s``                     one of the   time, seconds, strictly increasing; a row without a
+                                time two     time is skipped and reported
+    ``time_utc``                             or an ISO 8601 timestamp (a zone suffix is honoured,
+                                             none means UTC); ``t_s`` then counts from the first
     ``x_m``, ``y_m``            one of the   ship GPS easting, northing (metres, the map's CRS)
     ``lat``, ``lon``            two pairs    or latitude, longitude (degrees, WGS 84), projected
                                              with pyproj to ``crs`` (the map's CRS)
@@ -35,8 +37,8 @@ The navigation log
     present, ``x_m``/``y_m`` and ``vel_x_mps``/``vel_y_mps`` are used, and the report says so.
 
 The sonar side file
-    A CSV with a header, one sounding per row: ``t_s`` (the time of the record it belongs to, matched
-    within ``time_tolerance_s``) or ``record`` (0-based index of the navigation log's data row),
+    A CSV with a header, one sounding per row: ``t_s`` or ``time_utc``, whichever the log has (the time
+    of the record it belongs to, matched within ``time_tolerance_s``), or ``record`` (0-based index of the navigation log's data row),
     ``east_m`` and ``north_m`` (offset from the vehicle, metres, grid axes) and ``depth_m`` (sea-floor
     depth, positive down). Each record's soundings are gridded by :func:`lost.host.sonar.grid_soundings`
     into a ``patch_shape`` patch of ``node_m`` nodes; a record without soundings gets ``None``.
@@ -67,15 +69,16 @@ from .sonar import _check_shape, grid_soundings
 
 __all__ = ["LoadReport", "read_navlog", "write_navlog", "NAVLOG_COLUMNS", "SONAR_COLUMNS"]
 
-_SINGLE_REQUIRED = ("t_s", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "cable_out_m")
+_TIME_COLUMNS = ("t_s", "time_utc")
+_SINGLE_REQUIRED = ("ship_heading_deg", "vehicle_depth_m", "altitude_m", "cable_out_m")
 _POSITION_FORMS = (("x_m", "y_m"), ("lat", "lon"))
 _VELOCITY_FORMS = (("vel_x_mps", "vel_y_mps"), ("speed_mps", "course_deg"))
 _TRUTH_FORMS = (("truth_x_m", "truth_y_m"), ("truth_lat", "truth_lon"))
 _OPTIONAL = ("slant_range_m",)
 NAVLOG_COLUMNS = (
-    _SINGLE_REQUIRED + sum(_POSITION_FORMS, ()) + sum(_VELOCITY_FORMS, ()) + _OPTIONAL + sum(_TRUTH_FORMS, ())
+    _TIME_COLUMNS + _SINGLE_REQUIRED + sum(_POSITION_FORMS, ()) + sum(_VELOCITY_FORMS, ()) + _OPTIONAL + sum(_TRUTH_FORMS, ())
 )
-SONAR_COLUMNS = ("t_s", "record", "east_m", "north_m", "depth_m")
+SONAR_COLUMNS = ("t_s", "time_utc", "record", "east_m", "north_m", "depth_m")
 
 
 @dataclass(frozen=True)
@@ -215,23 +218,33 @@ def read_navlog(
     position = _pick_pair(columns, _POSITION_FORMS, "ship position", notes, required=True)
     velocity = _pick_pair(columns, _VELOCITY_FORMS, "velocity", notes, required=True)
     truth = _pick_pair(columns, _TRUTH_FORMS, "truth position", notes, required=False)
-    missing = [c for c in _SINGLE_REQUIRED if c not in columns]
+    time_column = next((c for c in _TIME_COLUMNS if c in columns), None)
+    missing = ([] if time_column else ["t_s (or time_utc)"]) + [c for c in _SINGLE_REQUIRED if c not in columns]
+    if time_column == "t_s" and "time_utc" in columns:
+        notes.append("t_s used for the time; time_utc not read")
     if missing:
         raise ValueError(f"{path.name} lacks the required column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
     used = set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | {c for c in _OPTIONAL if c in columns}
     unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
     lines = _data_line_numbers(path, len(table))
     values = {c: _numeric(table[columns[c]], c, path, lines) for c in used}
+    epoch = None
+    if time_column == "t_s":
+        values["t_s"] = _numeric(table[columns["t_s"]], "t_s", path, lines)
+    else:
+        values["t_s"], epoch = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=None)
+        if epoch is not None:
+            notes.append(f"t_s counts seconds from time_utc {epoch.isoformat()}")
 
     # A row without a time cannot be placed in the sequence: skip it, say so.
     t = values["t_s"]
     timeless = np.flatnonzero(~np.isfinite(t))
-    skipped = tuple((int(r), "no time (t_s empty or NaN)") for r in timeless)
+    skipped = tuple((int(r), f"no time ({time_column} empty or NaN)") for r in timeless)
     keep = np.isfinite(t)
     kept_rows = np.flatnonzero(keep)
     values = {c: v[keep] for c, v in values.items()}
     _check_time(values["t_s"], kept_rows, lines, path)
-    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns if c in used and c != "t_s"}
+    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns if c in used}
 
     if "slant_range_m" not in columns:
         values["slant_range_m"] = np.full(keep.sum(), np.nan)
@@ -275,7 +288,7 @@ def read_navlog(
     sonar_stats: dict = {}
     if sonar is not None:
         sonar_patches, sonar_stats = _read_sonar(
-            Path(sonar), record_times=values["t_s"], kept_rows=kept_rows, rows=len(table),
+            Path(sonar), record_times=values["t_s"], epoch=epoch, kept_rows=kept_rows, rows=len(table),
             patch_shape=h_w, node_m=float(node_m), time_tolerance_s=time_tolerance_s,
         )
 
@@ -397,6 +410,25 @@ def _numeric(column, name: str, path: Path, lines) -> np.ndarray:
     return number
 
 
+def _seconds(column, name: str, path: Path, lines, *, epoch):
+    """ISO 8601 timestamps to seconds from ``epoch`` (default: the first timestamp); NaN where empty."""
+    import pandas as pd
+
+    text = column.str.strip()
+    empty = (text == "") | text.str.lower().isin(("nan", "na", "n/a", "null", "nat"))
+    stamps = pd.to_datetime(text.where(~empty), utc=True, errors="coerce", format="ISO8601")
+    bad = np.flatnonzero(stamps.isna().to_numpy() & ~empty.to_numpy())
+    if bad.size:
+        row = int(bad[0])
+        raise ValueError(f"{path.name}: {name} is not an ISO 8601 time at {_where(row, lines)}: {column.iloc[row]!r}")
+    if epoch is None:
+        known = stamps.dropna()
+        if known.empty:
+            return np.full(len(stamps), np.nan), None
+        epoch = known.iloc[0]
+    return (stamps - epoch).dt.total_seconds().to_numpy(np.float64, na_value=np.nan), epoch
+
+
 def _pick_pair(columns: dict, forms, what: str, notes: list, *, required: bool):
     present = [form for form in forms if all(c in columns for c in form)]
     partial = [c for form in forms for c in form if c in columns and form not in present]
@@ -463,17 +495,24 @@ def _wrap(angle_deg: np.ndarray) -> np.ndarray:
     return np.mod(angle_deg, 360.0)
 
 
-def _read_sonar(path: Path, *, record_times, kept_rows, rows, patch_shape, node_m, time_tolerance_s):
+def _read_sonar(path: Path, *, record_times, epoch, kept_rows, rows, patch_shape, node_m, time_tolerance_s):
     table = _read_table(path)
     columns = {c.strip().lower(): c for c in table.columns}
+    # Soundings are keyed the way the log keeps time (or by record index, which works with either).
+    time_key = "t_s" if epoch is None else "time_utc"
     missing = [c for c in ("east_m", "north_m", "depth_m") if c not in columns]
-    if "t_s" not in columns and "record" not in columns:
-        missing.insert(0, "t_s or record")
+    if time_key not in columns and "record" not in columns:
+        other = "time_utc" if time_key == "t_s" else "t_s"
+        also = f" ({other} cannot be matched: the log's time is {time_key})" if other in columns else ""
+        missing.insert(0, f"{time_key} or record{also}")
     if missing:
         raise ValueError(f"{path.name} lacks the sonar column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
-    key = "record" if "record" in columns else "t_s"
+    key = "record" if "record" in columns else time_key
     lines = _data_line_numbers(path, len(table))
-    v = {c: _numeric(table[columns[c]], c, path, lines) for c in (key, "east_m", "north_m", "depth_m")}
+    v = {c: _numeric(table[columns[c]], c, path, lines) for c in (key, "east_m", "north_m", "depth_m") if c != "time_utc"}
+    if key == "time_utc":
+        v["t_s"], _ = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=epoch)
+        key = "t_s"
     finite = np.isfinite(v[key]) & np.isfinite(v["east_m"]) & np.isfinite(v["north_m"]) & np.isfinite(v["depth_m"])
 
     # Which kept record (index into record_times) each sounding belongs to; -1 none, -2 a skipped row.

@@ -251,3 +251,37 @@ def test_written_records_read_back_value_for_value(tmp_path):
     assert report.soundings == report.soundings_used and report.records_with_sonar == 32
     with pytest.raises(ValueError, match="pass sonar="):
         write_navlog(records, tmp_path / "again.csv")
+
+
+UTC_HEADER = HEADER.replace("t_s,", "time_utc,")
+
+
+def test_iso_times_count_seconds_from_the_first_and_key_the_sonar(tmp_path):
+    rows = [
+        "2024-05-01T10:00:00Z,1000,2000,90,300,20,1,0,450,500",
+        "2024-05-01T12:00:00.5+02:00,1001,2000,90,300,20,1,0,450,500",  # 10:00:00.5 UTC
+        ",1002,2000,90,300,20,1,0,450,500",
+        "2024-05-01 10:00:02,1003,2000,90,300,20,1,0,450,500",  # no zone: UTC
+    ]
+    nav = write(tmp_path, "\n".join([UTC_HEADER, *rows]) + "\n")
+    sonar = write(tmp_path, "time_utc,east_m,north_m,depth_m\n2024-05-01T10:00:00.5Z,0,0,321\n2024-05-01T10:00:09Z,0,0,1\n", "s.csv")
+    records, report = read_navlog(nav, sonar=sonar, patch_shape=(3, 3), node_m=1.0)
+    np.testing.assert_array_equal(records.t_s, [0.0, 0.5, 2.0])
+    assert report.skipped_rows == ((2, "no time (time_utc empty or NaN)"),)
+    assert any("2024-05-01T10:00:00+00:00" in n for n in report.notes)
+    assert records.sonar[1].depth_m[1, 1] == 321.0 and report.soundings_unmatched == 1
+    by_seconds = write(tmp_path, "t_s,east_m,north_m,depth_m\n0.5,0,0,321\n", "t.csv")
+    with pytest.raises(ValueError, match="time_utc or record .t_s cannot be matched"):
+        read_navlog(nav, sonar=by_seconds, node_m=1.0)
+
+
+def test_bad_iso_time_is_named(tmp_path):
+    rows = ["2024-05-01T10:00:00Z,1000,2000,90,300,20,1,0,450,500", "yesterday,1001,2000,90,300,20,1,0,450,500"]
+    with pytest.raises(ValueError, match=r"time_utc is not an ISO 8601 time at data row 1 \(line 3\): 'yesterday'"):
+        read_navlog(write(tmp_path, "\n".join([UTC_HEADER, *rows]) + "\n"))
+
+
+def test_log_without_any_time_column_is_refused(tmp_path):
+    header = HEADER.replace("t_s,", "")
+    with pytest.raises(ValueError, match=r"lacks the required column\(s\) t_s \(or time_utc\)"):
+        read_navlog(write(tmp_path, header + "\n" + ",".join(["1"] * 9) + "\n"))
