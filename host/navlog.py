@@ -31,7 +31,7 @@ The navigation log
     North: with ``x_m``/``y_m`` positions, headings, courses and velocities are in grid axes (grid
     north). With ``lat``/``lon`` they are taken as true (geographic) and turned to grid north by the
     meridian convergence at each record's position, measured with pyproj (up to a few degrees in a
-    UTM zone, enough to shift a kilometre of lay-back by tens of metres).
+    UTM zone, enough to shift a kilometre of lay-back by tens of metres); so are the sonar offsets.
 
     Columns outside this table are reported as unknown, not read. When both forms of a pair are
     present, ``x_m``/``y_m`` and ``vel_x_mps``/``vel_y_mps`` are used, and the report says so.
@@ -39,7 +39,8 @@ The navigation log
 The sonar side file
     A CSV with a header, one sounding per row: ``t_s`` or ``time_utc``, whichever the log has (the time
     of the record it belongs to, matched within ``time_tolerance_s``), or ``record`` (0-based index of the navigation log's data row),
-    ``east_m`` and ``north_m`` (offset from the vehicle, metres, grid axes) and ``depth_m`` (sea-floor
+    ``east_m`` and ``north_m`` (offset from the vehicle, metres; grid axes, or true east/north in a
+    lat/lon log, see North) and ``depth_m`` (sea-floor
     depth, positive down). Each record's soundings are gridded by :func:`lost.host.sonar.grid_soundings`
     into a ``patch_shape`` patch of ``node_m`` nodes; a record without soundings gets ``None``.
     Soundings matching no record, belonging to a skipped record, lacking a value, or falling beyond
@@ -288,7 +289,7 @@ def read_navlog(
     sonar_stats: dict = {}
     if sonar is not None:
         sonar_patches, sonar_stats = _read_sonar(
-            Path(sonar), record_times=values["t_s"], epoch=epoch, kept_rows=kept_rows, rows=len(table),
+            Path(sonar), record_times=values["t_s"], epoch=epoch, convergence_deg=convergence, kept_rows=kept_rows, rows=len(table),
             patch_shape=h_w, node_m=float(node_m), time_tolerance_s=time_tolerance_s,
         )
 
@@ -495,7 +496,7 @@ def _wrap(angle_deg: np.ndarray) -> np.ndarray:
     return np.mod(angle_deg, 360.0)
 
 
-def _read_sonar(path: Path, *, record_times, epoch, kept_rows, rows, patch_shape, node_m, time_tolerance_s):
+def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, rows, patch_shape, node_m, time_tolerance_s):
     table = _read_table(path)
     columns = {c.strip().lower(): c for c in table.columns}
     # Soundings are keyed the way the log keeps time (or by record index, which works with either).
@@ -545,9 +546,12 @@ def _read_sonar(path: Path, *, record_times, epoch, kept_rows, rows, patch_shape
     owners = owner[idx]
     bounds = np.flatnonzero(np.diff(owners)) + 1
     for group in np.split(idx, bounds) if idx.size else []:
-        gridded = grid_soundings(
-            v["east_m"][group], v["north_m"][group], v["depth_m"][group], patch_shape=patch_shape, node_m=node_m
-        )
+        # Offsets logged beside lat/lon are true east/north: turn them to grid axes like the velocities.
+        gamma = np.radians(convergence_deg[owner[group[0]]])
+        east, north = v["east_m"][group], v["north_m"][group]
+        if gamma:
+            east, north = east * np.cos(gamma) + north * np.sin(gamma), -east * np.sin(gamma) + north * np.cos(gamma)
+        gridded = grid_soundings(east, north, v["depth_m"][group], patch_shape=patch_shape, node_m=node_m)
         used += gridded.used
         outside += gridded.outside
         if gridded.used:

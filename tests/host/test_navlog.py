@@ -285,3 +285,13 @@ def test_log_without_any_time_column_is_refused(tmp_path):
     header = HEADER.replace("t_s,", "")
     with pytest.raises(ValueError, match=r"lacks the required column\(s\) t_s \(or time_utc\)"):
         read_navlog(write(tmp_path, header + "\n" + ",".join(["1"] * 9) + "\n"))
+
+
+def test_sonar_offsets_of_a_lat_lon_log_turn_to_grid_axes(tmp_path):
+    rows = ["0,52.0,5.5,0.0,100,10,0.0,1.0,300,51.999,5.5"]
+    nav = write(tmp_path, "\n".join([LAT_LON_HEADER, *rows]) + "\n")
+    # 100 m true north of the vehicle; grid north is 1.97 degrees east of true north here.
+    sonar = write(tmp_path, "record,east_m,north_m,depth_m\n0,0,100,321\n", "s.csv")
+    records, _ = read_navlog(nav, sonar=sonar, crs="EPSG:32631", patch_shape=(201, 201), node_m=1.0)
+    k, l = np.argwhere(np.isfinite(records.sonar[0].depth_m))[0]
+    assert (k - 100, l - 100) == (100, -3)  # 100 m * sin(-1.97 deg) = -3.4 m east
