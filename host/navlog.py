@@ -242,6 +242,8 @@ def read_navlog(
     timeless = np.flatnonzero(~np.isfinite(t))
     skipped = tuple((int(r), f"no time ({time_column} empty or NaN)") for r in timeless)
     keep = np.isfinite(t)
+    if not keep.any():
+        raise ValueError(f"{path.name} has no record with a time ({len(t)} data row(s)); there is nothing to navigate")
     kept_rows = np.flatnonzero(keep)
     values = {c: v[keep] for c, v in values.items()}
     _check_time(values["t_s"], kept_rows, lines, path)

@@ -295,3 +295,10 @@ def test_sonar_offsets_of_a_lat_lon_log_turn_to_grid_axes(tmp_path):
     records, _ = read_navlog(nav, sonar=sonar, crs="EPSG:32631", patch_shape=(201, 201), node_m=1.0)
     k, l = np.argwhere(np.isfinite(records.sonar[0].depth_m))[0]
     assert (k - 100, l - 100) == (100, -3)  # 100 m * sin(-1.97 deg) = -3.4 m east
+
+
+def test_log_with_no_timed_record_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="no record with a time .0 data row"):
+        read_navlog(write(tmp_path, HEADER + "\n"))
+    with pytest.raises(ValueError, match="no record with a time .1 data row"):
+        read_navlog(write(tmp_path, HEADER + "\n," + ROWS[0].split(",", 1)[1] + "\n"))
