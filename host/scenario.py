@@ -306,7 +306,10 @@ def _ship_track(scenario: Scenario, t: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def _read(rng: np.random.Generator, truth: np.ndarray, spec: SensorSpec) -> np.ndarray:
-    """One sensor's readings of a true series: noise, bias, outliers, dropouts."""
+    """One sensor's readings of a true series: noise, bias, outliers, dropouts.
+
+    For a 2-D series (rows of components) an outlier or a dropout hits a whole row.
+    """
     truth = np.asarray(truth, float)
     reading = truth + np.asarray(spec.bias, float) + rng.normal(0.0, 1.0, truth.shape) * spec.noise
     outliers = rng.random(truth.shape[0]) < spec.outlier_rate
@@ -355,9 +358,9 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
     velocity = np.gradient(truth, dt, axis=0)
 
     sensors = scenario.sensors
-    gps_x = _read(rng, ship_x, sensors["gps"])
-    gps_y = np.where(np.isnan(gps_x), np.nan, _read(rng, ship_y, sensors["gps"]))
-    ship_heading = np.where(np.isnan(gps_x), np.nan, _read(rng, heading, sensors["heading"]) % 360.0)
+    # A GPS fix (and its outliers) is one reading of both coordinates; the heading has its own sensor.
+    gps = _read(rng, np.column_stack([ship_x, ship_y]), sensors["gps"])
+    ship_heading = _read(rng, heading, sensors["heading"]) % 360.0
     if vehicle.has_velocity_sensor:
         measured_velocity = _read(rng, velocity, sensors["velocity"])
     else:
@@ -374,8 +377,8 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
 
     return grid, NavRecords(
         t_s=t,
-        ship_x_m=gps_x,
-        ship_y_m=gps_y,
+        ship_x_m=gps[:, 0],
+        ship_y_m=gps[:, 1],
         ship_heading_deg=ship_heading,
         vehicle_depth_m=_read(rng, depths, sensors["depth"]),
         altitude_m=_read(rng, floor - depths, sensors["altimeter"]),

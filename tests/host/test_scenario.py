@@ -154,3 +154,10 @@ def test_a_grid_file_replaces_the_synthetic_floor(tmp_path):
     assert grid.x0_m == 500.0 and np.array_equal(grid.depth_m, depth)
     expected = 700.0 + (records.truth_x_m - 500.0) / 10.0 * 0.1
     assert np.allclose(records.vehicle_depth_m + records.altitude_m, expected)
+
+
+def test_a_gps_dropout_loses_both_coordinates():
+    _, records = simulate(_quiet(sensors={"gps": SensorSpec(noise=1.0, dropout_rate=0.2)}))
+    assert np.array_equal(np.isnan(records.ship_x_m), np.isnan(records.ship_y_m))
+    assert 0.15 < np.isnan(records.ship_x_m).mean() < 0.25
+    assert not np.isnan(records.ship_heading_deg).any()
