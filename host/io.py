@@ -144,7 +144,19 @@ def read_grid(
     FileNotFoundError
         The file does not exist.
     """
-    path = Path(path)
+    grid = _read_any(
+        Path(path), crs=crs, node_m=node_m, source_crs=source_crs, variable=variable, positive=positive,
+        max_gap_m=max_gap_m, bounds=bounds,
+    )
+    if not np.isfinite(grid.depth_m).any():
+        raise ValueError(
+            f"no node of the grid read from {Path(path).name} has a depth: the file (or its bounds window) is all "
+            "holes, max_gap_m is too small for the soundings, or the file's frame is not what it says"
+        )
+    return grid
+
+
+def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_gap_m, bounds) -> Grid:
     if not path.is_file():
         raise FileNotFoundError(f"no bathymetry file at {path}")
     if positive not in (None, "down", "up"):
@@ -649,6 +661,9 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m) -> Grid:
         from pyproj.enums import TransformDirection
 
         qx, qy = transformer.transform(qx, qy, direction=TransformDirection.INVERSE)
+        if _crs(file_crs).is_geographic:
+            # PROJ answers longitudes in [-180, 180); a file may run 0 to 360.
+            qx = xs[0] + np.mod(np.asarray(qx) - xs[0], 360.0)
     depth = _interpolate_keeping_holes(values, xs, ys, np.asarray(qx), np.asarray(qy))
     return Grid(depth_m=depth, x0_m=float(x0), y0_m=float(y0), node_m=float(node_m), crs=target)
 

@@ -460,3 +460,26 @@ def test_bounds_read_only_a_window(tmp_path):
         read_grid(tif, bounds=(0, 0, 1, 1))
     with pytest.raises(ValueError, match="west < east"):
         read_grid(tif, bounds=(5, 0, 1, 1))
+
+
+def test_longitudes_from_0_to_360_are_projected(tmp_path):
+    lon = 350.0 + np.arange(41) * 0.0025  # 10 W
+    lat = LAT0 + np.arange(25) * 0.0025
+    z = elevation_of(lon[None, :] - 360.0, lat[:, None])
+    path = tmp_path / "east360.nc"
+    xr.Dataset({"elevation": (("lat", "lon"), z)}, coords={"lon": lon, "lat": lat}).to_netcdf(path)
+    grid = read_grid(path, node_m=50.0)
+    assert grid.crs == "EPSG:32629"
+    node_lon, node_lat = node_lonlat(grid)
+    finite = np.isfinite(grid.depth_m)
+    assert finite.mean() > 0.8
+    np.testing.assert_allclose(grid.depth_m[finite], -elevation_of(node_lon, node_lat)[finite], atol=1e-6)
+
+
+def test_all_hole_result_is_refused(tmp_path):
+    path = tmp_path / "holes.nc"
+    z = np.full((3, 3), np.nan)
+    xr.Dataset({"depth": (("y", "x"), z)}, coords={"x": [0.0, 10.0, 20.0], "y": [0.0, 10.0, 20.0]}).to_netcdf(path)
+    for node_m in (5.0, None):  # resampled, and kept node for node
+        with pytest.raises(ValueError, match="no node of the grid read from holes.nc has a depth"):
+            read_grid(path, node_m=node_m, positive="down")
