@@ -483,3 +483,22 @@ def test_all_hole_result_is_refused(tmp_path):
     for node_m in (5.0, None):  # resampled, and kept node for node
         with pytest.raises(ValueError, match="no node of the grid read from holes.nc has a depth"):
             read_grid(path, node_m=node_m, positive="down")
+
+
+def test_projected_grid_to_another_projected_crs(tmp_path):
+    # A plane in UTM 31N metres, read into UTM 32N: every node checked through the inverse projection.
+    cols, rows = 60, 40
+    west, north, step = 690_000.0, 5_770_000.0, 25.0
+    x = west + (np.arange(cols) + 0.5) * step
+    y = north - (np.arange(rows) + 0.5) * step
+    values = (300.0 + 0.01 * (x[None, :] - west) - 0.02 * (y[:, None] - north)).astype(np.float64)
+    path = tmp_path / "utm31.tif"
+    write_tif(path, values, crs=UTM31N, transform=from_origin(west, north, step, step))
+    grid = read_grid(path, crs="EPSG:32632", positive="down")
+    assert grid.crs == "EPSG:32632" and grid.node_m == pytest.approx(25.0, rel=1e-3)
+    rows_i, cols_i = np.meshgrid(np.arange(grid.shape[0]), np.arange(grid.shape[1]), indexing="ij")
+    gx, gy = grid.xy(rows_i, cols_i)
+    sx, sy = Transformer.from_crs("EPSG:32632", UTM31N, always_xy=True).transform(gx, gy)
+    finite = np.isfinite(grid.depth_m)
+    assert finite.mean() > 0.8
+    np.testing.assert_allclose(grid.depth_m[finite], (300.0 + 0.01 * (sx - west) - 0.02 * (sy - north))[finite], atol=1e-6)
