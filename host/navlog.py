@@ -58,6 +58,7 @@ Errors
 
 from __future__ import annotations
 
+import functools
 import os
 from collections import Counter
 from dataclasses import dataclass
@@ -227,7 +228,7 @@ def read_navlog(
         raise ValueError(f"{path.name} lacks the required column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
     used = set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | {c for c in _OPTIONAL if c in columns}
     unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
-    lines = _data_line_numbers(path, len(table))
+    lines = _Lines(path, len(table))
     values = {c: _numeric(table[columns[c]], c, path, lines) for c in used}
     epoch = None
     if time_column == "t_s":
@@ -377,39 +378,60 @@ def _read_table(path: Path):
     if not path.is_file():
         raise FileNotFoundError(f"no file at {path}")
     try:
-        # Everything as text first, so a stray word is reported by column and row, not coerced.
-        return pd.read_csv(path, comment="#", dtype=str, keep_default_na=False, skipinitialspace=True)
+        # The C parser makes clean columns float64 at once; a column with a stray word stays text, and
+        # _numeric then names the cell. Only these words (and empty cells) are missing readings.
+        return pd.read_csv(
+            path, comment="#", skipinitialspace=True, keep_default_na=False,
+            na_values=["", "nan", "NaN", "NAN", "NA", "n/a", "N/A", "null", "NULL", "NaT"],
+        )
     except pd.errors.EmptyDataError:
         raise ValueError(f"{path.name} is empty; a header row naming the columns is needed") from None
     except pd.errors.ParserError as exc:
         raise ValueError(f"{path.name} is not a well-formed CSV: {exc}") from None
 
 
-def _data_line_numbers(path: Path, rows: int) -> np.ndarray | None:
-    """File line (1-based) of each data row, for error messages; None if the file is not one row per line."""
-    numbers = []
-    with path.open("r", encoding="utf-8", errors="replace") as f:
-        for number, line in enumerate(f, start=1):
-            if line.strip() and not line.lstrip().startswith("#"):
-                numbers.append(number)
-    numbers = numbers[1:]  # the header
-    return np.asarray(numbers) if len(numbers) == rows else None
+class _Lines:
+    """File line (1-based) of each data row, for error messages; counted only when one is raised."""
+
+    def __init__(self, path: Path, rows: int) -> None:
+        self._path, self._rows = path, rows
+
+    @functools.cached_property
+    def numbers(self) -> np.ndarray | None:
+        numbers = []
+        with self._path.open("r", encoding="utf-8", errors="replace") as f:
+            for number, line in enumerate(f, start=1):
+                if line.strip() and not line.lstrip().startswith("#"):
+                    numbers.append(number)
+        numbers = numbers[1:]  # the header
+        # A quoted cell spanning lines would shift the count: then name the data row only.
+        return np.asarray(numbers) if len(numbers) == self._rows else None
 
 
-def _where(row: int, lines: np.ndarray | None) -> str:
-    return f"data row {row}" + (f" (line {int(lines[row])})" if lines is not None else "")
+def _where(row: int, lines: _Lines) -> str:
+    numbers = lines.numbers
+    return f"data row {row}" + (f" (line {int(numbers[row])})" if numbers is not None else "")
 
 
-def _numeric(column, name: str, path: Path, lines) -> np.ndarray:
+_MISSING_WORDS = ("nan", "na", "n/a", "null")
+
+
+def _numeric(column, name: str, path: Path, lines: _Lines) -> np.ndarray:
     import pandas as pd
 
-    text = column.str.strip()
-    empty = (text == "") | text.str.lower().isin(("nan", "na", "n/a", "null"))
-    number = pd.to_numeric(text.where(~empty), errors="coerce").to_numpy(np.float64)
-    bad = np.flatnonzero(np.isnan(number) & ~empty.to_numpy())
-    if bad.size:
-        row = int(bad[0])
-        raise ValueError(f"{path.name}: {name} is not a number at {_where(row, lines)}: {column.iloc[row]!r}")
+    if pd.api.types.is_bool_dtype(column.dtype):
+        raise ValueError(f"{path.name}: {name} holds true/false, not numbers, from {_where(0, lines)}: {column.iloc[0]!r}")
+    if pd.api.types.is_numeric_dtype(column.dtype):
+        return column.to_numpy(np.float64)
+    number = pd.to_numeric(column, errors="coerce").to_numpy(np.float64)
+    # Only cells that did not parse are looked at again: empty or a missing word is a missing reading.
+    unparsed = np.flatnonzero(np.isnan(number))
+    if unparsed.size:
+        text = column.iloc[unparsed].astype(str).str.strip().str.lower()
+        bad = unparsed[~(column.iloc[unparsed].isna() | (text == "") | text.isin(_MISSING_WORDS)).to_numpy()]
+        if bad.size:
+            row = int(bad[0])
+            raise ValueError(f"{path.name}: {name} is not a number at {_where(row, lines)}: {column.iloc[row]!r}")
     return number
 
 
@@ -417,8 +439,8 @@ def _seconds(column, name: str, path: Path, lines, *, epoch):
     """ISO 8601 timestamps to seconds from ``epoch`` (default: the first timestamp); NaN where empty."""
     import pandas as pd
 
-    text = column.str.strip()
-    empty = (text == "") | text.str.lower().isin(("nan", "na", "n/a", "null", "nat"))
+    text = column.astype(str).str.strip()
+    empty = column.isna() | (text == "") | text.str.lower().isin(_MISSING_WORDS + ("nat",))
     stamps = pd.to_datetime(text.where(~empty), utc=True, errors="coerce", format="ISO8601")
     bad = np.flatnonzero(stamps.isna().to_numpy() & ~empty.to_numpy())
     if bad.size:
@@ -511,7 +533,7 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
     if missing:
         raise ValueError(f"{path.name} lacks the sonar column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
     key = "record" if "record" in columns else time_key
-    lines = _data_line_numbers(path, len(table))
+    lines = _Lines(path, len(table))
     v = {c: _numeric(table[columns[c]], c, path, lines) for c in (key, "east_m", "north_m", "depth_m") if c != "time_utc"}
     if key == "time_utc":
         v["t_s"], _ = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=epoch)

@@ -302,3 +302,17 @@ def test_log_with_no_timed_record_is_refused(tmp_path):
         read_navlog(write(tmp_path, HEADER + "\n"))
     with pytest.raises(ValueError, match="no record with a time .1 data row"):
         read_navlog(write(tmp_path, HEADER + "\n," + ROWS[0].split(",", 1)[1] + "\n"))
+
+
+@pytest.mark.parametrize("cell", ["", " ", "NaN", "nan", "Nan", "NULL", "n/a", "NA"])
+def test_every_spelling_of_missing_is_a_missing_reading(tmp_path, cell):
+    text = "\n".join([HEADER, ROWS[0], ROWS[1].replace("19.5", cell)]) + "\n"
+    records, report = read_navlog(write(tmp_path, text))
+    assert np.isnan(records.altitude_m[1]) and report.nan_counts["altitude_m"] == 1
+    assert records.altitude_m[0] == 20.0
+
+
+def test_true_false_column_is_not_numbers(tmp_path):
+    text = "\n".join([HEADER, ROWS[0].replace("20.0", "True"), ROWS[1].replace("19.5", "False")]) + "\n"
+    with pytest.raises(ValueError, match="altitude_m holds true/false"):
+        read_navlog(write(tmp_path, text))
