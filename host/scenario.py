@@ -137,13 +137,29 @@ class SensorSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class SonarSpec(SensorSpec):
-    """``[sensors.sonar]``: SensorSpec fields (metres, per beam) plus shape (h, w); interval_s between
-    patches; missing_beam_rate, the share of beams with no return; enabled."""
+    """``[sensors.sonar]``: SensorSpec fields (metres, per sounding) plus
+
+    enabled; shape (h, w) of the patch; interval_s between patches; missing_beam_rate, the share of
+    soundings with no return; mode:
+
+    - ``"gridded"``: the patch arrives sampled on the map's nodes around the true position;
+    - ``"swath"``: a multibeam swath of ``beams`` soundings across ``swath_width_m`` (default the
+      patch's larger side) perpendicular to the vehicle's motion at every record; the patch of record n
+      bins, with ``lost.host.sonar.grid_soundings``, the soundings of the pings (within
+      ``max_window_s`` before and after n) whose position lies within half a patch diagonal of the
+      vehicle's, all placed relative to the vehicle by dead reckoning on the measured velocity (so
+      its errors distort the patch, as on a real tow). Using later pings makes this a
+      post-processing patch: in real time it would arrive that much later.
+    """
 
     enabled: bool = True
     shape: tuple[int, int] = (10, 10)
     interval_s: float = 1.0
     missing_beam_rate: float = 0.0
+    mode: str = "gridded"
+    beams: int = 64
+    swath_width_m: float | None = None
+    max_window_s: float = 300.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -190,6 +206,13 @@ class Scenario:
             for rate in ("dropout_rate", "outlier_rate") + (("missing_beam_rate",) if name == "sonar" else ()):
                 if not 0.0 <= getattr(spec, rate) <= 1.0:
                     raise ValueError(f"sensors.{name}.{rate} must lie in [0, 1], got {getattr(spec, rate)!r}.")
+        sonar = sensors["sonar"]
+        if sonar.mode not in ("gridded", "swath"):
+            raise ValueError(f"sensors.sonar.mode must be 'gridded' or 'swath', got {sonar.mode!r}.")
+        if sonar.beams < 2 or not (sonar.swath_width_m is None or sonar.swath_width_m > 0):
+            raise ValueError(f"sensors.sonar needs at least 2 beams and a positive swath width, got {sonar.beams!r} and {sonar.swath_width_m!r}.")
+        if not sonar.interval_s > 0:
+            raise ValueError(f"sensors.sonar.interval_s must be positive, got {sonar.interval_s!r}.")
         object.__setattr__(self, "sensors", sensors)
 
 
@@ -386,29 +409,81 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
         vel_y_mps=measured_velocity[:, 1],
         slant_range_m=slant,
         cable_out_m=np.full(t.size, cable.out_m),
-        sonar=_sonar_patches(rng, grid, truth, sensors["sonar"], scenario.rate_hz),
+        sonar=_sonar_patches(rng, grid, truth, measured_velocity, sensors["sonar"], scenario.rate_hz),
         truth_x_m=truth[:, 0],
         truth_y_m=truth[:, 1],
     )
 
 
-def _sonar_patches(rng: np.random.Generator, grid: Grid, truth: np.ndarray, spec: SonarSpec, rate_hz: float) -> tuple:
+def _sonar_patches(
+    rng: np.random.Generator, grid: Grid, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float
+) -> tuple:
     if not spec.enabled:
         return ()
-    h, w = spec.shape
     every = max(int(round(spec.interval_s * rate_hz)), 1)
     at = np.arange(0, truth.shape[0], every)
+    patches: list[SonarPatch | None] = [None] * truth.shape[0]
+    if spec.mode == "swath":
+        for n, patch in zip(at, _swath_patches(rng, grid, truth, measured_velocity, spec, rate_hz, at)):
+            patches[n] = patch
+        return tuple(patches)
+    h, w = spec.shape
     north = (np.arange(h) - (h - 1) / 2) * grid.node_m
     east = (np.arange(w) - (w - 1) / 2) * grid.node_m
     x = truth[at, 0][:, None, None] + east[None, None, :]
     y = truth[at, 1][:, None, None] + north[None, :, None]
     x, y = np.broadcast_arrays(x, y)
-    true_depth = _floor_depth(grid, x, y)
+    depth = _sound(rng, _floor_depth(grid, x, y), spec)
+    for k, n in enumerate(at):
+        patches[n] = SonarPatch(depth_m=depth[k], node_m=grid.node_m)
+    return tuple(patches)
+
+
+def _sound(rng: np.random.Generator, true_depth: np.ndarray, spec: SonarSpec) -> np.ndarray:
+    """Soundings of true depths: bias, noise, outliers, and NaN for the beams with no return."""
     depth = true_depth + spec.bias + rng.normal(0.0, spec.noise, true_depth.shape)
     outliers = rng.random(depth.shape) < spec.outlier_rate
     depth[outliers] += rng.uniform(-spec.outlier, spec.outlier, int(outliers.sum()))
     depth[rng.random(depth.shape) < spec.missing_beam_rate] = np.nan
-    patches: list[SonarPatch | None] = [None] * truth.shape[0]
-    for k, n in enumerate(at):
-        patches[n] = SonarPatch(depth_m=depth[k], node_m=grid.node_m)
-    return tuple(patches)
+    return depth
+
+
+def _swath_patches(
+    rng: np.random.Generator, grid: Grid, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float, at: np.ndarray
+) -> list[SonarPatch]:
+    from .sonar import grid_soundings
+
+    h, w = spec.shape
+    dt = 1.0 / rate_hz
+    velocity = np.gradient(truth, dt, axis=0)
+    speed = np.hypot(velocity[:, 0], velocity[:, 1])
+    # Beams across the vehicle's motion (to starboard positive); a vehicle at rest looks north.
+    motion = np.where(speed[:, None] > 1e-6, velocity / np.maximum(speed, 1e-6)[:, None], (0.0, 1.0))
+    starboard = np.column_stack([motion[:, 1], -motion[:, 0]])
+    width = spec.swath_width_m if spec.swath_width_m is not None else max(h, w) * grid.node_m
+    across = np.linspace(-width / 2, width / 2, spec.beams)
+    beam_offsets = across[None, :, None] * starboard[:, None, :]  # (pings, beams, 2)
+    spots = truth[:, None, :] + beam_offsets
+    depth = _sound(rng, _floor_depth(grid, spots[..., 0], spots[..., 1]), spec)
+    # Where the navigation believes each ping was: dead reckoning on the measured velocity, a dropped
+    # reading holding the last one.
+    held = measured_velocity.copy()
+    for n in range(1, held.shape[0]):
+        if np.isnan(held[n]).any():
+            held[n] = held[n - 1]
+    held[np.isnan(held)] = 0.0
+    reckoned = np.vstack([np.zeros(2), np.cumsum(held[:-1] * dt, axis=0)])
+    # The pings whose reckoned position lies within half a patch diagonal of the vehicle's, looked
+    # for at most max_window_s away: a slow vehicle gathers pings for longer.
+    half_diagonal = math.hypot(h, w) * grid.node_m / 2
+    window = int(np.ceil(spec.max_window_s * rate_hz))
+    patches = []
+    for n in at:
+        nearby = np.arange(max(n - window, 0), min(n + window + 1, truth.shape[0]))
+        pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[n]).T) <= half_diagonal]
+        offsets = beam_offsets[pings] + (reckoned[pings] - reckoned[n])[:, None, :]
+        sounded = np.isfinite(depth[pings])
+        patches.append(
+            grid_soundings(offsets[..., 0][sounded], offsets[..., 1][sounded], depth[pings][sounded], patch_shape=(h, w), node_m=grid.node_m).patch
+        )
+    return patches

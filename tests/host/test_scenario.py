@@ -161,3 +161,32 @@ def test_a_gps_dropout_loses_both_coordinates():
     assert np.array_equal(np.isnan(records.ship_x_m), np.isnan(records.ship_y_m))
     assert 0.15 < np.isnan(records.ship_x_m).mean() < 0.25
     assert not np.isnan(records.ship_heading_deg).any()
+
+
+def test_a_swath_binned_by_dead_reckoning_makes_the_gridded_patch(tmp_path):
+    from lost.host.grid import Grid
+    from lost.host.io import write_npz
+
+    plane = 500.0 + 0.05 * np.arange(500)[None, :] + 0.03 * np.arange(200)[:, None]
+    write_npz(Grid(plane, 0.0, 0.0, 10.0), tmp_path / "plane.npz")
+    on_plane = replace(_quiet(), base_dir=tmp_path, terrain=TerrainSpec(file="plane.npz"))
+    _, from_swath = simulate(replace(on_plane, sensors={"sonar": SonarSpec(mode="swath", beams=64, shape=(6, 6), interval_s=5.0)}))
+    _, from_nodes = simulate(replace(on_plane, sensors={"sonar": SonarSpec(shape=(6, 6), interval_s=5.0)}))
+    # From 30 s on, the pings behind the vehicle cover the patch (earlier, its back is still empty).
+    compared = 0
+    for a, b in zip(from_swath.sonar[30:], from_nodes.sonar[30:-30]):
+        if a is None:
+            assert b is None
+            continue
+        assert np.isfinite(a.depth_m).all()
+        # Each node holds the mean of the soundings on it: within the plane's rise over half a node.
+        assert np.max(np.abs(a.depth_m - b.depth_m)) < 0.5 * 10.0 * 0.06
+        compared += 1
+    assert compared > 100
+
+
+def test_swath_settings_are_validated():
+    with pytest.raises(ValueError, match="mode must be"):
+        Scenario(sensors={"sonar": SonarSpec(mode="sidescan")})
+    with pytest.raises(ValueError, match="at least 2 beams"):
+        Scenario(sensors={"sonar": SonarSpec(mode="swath", beams=1)})
