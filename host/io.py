@@ -490,7 +490,7 @@ def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bound
         )
     else:
         file_crs = None
-    z = _to_depth(z, positive or sign_hint, path.name, str(z_col))
+    z = _to_depth(z, positive or sign_hint, path.name, f"column {z_col!r}" if has_header else "the third (z) column")
 
     target = _target_crs(file_crs, crs, x, y)
     if file_crs is not None and target is not None and not _same_crs(file_crs, target):
