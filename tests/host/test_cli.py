@@ -121,3 +121,19 @@ def test_long_runs_get_a_progress_bar_that_passes_every_record():
     assert _progress(PROGRESS_RECORDS) is None
     wrap = _progress(PROGRESS_RECORDS + 1)
     assert list(wrap(range(PROGRESS_RECORDS + 1))) == list(range(PROGRESS_RECORDS + 1))
+
+
+def test_correlate_never_places_the_patch_on_a_hole(tmp_path, capsys):
+    from lost.host.io import write_npz
+
+    depth = synthetic_terrain((60, 70), seed=11, roughness_m=10.0, hurst=0.5)
+    patch = depth[20:30, 33:43].copy()
+    holed = depth.copy()
+    holed[25, 40] = np.nan
+    map_path = write_npz(Grid(holed, 0.0, 0.0, 10.0), tmp_path / "holed.npz")
+    np.save(tmp_path / "patch.npy", patch)
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.npy"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["excluded_placements"] == 100  # the 10 x 10 placements whose window covers node (25, 40)
+    best = result["best"]
+    assert not (16 <= best["i"] <= 25 and 31 <= best["j"] <= 40)
