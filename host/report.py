@@ -117,7 +117,8 @@ def _fmt(value: float) -> str:
 def write_track_csv(path: Path, result: NavResult) -> None:
     """One row per record: time, estimate, truth, every stage's output, the baselines and the flags.
 
-    ``stage`` says what produced the estimate: ``patch`` or ``point`` (an MLE at that record),
+    ``stage`` says what produced the estimate: ``patch`` or ``point`` (an MLE at that record, which the
+    tracker used unless the ship's fix was missing, counted as ``cat_no_ship_fix``),
     ``dead_reckoning`` (no MLE), ``off_map`` (dead reckoning because the prediction left the map),
     ``initialization`` (the lay-back start) or ``uninitialized``. Empty cells are missing values.
     """
