@@ -2,6 +2,9 @@
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from lost import model
 from lost.host.grid import Grid
@@ -60,3 +63,18 @@ def test_no_valid_node_is_an_error():
 def test_a_patch_larger_than_the_map_is_an_error():
     with pytest.raises(ValueError, match="does not fit"):
         PreparedMap(grid=_grid(np.zeros((3, 3)))).placements_touching_holes((4, 2))
+
+
+@given(
+    holes=hnp.arrays(bool, st.tuples(st.integers(1, 12), st.integers(1, 12)), elements=st.booleans()),
+    h=st.integers(1, 5),
+    w=st.integers(1, 5),
+)
+def test_touching_holes_matches_a_naive_scan(holes, h, w):
+    rows, cols = holes.shape
+    if holes.all() or h > rows or w > cols:
+        return
+    depth = np.where(holes, np.nan, 100.0 + np.arange(holes.size).reshape(holes.shape))
+    touching = PreparedMap(grid=_grid(depth)).placements_touching_holes((h, w))
+    naive = np.array([[holes[i : i + h, j : j + w].any() for j in range(cols - w + 1)] for i in range(rows - h + 1)])
+    assert np.array_equal(touching, naive.reshape(rows - h + 1, cols - w + 1))
