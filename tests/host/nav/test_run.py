@@ -35,3 +35,28 @@ def test_short_scenario_uses_every_patch_and_no_range(short_run):
     assert set(used) <= set(patches) and len(used) >= 0.95 * (len(patches) - 1)
     assert summary["counts"]["slant_range_corrections"] == 0
     assert summary["off_map_records"] == 0
+
+
+def test_a_tow_that_leaves_the_map_dead_reckons_beyond_it():
+    from lost.host.scenario import CableSpec, Scenario, SensorSpec, ShipSpec, SonarSpec, TerrainSpec
+
+    scenario = Scenario(
+        seed=12,
+        duration_s=1500.0,
+        terrain=TerrainSpec(shape=(150, 300), roughness_m=10.0, hurst=0.5),  # ends at easting 2990 m
+        ship=ShipSpec(waypoints_m=((1500.0, 750.0), (5000.0, 750.0))),
+        cable=CableSpec(out_m=900.0),
+        sensors={"sonar": SonarSpec(noise=0.2), "velocity": SensorSpec(noise=0.02, bias=(0.02, 0.0))},
+    )
+    grid, records = simulate(scenario)
+    result = run_lost(records, grid, NavParameters())
+    summary = summarize(result, name="edge", parameters={})
+    beyond = result.truth[:, 0] > 3000.0 + 300.0  # past the edge by more than a search area
+    assert beyond.sum() > 50
+    assert result.off_map[beyond].all() and summary["off_map_records"] == int(result.off_map.sum())
+    assert np.all(result.mle_source[result.off_map] == "")
+    # Dead reckoning on a 2 cm/s velocity bias: the error grows by about that much per second, no jumps.
+    error = np.hypot(*(result.estimate - result.truth).T)
+    assert np.all(np.isfinite(result.estimate[beyond]))
+    assert error[beyond][-1] < error[np.flatnonzero(beyond)[0]] + 0.03 * beyond.sum() + 10.0
+    assert summary["convergence"]["converged"]
