@@ -18,8 +18,9 @@ $(STAMP): pyproject.toml host/_sad.c
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $@
 
+# The built-in scenario through the whole LOST pipeline: track.csv, summary.json and plots in runs/demo/.
 demo: setup
-	$(BIN)/python -m lost.host.demo
+	$(BIN)/lost demo
 
 test: setup
 	$(BIN)/python -m pytest

@@ -1,0 +1,127 @@
+"""A :class:`~lost.host.grid.Grid` made ready for the correlator: 16-bit words and a hole policy.
+
+Hole policy (NaN nodes in the map)
+----------------------------------
+The correlator needs a word at every node, so each hole is filled with the depth of its nearest
+valid node before quantization; the filled value never decides anything, because every placement
+whose h x w window touches a hole is excluded from the estimate afterwards
+(:meth:`PreparedMap.placements_touching_holes`). The point-matching MLE simply skips hole nodes.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from scipy import ndimage
+
+from lost import model
+from lost.model.correlator import DEPTH_MAX, DEPTH_MIN
+
+from ..grid import Grid
+
+__all__ = ["PreparedMap", "LSB_CANDIDATES_M"]
+
+#: Depth steps tried in order, finest first, when the caller does not fix one.
+LSB_CANDIDATES_M = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+
+
+class PreparedMap:
+    """The int16 map image of a grid, with its scale, offset and holes.
+
+    Parameters
+    ----------
+    grid : Grid
+        The bathymetry; NaN nodes are holes.
+    lsb_m : float or None
+        Metres per depth word. None picks the finest of :data:`LSB_CANDIDATES_M` that holds the map's
+        depth range in half the word range, leaving the other half for sonar patches that deviate
+        from the map (bias, outliers).
+
+    Raises
+    ------
+    ValueError
+        A grid with no valid node, or a depth range that no candidate step holds.
+    """
+
+    def __init__(self, *, grid: Grid, lsb_m: float | None = None) -> None:
+        depth = grid.depth_m
+        holes = np.isnan(depth)
+        if holes.all():
+            raise ValueError("The map has no valid depth node: every node is a hole.")
+        valid = depth[~holes]
+        low, high = float(valid.min()), float(valid.max())
+        offset_m = round((low + high) / 2.0, 2)
+        if lsb_m is None:
+            half_range = max(high - offset_m, offset_m - low)
+            fitting = [lsb for lsb in LSB_CANDIDATES_M if half_range <= 0.5 * DEPTH_MAX * lsb]
+            if not fitting:
+                raise ValueError(f"The map's depth range {low:.1f}-{high:.1f} m is too wide for 16-bit words at any step up to {LSB_CANDIDATES_M[-1]} m.")
+            lsb_m = fitting[0]
+        if holes.any():
+            # Nearest valid node's depth: a neutral value, since placements touching it are excluded.
+            nearest = ndimage.distance_transform_edt(holes, return_distances=False, return_indices=True)
+            depth = depth[tuple(nearest)]
+        self._grid = grid
+        self._holes = holes
+        self._lsb_m = float(lsb_m)
+        self._offset_m = float(offset_m)
+        self._words = model.quantize(depth, self._lsb_m, offset_m=self._offset_m)
+        self._touching = lru_cache(maxsize=4)(self._compute_touching)
+
+    @property
+    def grid(self) -> Grid:
+        return self._grid
+
+    @property
+    def words(self) -> np.ndarray:
+        """The int16 map image, holes filled (see the module's hole policy)."""
+        return self._words
+
+    @property
+    def holes(self) -> np.ndarray:
+        return self._holes
+
+    @property
+    def lsb_m(self) -> float:
+        return self._lsb_m
+
+    @property
+    def offset_m(self) -> float:
+        return self._offset_m
+
+    def placements_touching_holes(self, patch_shape: tuple[int, int]) -> np.ndarray:
+        """Bool array over the correlator's surface shape: True where the window covers a hole."""
+        return self._touching(tuple(int(s) for s in patch_shape))
+
+    def _compute_touching(self, patch_shape: tuple[int, int]) -> np.ndarray:
+        h, w = patch_shape
+        rows, cols = self._holes.shape
+        if not (1 <= h <= rows and 1 <= w <= cols):
+            raise ValueError(f"a {h} x {w} patch does not fit in the {rows} x {cols} map")
+        # Box sum of the hole mask over every window, by a 2-D prefix sum.
+        prefix = np.zeros((rows + 1, cols + 1), dtype=np.int64)
+        prefix[1:, 1:] = np.cumsum(np.cumsum(self._holes, axis=0), axis=1)
+        box = prefix[h:, w:] - prefix[:-h, w:] - prefix[h:, :-w] + prefix[:-h, :-w]
+        return box > 0
+
+    def quantize_patch(self, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """A sonar patch in the map's words, with its valid mask.
+
+        NaN nodes (no beam) are invalid; so is any sounding outside the word range (an outlier far
+        from every map depth), which is counted rather than clipped to a wrong word.
+
+        Returns
+        -------
+        words : int16 array, patch : the quantized depths, 0 where invalid.
+        mask : bool array, True where a beam is used.
+        out_of_range : int, how many finite soundings were dropped for not fitting a word.
+        """
+        depth = np.asarray(depth_m, dtype=np.float64)
+        finite = np.isfinite(depth)
+        low_m = self._offset_m + DEPTH_MIN * self._lsb_m
+        high_m = self._offset_m + DEPTH_MAX * self._lsb_m
+        fits = finite & (depth >= low_m) & (depth <= high_m)
+        words = np.zeros(depth.shape, dtype=np.int16)
+        words[fits] = model.quantize(depth[fits], self._lsb_m, offset_m=self._offset_m)
+        return words, fits, int((finite & ~fits).sum())

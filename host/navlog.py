@@ -1,0 +1,594 @@
+"""Recorded surveys in: a navigation-log CSV (and a sonar side file) to :class:`NavRecords`.
+
+The navigation log
+    A CSV file with a header row, one row per record, ``#`` comment lines allowed. Column names are
+    matched without regard to case or surrounding spaces; a cell left empty, or ``NaN``, is a missing
+    reading: it stays NaN in the records and is counted per column in the :class:`LoadReport` (so are
+    the trailing cells of a row cut short; a row with more cells than the header is an error).
+
+    ==========================  ===========  ===================================================
+    column(s)                   required     meaning
+    ==========================  ===========  ===================================================
+    ``t_s``                     one of the   time, seconds, strictly increasing; a row without a
+                                time two     time is skipped and reported
+    ``time_utc``                             or an ISO 8601 timestamp (a zone suffix is honoured,
+                                             none means UTC); ``t_s`` then counts from the first
+    ``x_m``, ``y_m``            one of the   ship GPS easting, northing (metres, the map's CRS)
+    ``lat``, ``lon``            two pairs    or latitude, longitude (degrees, WGS 84), projected
+                                             with pyproj to ``crs`` (the map's CRS)
+    ``ship_heading_deg``        yes          degrees clockwise from north
+    ``vehicle_depth_m``         yes          pressure depth of the vehicle, metres
+    ``altitude_m``              yes          altimeter height above the sea floor, metres
+    ``vel_x_mps``, ``vel_y_mps`` one of the  velocity over ground, east and north, m/s
+    ``speed_mps``, ``course_deg`` two pairs  or speed over ground and course (clockwise from north)
+    ``cable_out_m``             yes          cable paid out, metres
+    ``slant_range_m``           no           ship to vehicle, metres (all NaN when absent)
+    ``truth_x_m``, ``truth_y_m`` no          the vehicle's true position (trials with a
+                                             reference, simulations); ``truth_lat``/``truth_lon``
+                                             in degrees are projected like the ship's
+    ==========================  ===========  ===================================================
+
+    North: with ``x_m``/``y_m`` positions, headings, courses and velocities are in grid axes (grid
+    north). With ``lat``/``lon`` they are taken as true (geographic) and turned to grid north by the
+    meridian convergence at each record's position, measured with pyproj (up to a few degrees in a
+    UTM zone, enough to shift a kilometre of lay-back by tens of metres); so are the sonar offsets.
+
+    Columns outside this table are reported as unknown, not read. When both forms of a pair are
+    present, ``x_m``/``y_m`` and ``vel_x_mps``/``vel_y_mps`` are used, and the report says so.
+
+The sonar side file
+    A CSV with a header, one sounding per row: ``t_s`` or ``time_utc``, whichever the log has (the time
+    of the record it belongs to, matched within ``time_tolerance_s``), or ``record`` (0-based index of the navigation log's data row),
+    ``east_m`` and ``north_m`` (offset from the vehicle, metres; grid axes, or true east/north in a
+    lat/lon log, see North) and ``depth_m`` (sea-floor
+    depth, positive down). Each record's soundings are gridded by :func:`lost.host.sonar.grid_soundings`
+    into a ``patch_shape`` patch of ``node_m`` nodes; a record without soundings gets ``None``.
+    Soundings matching no record, belonging to a skipped record, lacking a value, or falling beyond
+    the patch are counted in the report, never dropped silently.
+
+Writing
+    :func:`write_navlog` writes records (a simulated tow, say) in this layout, positions as ``x_m``/``y_m``
+    and sonar patches as one sounding per seen node keyed by ``record``, so :func:`read_navlog` reads
+    them back value for value: an example survey to run the command line on.
+
+Errors
+    A missing file, a missing required column, a non-numeric cell, latitude/longitude out of range or
+    time not increasing raise ``ValueError`` naming the column, data row and file line.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .records import NavRecords, SonarPatch
+from .sonar import _check_shape, grid_soundings
+
+__all__ = ["LoadReport", "read_navlog", "write_navlog", "NAVLOG_COLUMNS", "SONAR_COLUMNS"]
+
+_TIME_COLUMNS = ("t_s", "time_utc")
+_SINGLE_REQUIRED = ("ship_heading_deg", "vehicle_depth_m", "altitude_m", "cable_out_m")
+_POSITION_FORMS = (("x_m", "y_m"), ("lat", "lon"))
+_VELOCITY_FORMS = (("vel_x_mps", "vel_y_mps"), ("speed_mps", "course_deg"))
+_TRUTH_FORMS = (("truth_x_m", "truth_y_m"), ("truth_lat", "truth_lon"))
+_OPTIONAL = ("slant_range_m",)
+NAVLOG_COLUMNS = (
+    _TIME_COLUMNS + _SINGLE_REQUIRED + sum(_POSITION_FORMS, ()) + sum(_VELOCITY_FORMS, ()) + _OPTIONAL + sum(_TRUTH_FORMS, ())
+)
+SONAR_COLUMNS = ("t_s", "time_utc", "record", "east_m", "north_m", "depth_m")
+
+
+@dataclass(frozen=True)
+class LoadReport:
+    """What reading a navigation log (and its sonar side file) kept, skipped and why.
+
+    Attributes
+    ----------
+    path : str
+        The navigation log.
+    rows : int
+        Data rows in the log.
+    records : int
+        Records kept (``rows`` less the skipped ones).
+    nan_counts : dict[str, int]
+        Missing readings (empty or NaN cells) per column read, kept rows only.
+    skipped_rows : tuple of (int, str)
+        ``(data row, reason)`` for each row left out; data rows count from 0 after the header.
+    unknown_columns : tuple of str
+        Columns not in the documented layout, not read.
+    notes : tuple of str
+        Decisions worth knowing: projections, north conversion, absent optional columns, ignored
+        duplicate forms.
+    sonar_path : str or None
+        The sonar side file, if one was read.
+    soundings : int
+        Rows of the sonar file.
+    soundings_used : int
+        Soundings gridded into a patch.
+    soundings_without_value : int
+        Soundings with an empty or NaN time/record, offset or depth.
+    soundings_unmatched : int
+        Soundings whose time or record index matches no row of the log.
+    soundings_of_skipped_records : int
+        Soundings belonging to a skipped row.
+    soundings_outside_patch : int
+        Soundings farther from the vehicle than the patch reaches.
+    records_with_sonar : int
+        Records that got a patch.
+    """
+
+    path: str
+    rows: int
+    records: int
+    nan_counts: dict[str, int]
+    skipped_rows: tuple[tuple[int, str], ...] = ()
+    unknown_columns: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
+    sonar_path: str | None = None
+    soundings: int = 0
+    soundings_used: int = 0
+    soundings_without_value: int = 0
+    soundings_unmatched: int = 0
+    soundings_of_skipped_records: int = 0
+    soundings_outside_patch: int = 0
+    records_with_sonar: int = 0
+
+    def summary(self) -> str:
+        """A few lines of plain text for the command line."""
+        lines = [f"{self.path}: {self.rows} rows, {self.records} records kept"]
+        if self.skipped_rows:
+            reasons = Counter(reason for _, reason in self.skipped_rows)
+            for reason, count in reasons.items():
+                rows = [str(r) for r, why in self.skipped_rows if why == reason]
+                shown = ", ".join(rows[:5]) + (", ..." if len(rows) > 5 else "")
+                lines.append(f"  skipped {count} row(s), {reason}: data row(s) {shown}")
+        missing = {c: n for c, n in self.nan_counts.items() if n}
+        if missing:
+            lines.append("  missing readings (kept as NaN): " + ", ".join(f"{c} {n}" for c, n in missing.items()))
+        if self.unknown_columns:
+            lines.append("  unknown columns, not read: " + ", ".join(self.unknown_columns))
+        lines += [f"  note: {n}" for n in self.notes]
+        if self.sonar_path is not None:
+            lines.append(
+                f"{self.sonar_path}: {self.soundings} soundings, {self.soundings_used} gridded into "
+                f"{self.records_with_sonar} patch(es)"
+            )
+            for label, count in (
+                ("without a value (empty or NaN)", self.soundings_without_value),
+                ("matching no record", self.soundings_unmatched),
+                ("of skipped records", self.soundings_of_skipped_records),
+                ("beyond the patch", self.soundings_outside_patch),
+            ):
+                if count:
+                    lines.append(f"  not used: {count} {label}")
+        return "\n".join(lines)
+
+
+def read_navlog(
+    path: str | os.PathLike,
+    *,
+    sonar: str | os.PathLike | None = None,
+    crs: str | None = None,
+    patch_shape: tuple[int, int] = (10, 10),
+    node_m: float | None = None,
+    time_tolerance_s: float = 1e-3,
+) -> tuple[NavRecords, LoadReport]:
+    """Read a navigation log (and optionally its sonar side file) into records and a report.
+
+    Parameters
+    ----------
+    path : path-like
+        The navigation-log CSV (layout in the module docstring).
+    sonar : path-like, optional
+        The sonar soundings CSV.
+    crs : str, optional
+        The map's projected CRS; needed when the log gives positions as ``lat``/``lon``.
+    patch_shape : (h, w)
+        Sonar patch nodes, north by east.
+    node_m : float, optional
+        Sonar patch node spacing, metres (the map's); needed with ``sonar``.
+    time_tolerance_s : float
+        How far a sounding's ``t_s`` may be from its record's time.
+
+    Returns
+    -------
+    (NavRecords, LoadReport)
+
+    Raises
+    ------
+    ValueError
+        Missing required columns (named), non-numeric cells, coordinates out of range, time not
+        increasing (data row and line named), a lat/lon log without ``crs``, sonar without ``node_m``.
+    FileNotFoundError
+        A file does not exist.
+    """
+    path = Path(path)
+    h_w = _check_shape(patch_shape)
+    if sonar is not None and (node_m is None or not (np.isfinite(node_m) and node_m > 0)):
+        raise ValueError(f"gridding sonar soundings needs node_m, the map's node spacing in metres (got {node_m!r})")
+    if not (np.isfinite(time_tolerance_s) and time_tolerance_s >= 0):
+        raise ValueError(f"time_tolerance_s must be a non-negative number of seconds, got {time_tolerance_s!r}")
+
+    table = _read_table(path)
+    columns = {c.strip().lower(): c for c in table.columns}
+    notes: list[str] = []
+    position = _pick_pair(columns, _POSITION_FORMS, "ship position", notes, required=True)
+    velocity = _pick_pair(columns, _VELOCITY_FORMS, "velocity", notes, required=True)
+    truth = _pick_pair(columns, _TRUTH_FORMS, "truth position", notes, required=False)
+    time_column = next((c for c in _TIME_COLUMNS if c in columns), None)
+    missing = ([] if time_column else ["t_s (or time_utc)"]) + [c for c in _SINGLE_REQUIRED if c not in columns]
+    if time_column == "t_s" and "time_utc" in columns:
+        notes.append("t_s used for the time; time_utc not read")
+    if missing:
+        raise ValueError(f"{path.name} lacks the required column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
+    used = set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | {c for c in _OPTIONAL if c in columns}
+    unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
+    lines = _Lines(path, len(table))
+    values = {c: _numeric(table[columns[c]], c, path, lines) for c in used}
+    epoch = None
+    if time_column == "t_s":
+        values["t_s"] = _numeric(table[columns["t_s"]], "t_s", path, lines)
+    else:
+        values["t_s"], epoch = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=None)
+        if epoch is not None:
+            notes.append(f"t_s counts seconds from time_utc {epoch.isoformat()}")
+
+    # A row without a time cannot be placed in the sequence: skip it, say so.
+    t = values["t_s"]
+    timeless = np.flatnonzero(~np.isfinite(t))
+    skipped = tuple((int(r), f"no time ({time_column} empty or NaN)") for r in timeless)
+    keep = np.isfinite(t)
+    if not keep.any():
+        raise ValueError(f"{path.name} has no record with a time ({len(t)} data row(s)); there is nothing to navigate")
+    kept_rows = np.flatnonzero(keep)
+    values = {c: v[keep] for c, v in values.items()}
+    _check_time(values["t_s"], kept_rows, lines, path)
+    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns if c in used}
+
+    if "slant_range_m" not in columns:
+        values["slant_range_m"] = np.full(keep.sum(), np.nan)
+        notes.append("no slant_range_m column: slant range is NaN (not measured) for every record")
+
+    geographic = position == ("lat", "lon")
+    if geographic:
+        if crs is None:
+            raise ValueError(f"{path.name} gives positions as lat/lon; pass crs= (the map's projected CRS) to project them")
+        ship_x, ship_y, convergence = _project(values["lat"], values["lon"], crs, path, kept_rows, lines, "lat/lon")
+        finite = convergence[np.isfinite(convergence)]
+        if finite.size:
+            notes.append(
+                f"positions projected from WGS 84 lat/lon to {crs}; headings, courses and velocities turned from "
+                f"true to grid north by the meridian convergence ({finite.min():+.3f} to {finite.max():+.3f} deg)"
+            )
+    else:
+        ship_x, ship_y = values["x_m"], values["y_m"]
+        convergence = np.zeros_like(ship_x)
+
+    heading = _wrap(values["ship_heading_deg"] + convergence)
+    if velocity == ("vel_x_mps", "vel_y_mps"):
+        vx, vy = values["vel_x_mps"], values["vel_y_mps"]
+        c, s = np.cos(np.radians(convergence)), np.sin(np.radians(convergence))
+        vel_x, vel_y = vx * c + vy * s, -vx * s + vy * c
+    else:
+        course = np.radians(values["course_deg"] + convergence)
+        vel_x, vel_y = values["speed_mps"] * np.sin(course), values["speed_mps"] * np.cos(course)
+
+    truth_x = truth_y = None
+    if truth == ("truth_x_m", "truth_y_m"):
+        truth_x, truth_y = values["truth_x_m"], values["truth_y_m"]
+    elif truth is not None:
+        if crs is None:
+            raise ValueError(f"{path.name} gives the truth as truth_lat/truth_lon; pass crs= to project it")
+        truth_x, truth_y, _ = _project(values["truth_lat"], values["truth_lon"], crs, path, kept_rows, lines, "truth_lat/truth_lon")
+    else:
+        notes.append("no truth position columns: the log has no reference track")
+
+    sonar_patches: tuple[SonarPatch | None, ...] = ()
+    sonar_stats: dict = {}
+    if sonar is not None:
+        sonar_patches, sonar_stats = _read_sonar(
+            Path(sonar), record_times=values["t_s"], epoch=epoch, convergence_deg=convergence, kept_rows=kept_rows, rows=len(table),
+            patch_shape=h_w, node_m=float(node_m), time_tolerance_s=time_tolerance_s,
+        )
+
+    records = NavRecords(
+        t_s=values["t_s"],
+        ship_x_m=ship_x,
+        ship_y_m=ship_y,
+        ship_heading_deg=heading,
+        vehicle_depth_m=values["vehicle_depth_m"],
+        altitude_m=values["altitude_m"],
+        vel_x_mps=vel_x,
+        vel_y_mps=vel_y,
+        slant_range_m=values["slant_range_m"],
+        cable_out_m=values["cable_out_m"],
+        sonar=sonar_patches,
+        truth_x_m=truth_x,
+        truth_y_m=truth_y,
+    )
+    report = LoadReport(
+        path=str(path),
+        rows=len(table),
+        records=len(records),
+        nan_counts=nan_counts,
+        skipped_rows=skipped,
+        unknown_columns=unknown,
+        notes=tuple(notes),
+        **sonar_stats,
+    )
+    return records, report
+
+
+def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | os.PathLike | None = None) -> None:
+    """Write records in the documented layout (and their sonar patches as a side file).
+
+    Parameters
+    ----------
+    records : NavRecords
+    path : path-like
+        The navigation-log CSV to write.
+    sonar : path-like, optional
+        The sonar side file to write; required when the records carry sonar patches, refused otherwise.
+    """
+    import pandas as pd
+
+    has_sonar = any(p is not None for p in records.sonar)
+    if has_sonar and sonar is None:
+        raise ValueError("the records carry sonar patches; pass sonar= to write them, or they would be lost")
+    if sonar is not None and not has_sonar:
+        raise ValueError("sonar= was given but the records carry no sonar patch")
+    names = {
+        "t_s": "t_s", "x_m": "ship_x_m", "y_m": "ship_y_m", "ship_heading_deg": "ship_heading_deg",
+        "vehicle_depth_m": "vehicle_depth_m", "altitude_m": "altitude_m", "vel_x_mps": "vel_x_mps",
+        "vel_y_mps": "vel_y_mps", "slant_range_m": "slant_range_m", "cable_out_m": "cable_out_m",
+    }
+    if records.has_truth:
+        names |= {"truth_x_m": "truth_x_m", "truth_y_m": "truth_y_m"}
+    # pandas writes float64 with repr precision, so the text reads back to the same numbers.
+    pd.DataFrame({column: getattr(records, attribute) for column, attribute in names.items()}).to_csv(
+        path, index=False, na_rep=""
+    )
+    if sonar is not None:
+        parts = []
+        for index, patch in enumerate(records.sonar):
+            if patch is None:
+                continue
+            h, w = patch.depth_m.shape
+            k, l = np.nonzero(np.isfinite(patch.depth_m))
+            parts.append(pd.DataFrame({
+                "record": index,
+                "east_m": (l - (w - 1) / 2) * patch.node_m,
+                "north_m": (k - (h - 1) / 2) * patch.node_m,
+                "depth_m": patch.depth_m[k, l],
+            }))
+        pd.concat(parts, ignore_index=True).to_csv(sonar, index=False)
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def _read_table(path: Path):
+    import pandas as pd
+
+    if not path.is_file():
+        raise FileNotFoundError(f"no file at {path}")
+    try:
+        # The C parser makes clean columns float64 at once; a column with a stray word stays text, and
+        # _numeric then names the cell. Only these words (and empty cells) are missing readings.
+        return pd.read_csv(
+            path, comment="#", skipinitialspace=True, keep_default_na=False,
+            na_values=["", "nan", "NaN", "NAN", "NA", "n/a", "N/A", "null", "NULL", "NaT"],
+        )
+    except pd.errors.EmptyDataError:
+        raise ValueError(f"{path.name} is empty; a header row naming the columns is needed") from None
+    except pd.errors.ParserError as exc:
+        raise ValueError(f"{path.name} is not a well-formed CSV: {exc}") from None
+
+
+class _Lines:
+    """File line (1-based) of each data row, for error messages; counted only when one is raised."""
+
+    def __init__(self, path: Path, rows: int) -> None:
+        self._path, self._rows = path, rows
+
+    @functools.cached_property
+    def numbers(self) -> np.ndarray | None:
+        numbers = []
+        with self._path.open("r", encoding="utf-8", errors="replace") as f:
+            for number, line in enumerate(f, start=1):
+                if line.strip() and not line.lstrip().startswith("#"):
+                    numbers.append(number)
+        numbers = numbers[1:]  # the header
+        # A quoted cell spanning lines would shift the count: then name the data row only.
+        return np.asarray(numbers) if len(numbers) == self._rows else None
+
+
+def _where(row: int, lines: _Lines) -> str:
+    numbers = lines.numbers
+    return f"data row {row}" + (f" (line {int(numbers[row])})" if numbers is not None else "")
+
+
+_MISSING_WORDS = ("nan", "na", "n/a", "null")
+
+
+def _numeric(column, name: str, path: Path, lines: _Lines) -> np.ndarray:
+    import pandas as pd
+
+    if pd.api.types.is_bool_dtype(column.dtype):
+        raise ValueError(f"{path.name}: {name} holds true/false, not numbers, from {_where(0, lines)}: {column.iloc[0]!r}")
+    if pd.api.types.is_numeric_dtype(column.dtype):
+        return column.to_numpy(np.float64)
+    number = pd.to_numeric(column, errors="coerce").to_numpy(np.float64)
+    # Only cells that did not parse are looked at again: empty or a missing word is a missing reading.
+    unparsed = np.flatnonzero(np.isnan(number))
+    if unparsed.size:
+        text = column.iloc[unparsed].astype(str).str.strip().str.lower()
+        bad = unparsed[~(column.iloc[unparsed].isna() | (text == "") | text.isin(_MISSING_WORDS)).to_numpy()]
+        if bad.size:
+            row = int(bad[0])
+            raise ValueError(f"{path.name}: {name} is not a number at {_where(row, lines)}: {column.iloc[row]!r}")
+    return number
+
+
+def _seconds(column, name: str, path: Path, lines, *, epoch):
+    """ISO 8601 timestamps to seconds from ``epoch`` (default: the first timestamp); NaN where empty."""
+    import pandas as pd
+
+    text = column.astype(str).str.strip()
+    empty = column.isna() | (text == "") | text.str.lower().isin(_MISSING_WORDS + ("nat",))
+    stamps = pd.to_datetime(text.where(~empty), utc=True, errors="coerce", format="ISO8601")
+    bad = np.flatnonzero(stamps.isna().to_numpy() & ~empty.to_numpy())
+    if bad.size:
+        row = int(bad[0])
+        raise ValueError(f"{path.name}: {name} is not an ISO 8601 time at {_where(row, lines)}: {column.iloc[row]!r}")
+    if epoch is None:
+        known = stamps.dropna()
+        if known.empty:
+            return np.full(len(stamps), np.nan), None
+        epoch = known.iloc[0]
+    return (stamps - epoch).dt.total_seconds().to_numpy(np.float64, na_value=np.nan), epoch
+
+
+def _pick_pair(columns: dict, forms, what: str, notes: list, *, required: bool):
+    present = [form for form in forms if all(c in columns for c in form)]
+    partial = [c for form in forms for c in form if c in columns and form not in present]
+    if partial and not present:
+        form = next(f for f in forms if any(c in columns for c in f))
+        lacking = [c for c in form if c not in columns]
+        raise ValueError(f"the {what} column {', '.join(c for c in form if c in columns)} needs {', '.join(lacking)} too")
+    if not present:
+        if required:
+            alternatives = " or ".join("/".join(form) for form in forms)
+            raise ValueError(f"the {what} is missing: the log needs the columns {alternatives}; it has {', '.join(columns.values())}")
+        return None
+    unread = [c for form in forms if form != present[0] for c in form if c in columns]
+    if unread:
+        notes.append(f"{'/'.join(present[0])} used for the {what}; {', '.join(unread)} not read")
+    return present[0]
+
+
+def _check_time(t: np.ndarray, rows: np.ndarray, lines, path: Path) -> None:
+    steps = np.diff(t)
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        k = int(bad[0])
+        verb = "goes backwards" if steps[k] < 0 else "repeats"
+        raise ValueError(
+            f"{path.name}: time {verb} at {_where(int(rows[k + 1]), lines)}: t_s={float(t[k + 1])} after "
+            f"{float(t[k])} ({bad.size} such row(s)); records must be in strictly increasing time"
+        )
+
+
+def _project(lat, lon, crs, path: Path, rows, lines, label: str):
+    """Project WGS 84 lat/lon to ``crs``; also the grid bearing of true north there (degrees)."""
+    from pyproj import CRS, Transformer
+
+    try:
+        target = CRS.from_user_input(crs)
+    except Exception as exc:
+        raise ValueError(f"crs={crs!r} is not a CRS pyproj understands ({exc})") from None
+    if not target.is_projected:
+        raise ValueError(f"crs must be the map's projected (metric) CRS, got {crs!r}")
+    out_of_range = np.flatnonzero((np.abs(lat) > 90) | (lon < -180) | (lon > 360))
+    if out_of_range.size:
+        r = int(out_of_range[0])
+        raise ValueError(
+            f"{path.name}: {label} ({lat[r]}, {lon[r]}) is not a latitude/longitude in degrees at {_where(int(rows[r]), lines)}"
+        )
+    transformer = Transformer.from_crs("EPSG:4326", target, always_xy=True)
+    x, y = (np.asarray(a, dtype=np.float64) for a in transformer.transform(lon, lat))
+    # True north's grid bearing: the direction a small step north takes on the map.
+    step_deg = 1e-5
+    xn, yn = (np.asarray(a, dtype=np.float64) for a in transformer.transform(lon, np.minimum(lat + step_deg, 90.0)))
+    convergence = np.degrees(np.arctan2(xn - x, yn - y))
+    known = np.isfinite(convergence)
+    if known.any() and not known.all():
+        # A record without a fix still needs its heading turned; convergence varies slowly, so interpolate.
+        index = np.arange(convergence.size)
+        convergence = np.interp(index, index[known], convergence[known])
+    elif not known.any():
+        convergence = np.zeros_like(convergence)
+    return x, y, convergence
+
+
+def _wrap(angle_deg: np.ndarray) -> np.ndarray:
+    return np.mod(angle_deg, 360.0)
+
+
+def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, rows, patch_shape, node_m, time_tolerance_s):
+    table = _read_table(path)
+    columns = {c.strip().lower(): c for c in table.columns}
+    # Soundings are keyed the way the log keeps time (or by record index, which works with either).
+    time_key = "t_s" if epoch is None else "time_utc"
+    missing = [c for c in ("east_m", "north_m", "depth_m") if c not in columns]
+    if time_key not in columns and "record" not in columns:
+        other = "time_utc" if time_key == "t_s" else "t_s"
+        also = f" ({other} cannot be matched: the log's time is {time_key})" if other in columns else ""
+        missing.insert(0, f"{time_key} or record{also}")
+    if missing:
+        raise ValueError(f"{path.name} lacks the sonar column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
+    key = "record" if "record" in columns else time_key
+    lines = _Lines(path, len(table))
+    v = {c: _numeric(table[columns[c]], c, path, lines) for c in (key, "east_m", "north_m", "depth_m") if c != "time_utc"}
+    if key == "time_utc":
+        v["t_s"], _ = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=epoch)
+        key = "t_s"
+    finite = np.isfinite(v[key]) & np.isfinite(v["east_m"]) & np.isfinite(v["north_m"]) & np.isfinite(v["depth_m"])
+
+    # Which kept record (index into record_times) each sounding belongs to; -1 none, -2 a skipped row.
+    owner = np.full(len(table), -1, dtype=np.int64)
+    if key == "record":
+        index = v["record"]
+        whole = finite & (index == np.round(index))
+        if np.any(finite & ~whole):
+            r = int(np.flatnonzero(finite & ~whole)[0])
+            raise ValueError(f"{path.name}: record must be a whole data-row index, got {index[r]} at {_where(r, lines)}")
+        position_of_row = np.full(rows, -2, dtype=np.int64)
+        position_of_row[kept_rows] = np.arange(kept_rows.size)
+        valid_index = whole & (index >= 0) & (index < rows)
+        owner[valid_index] = position_of_row[index[valid_index].astype(np.int64)]
+    elif record_times.size:
+        t = np.where(finite, v["t_s"], np.inf)
+        # The nearest record time on either side of each sounding's time.
+        after = np.clip(np.searchsorted(record_times, t), 0, record_times.size - 1)
+        before = np.clip(after - 1, 0, record_times.size - 1)
+        nearest = np.where(np.abs(t - record_times[before]) <= np.abs(t - record_times[after]), before, after)
+        matched = finite & (np.abs(t - record_times[nearest]) <= time_tolerance_s)
+        owner[matched] = nearest[matched]
+
+    n_records = record_times.size
+    patches: list[SonarPatch | None] = [None] * n_records
+    used = outside = 0
+    usable = finite & (owner >= 0)
+    order = np.argsort(owner[usable], kind="stable")
+    idx = np.flatnonzero(usable)[order]
+    owners = owner[idx]
+    bounds = np.flatnonzero(np.diff(owners)) + 1
+    for group in np.split(idx, bounds) if idx.size else []:
+        # Offsets logged beside lat/lon are true east/north: turn them to grid axes like the velocities.
+        gamma = np.radians(convergence_deg[owner[group[0]]])
+        east, north = v["east_m"][group], v["north_m"][group]
+        if gamma:
+            east, north = east * np.cos(gamma) + north * np.sin(gamma), -east * np.sin(gamma) + north * np.cos(gamma)
+        gridded = grid_soundings(east, north, v["depth_m"][group], patch_shape=patch_shape, node_m=node_m)
+        used += gridded.used
+        outside += gridded.outside
+        if gridded.used:
+            patches[int(owner[group[0]])] = gridded.patch
+    stats = dict(
+        sonar_path=str(path),
+        soundings=len(table),
+        soundings_used=used,
+        soundings_without_value=int((~finite).sum()),
+        soundings_unmatched=int((finite & (owner == -1)).sum()),
+        soundings_of_skipped_records=int((finite & (owner == -2)).sum()),
+        soundings_outside_patch=outside,
+        records_with_sonar=sum(p is not None for p in patches),
+    )
+    assert used + outside + sum(stats[k] for k in ("soundings_without_value", "soundings_unmatched", "soundings_of_skipped_records")) == len(table)
+    return tuple(patches), stats

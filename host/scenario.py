@@ -1,0 +1,489 @@
+"""The tow simulator: a scenario TOML file in, a bathymetric :class:`Grid` and :class:`NavRecords` out.
+
+A scenario is a TOML file with the tables below; every field is optional and has the default shown
+in the dataclass that reads it (:class:`TerrainSpec`, :class:`ShipSpec`, ...). An unknown field is an
+error, so a typo cannot silently fall back to a default. The shipped scenarios live in
+``lost/host/scenarios/`` (:func:`builtin_scenarios`).
+
+The physics, kept simple and stated
+-----------------------------------
+- Ship: sails the waypoints in order (and back to the first after the last) at a constant speed,
+  turning toward the next waypoint at a limited rate; a waypoint is reached within one turn radius.
+  The ship's course over ground is its heading.
+- Cable: the vehicle keeps a horizontal distance ``catenary_factor * sqrt(out**2 - depth**2)`` from
+  the ship (the cable's sag shortens the lay-back that a straight cable would give) and is dragged
+  toward it like a trailer, so it cuts inside turns and lags behind them.
+- Current: the vehicle drifts with the water; in the water's frame it trails the ship's water
+  track, so a cross current puts it ``layback * c / sqrt(v**2 + c**2)`` off the ship's track.
+- Vehicle depth: follows the sea floor at the target altitude through a first-order lag.
+- Sensors: each with Gaussian noise, a bias, dropouts (NaN) and outliers at its own rate. The sonar
+  swath is delivered gridded on the map's nodes as an h x w patch centred on the vehicle (what
+  ``lost.host.sonar`` produces from real soundings) every ``interval_s``, with missing beams.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+
+from .grid import Grid
+from .records import NavRecords, SonarPatch
+from .terrain import synthetic_terrain
+
+__all__ = [
+    "Scenario",
+    "TerrainSpec",
+    "ShipSpec",
+    "CableSpec",
+    "CurrentSpec",
+    "VehicleSpec",
+    "SensorSpec",
+    "SonarSpec",
+    "SlantRangeSpec",
+    "load_scenario",
+    "builtin_scenarios",
+    "builtin_scenario_path",
+    "simulate",
+    "KNOT_MPS",
+]
+
+KNOT_MPS = 1852.0 / 3600.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class TerrainSpec:
+    """``[terrain]``: a seeded synthetic sea floor, or a grid file.
+
+    file : path of a grid file read by ``lost.host.io.read_grid`` (relative to the scenario); when
+        given, the synthetic fields are ignored.
+    seed : terrain seed (default: the scenario's seed).
+    shape : (rows, cols) of the synthetic floor; node_m : its node spacing, metres.
+    x0_m, y0_m : easting/northing of node (0, 0).
+    mean_depth_m, relief_m, roughness_m, smooth_fraction, hurst : see ``synthetic_terrain``;
+        ``smooth_fraction`` of the columns at the east edge are smooth, the rest rough.
+    """
+
+    file: str | None = None
+    seed: int | None = None
+    shape: tuple[int, int] = (400, 700)
+    node_m: float = 10.0
+    x0_m: float = 0.0
+    y0_m: float = 0.0
+    mean_depth_m: float = 1000.0
+    relief_m: float = 60.0
+    roughness_m: float = 8.0
+    smooth_fraction: float = 0.0
+    hurst: float = 0.8
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShipSpec:
+    """``[ship]``: waypoints_m, a list of [east, north] in metres; speed_kn; turn_rate_dps, degrees/s."""
+
+    waypoints_m: tuple[tuple[float, float], ...] = ((1000.0, 2000.0), (6000.0, 2000.0))
+    speed_kn: float = 3.0
+    turn_rate_dps: float = 0.5
+
+
+@dataclass(frozen=True, kw_only=True)
+class CableSpec:
+    """``[cable]``: out_m, cable paid out, metres; catenary_factor in (0, 1], the true lay-back's share of a straight cable's."""
+
+    out_m: float = 1500.0
+    catenary_factor: float = 0.9
+
+
+@dataclass(frozen=True, kw_only=True)
+class CurrentSpec:
+    """``[current]``: speed_kn and the direction it flows toward, toward_deg, degrees clockwise from north."""
+
+    speed_kn: float = 0.0
+    toward_deg: float = 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class VehicleSpec:
+    """``[vehicle]``: altitude_m, the target height above the floor; depth_time_constant_s, its depth lag;
+    has_velocity_sensor: an INS/DVL on board (else the pipeline gets the ship's velocity)."""
+
+    altitude_m: float = 80.0
+    depth_time_constant_s: float = 60.0
+    has_velocity_sensor: bool = True
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorSpec:
+    """``[sensors.gps]``, ``[sensors.heading]``, ``[sensors.depth]``, ``[sensors.altimeter]``, ``[sensors.velocity]``.
+
+    noise : 1-sigma Gaussian noise (metres, degrees for the heading, m/s for the velocity).
+    bias : a constant added to every reading (a pair [east, north] for the velocity).
+    dropout_rate : probability that a record has no reading (NaN).
+    outlier_rate, outlier : probability of a gross error, uniform in [-outlier, +outlier].
+    """
+
+    noise: float = 0.0
+    bias: float | tuple[float, float] = 0.0
+    dropout_rate: float = 0.0
+    outlier_rate: float = 0.0
+    outlier: float = 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class SonarSpec(SensorSpec):
+    """``[sensors.sonar]``: SensorSpec fields (metres, per sounding) plus
+
+    enabled; shape (h, w) of the patch; interval_s between patches; missing_beam_rate, the share of
+    soundings with no return; mode:
+
+    - ``"gridded"``: the patch arrives sampled on the map's nodes around the true position;
+    - ``"swath"``: a multibeam swath of ``beams`` soundings across ``swath_width_m`` (default the
+      patch's larger side) perpendicular to the vehicle's motion at every record; the patch of record n
+      bins, with ``lost.host.sonar.grid_soundings``, the soundings of the pings (within
+      ``max_window_s`` before and after n) whose position lies within half a patch diagonal of the
+      vehicle's, all placed relative to the vehicle by dead reckoning on the measured velocity (so
+      its errors distort the patch, as on a real tow). Using later pings makes this a
+      post-processing patch: in real time it would arrive that much later.
+    """
+
+    enabled: bool = True
+    shape: tuple[int, int] = (10, 10)
+    interval_s: float = 1.0
+    missing_beam_rate: float = 0.0
+    mode: str = "gridded"
+    beams: int = 64
+    swath_width_m: float | None = None
+    max_window_s: float = 300.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class SlantRangeSpec(SensorSpec):
+    """``[sensors.slant_range]``: SensorSpec fields (metres) plus enabled (False: no range is measured)."""
+
+    enabled: bool = True
+
+
+_SENSORS = {"gps": SensorSpec, "heading": SensorSpec, "depth": SensorSpec, "altimeter": SensorSpec,
+            "velocity": SensorSpec, "sonar": SonarSpec, "slant_range": SlantRangeSpec}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """A whole scenario: top-level name, description, seed, duration_s, rate_hz, the tables above, and
+    ``[navigation]``, keyword arguments of :class:`lost.host.nav.NavParameters` (the pipeline's settings)."""
+
+    name: str = "scenario"
+    description: str = ""
+    seed: int = 0
+    duration_s: float = 600.0
+    rate_hz: float = 1.0
+    terrain: TerrainSpec = field(default_factory=TerrainSpec)
+    ship: ShipSpec = field(default_factory=ShipSpec)
+    cable: CableSpec = field(default_factory=CableSpec)
+    current: CurrentSpec = field(default_factory=CurrentSpec)
+    vehicle: VehicleSpec = field(default_factory=VehicleSpec)
+    sensors: dict[str, SensorSpec] = field(default_factory=dict)
+    navigation: dict[str, Any] = field(default_factory=dict)
+    base_dir: Path = Path(".")
+
+    def __post_init__(self) -> None:
+        if not (self.duration_s > 0 and self.rate_hz > 0):
+            raise ValueError(f"duration_s and rate_hz must be positive, got {self.duration_s!r} and {self.rate_hz!r}.")
+        if len(self.ship.waypoints_m) < 2:
+            raise ValueError("The ship needs at least two waypoints.")
+        if not (self.ship.speed_kn > 0 and self.ship.turn_rate_dps > 0):
+            raise ValueError("The ship's speed and turn rate must be positive.")
+        if not 0 < self.cable.catenary_factor <= 1:
+            raise ValueError(f"cable.catenary_factor must lie in (0, 1], got {self.cable.catenary_factor!r}.")
+        sensors = {name: self.sensors.get(name, spec()) for name, spec in _SENSORS.items()}
+        for name, spec in sensors.items():
+            for rate in ("dropout_rate", "outlier_rate") + (("missing_beam_rate",) if name == "sonar" else ()):
+                if not 0.0 <= getattr(spec, rate) <= 1.0:
+                    raise ValueError(f"sensors.{name}.{rate} must lie in [0, 1], got {getattr(spec, rate)!r}.")
+        sonar = sensors["sonar"]
+        if sonar.mode not in ("gridded", "swath"):
+            raise ValueError(f"sensors.sonar.mode must be 'gridded' or 'swath', got {sonar.mode!r}.")
+        if sonar.beams < 2 or not (sonar.swath_width_m is None or sonar.swath_width_m > 0):
+            raise ValueError(f"sensors.sonar needs at least 2 beams and a positive swath width, got {sonar.beams!r} and {sonar.swath_width_m!r}.")
+        if not sonar.interval_s > 0:
+            raise ValueError(f"sensors.sonar.interval_s must be positive, got {sonar.interval_s!r}.")
+        object.__setattr__(self, "sensors", sensors)
+
+
+def _tuples(value: Any) -> Any:
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+
+
+def _build(cls: type, table: Any, where: str) -> Any:
+    if not isinstance(table, dict):
+        raise ValueError(f"[{where}] must be a table, got {table!r}.")
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise ValueError(f"[{where}] has unknown field(s) {unknown}; known fields are {sorted(known)}.")
+    return cls(**{key: _tuples(value) for key, value in table.items()})
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file.
+
+    Raises
+    ------
+    ValueError
+        Invalid TOML, an unknown table or field, or a value out of range.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{path} is not valid TOML: {error}") from None
+    tables = {"terrain": TerrainSpec, "ship": ShipSpec, "cable": CableSpec, "current": CurrentSpec, "vehicle": VehicleSpec}
+    top = {"name", "description", "seed", "duration_s", "rate_hz", "sensors", "navigation", *tables}
+    unknown = sorted(set(data) - top)
+    if unknown:
+        raise ValueError(f"{path} has unknown top-level field(s) {unknown}; known ones are {sorted(top)}.")
+    kwargs: dict[str, Any] = {key: data[key] for key in ("name", "description", "seed", "duration_s", "rate_hz") if key in data}
+    kwargs.setdefault("name", path.stem)
+    for key, cls in tables.items():
+        if key in data:
+            kwargs[key] = _build(cls, data[key], key)
+    sensors = data.get("sensors", {})
+    unknown = sorted(set(sensors) - set(_SENSORS))
+    if unknown:
+        raise ValueError(f"[sensors] has unknown sensor(s) {unknown}; known ones are {sorted(_SENSORS)}.")
+    kwargs["sensors"] = {name: _build(_SENSORS[name], table, f"sensors.{name}") for name, table in sensors.items()}
+    kwargs["navigation"] = dict(data.get("navigation", {}))
+    kwargs["base_dir"] = path.parent
+    return Scenario(**kwargs)
+
+
+def builtin_scenarios() -> list[str]:
+    """Names of the scenarios shipped in the package."""
+    folder = resources.files("lost.host") / "scenarios"
+    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def builtin_scenario_path(name: str) -> Path:
+    """Path of a shipped scenario by name (``"demo"``)."""
+    path = Path(str(resources.files("lost.host") / "scenarios" / f"{name}.toml"))
+    if not path.is_file():
+        raise ValueError(f"no built-in scenario {name!r}; the shipped ones are {builtin_scenarios()}")
+    return path
+
+
+def scenario_grid(scenario: Scenario) -> Grid:
+    """The scenario's map: its grid file, or its seeded synthetic floor."""
+    spec = scenario.terrain
+    if spec.file is not None:
+        from .io import read_grid  # lazily: the file readers and their dependencies load only when used
+
+        return read_grid(scenario.base_dir / spec.file)
+    depth = synthetic_terrain(
+        spec.shape,
+        seed=scenario.seed if spec.seed is None else spec.seed,
+        mean_depth_m=spec.mean_depth_m,
+        relief_m=spec.relief_m,
+        roughness_m=spec.roughness_m,
+        smooth_fraction=spec.smooth_fraction,
+        hurst=spec.hurst,
+    )
+    return Grid(depth, spec.x0_m, spec.y0_m, spec.node_m)
+
+
+def _floor_depth(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The true sea floor between nodes: bilinear, NaN off the map or next to a hole."""
+    row, col = grid.row_col(x, y)
+    coords = np.stack([np.ravel(row), np.ravel(col)])
+    depth = ndimage.map_coordinates(grid.depth_m, coords, order=1, mode="constant", cval=np.nan)
+    return depth.reshape(np.shape(x))
+
+
+def _ship_track(scenario: Scenario, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ship = scenario.ship
+    speed = ship.speed_kn * KNOT_MPS
+    dt = 1.0 / scenario.rate_hz
+    max_turn = math.radians(ship.turn_rate_dps) * dt
+    turn_radius = speed / math.radians(ship.turn_rate_dps)
+    waypoints = np.asarray(ship.waypoints_m, float)
+    position = waypoints[0].copy()
+    target = 1
+    heading = math.atan2(*(waypoints[1] - waypoints[0]))  # atan2(east, north): clockwise from north
+    xs, ys, hs = np.empty(t.size), np.empty(t.size), np.empty(t.size)
+    for n in range(t.size):
+        xs[n], ys[n], hs[n] = position[0], position[1], math.degrees(heading) % 360.0
+        to_target = waypoints[target] - position
+        if math.hypot(*to_target) < turn_radius:
+            target = (target + 1) % len(waypoints)
+            to_target = waypoints[target] - position
+        wanted = math.atan2(*to_target)
+        turn = (wanted - heading + math.pi) % (2 * math.pi) - math.pi
+        heading += max(-max_turn, min(max_turn, turn))
+        position = position + speed * dt * np.array([math.sin(heading), math.cos(heading)])
+    return xs, ys, hs
+
+
+def _read(rng: np.random.Generator, truth: np.ndarray, spec: SensorSpec) -> np.ndarray:
+    """One sensor's readings of a true series: noise, bias, outliers, dropouts.
+
+    For a 2-D series (rows of components) an outlier or a dropout hits a whole row.
+    """
+    truth = np.asarray(truth, float)
+    reading = truth + np.asarray(spec.bias, float) + rng.normal(0.0, 1.0, truth.shape) * spec.noise
+    outliers = rng.random(truth.shape[0]) < spec.outlier_rate
+    reading[outliers] += rng.uniform(-spec.outlier, spec.outlier, reading[outliers].shape)
+    reading[rng.random(truth.shape[0]) < spec.dropout_rate] = np.nan
+    return reading
+
+
+def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
+    """Simulate a tow: the map and the records (with the truth) of the scenario, reproducible by its seed."""
+    grid = scenario_grid(scenario)
+    rng = np.random.default_rng(scenario.seed)
+    dt = 1.0 / scenario.rate_hz
+    t = np.arange(int(round(scenario.duration_s * scenario.rate_hz))) * dt
+    ship_x, ship_y, heading = _ship_track(scenario, t)
+
+    current_speed = scenario.current.speed_kn * KNOT_MPS
+    toward = math.radians(scenario.current.toward_deg)
+    current = current_speed * np.array([math.sin(toward), math.cos(toward)])
+    speed = scenario.ship.speed_kn * KNOT_MPS
+    cable, vehicle = scenario.cable, scenario.vehicle
+
+    def layback(depth: float) -> float:
+        return cable.catenary_factor * math.sqrt(max(cable.out_m**2 - depth**2, 0.0))
+
+    # Start in the steady state: trailing the ship's velocity through the water.
+    ship_velocity = speed * np.array([math.sin(math.radians(heading[0])), math.cos(math.radians(heading[0]))])
+    water_track = ship_velocity - current
+    position = np.array([ship_x[0], ship_y[0]])
+    depth = float(_floor_depth(grid, position[0], position[1])) - vehicle.altitude_m
+    depth = depth if np.isfinite(depth) else float(np.nanmean(grid.depth_m)) - vehicle.altitude_m
+    position = position - layback(depth) * water_track / np.linalg.norm(water_track)
+    truth = np.empty((t.size, 2))
+    depths = np.empty(t.size)
+    for n in range(t.size):
+        if n:
+            position = position + current * dt
+            ship = np.array([ship_x[n], ship_y[n]])
+            towline = ship - position
+            position = ship - layback(depth) * towline / max(np.linalg.norm(towline), 1e-9)
+        floor = float(_floor_depth(grid, position[0], position[1]))
+        if np.isfinite(floor):
+            depth += (floor - vehicle.altitude_m - depth) * min(dt / vehicle.depth_time_constant_s, 1.0)
+        truth[n], depths[n] = position, depth
+    floor = _floor_depth(grid, truth[:, 0], truth[:, 1])
+    velocity = np.gradient(truth, dt, axis=0)
+
+    sensors = scenario.sensors
+    # A GPS fix (and its outliers) is one reading of both coordinates; the heading has its own sensor.
+    gps = _read(rng, np.column_stack([ship_x, ship_y]), sensors["gps"])
+    ship_heading = _read(rng, heading, sensors["heading"]) % 360.0
+    if vehicle.has_velocity_sensor:
+        measured_velocity = _read(rng, velocity, sensors["velocity"])
+    else:
+        ship_velocity = np.gradient(np.column_stack([ship_x, ship_y]), dt, axis=0)
+        measured_velocity = _read(rng, ship_velocity, sensors["velocity"])
+    # A dropped velocity reading loses both components.
+    measured_velocity[np.isnan(measured_velocity).any(axis=1)] = np.nan
+    slant_spec = sensors["slant_range"]
+    if slant_spec.enabled:
+        true_range = np.sqrt(np.sum((truth - np.column_stack([ship_x, ship_y])) ** 2, axis=1) + depths**2)
+        slant = _read(rng, true_range, slant_spec)
+    else:
+        slant = np.full(t.size, np.nan)
+
+    return grid, NavRecords(
+        t_s=t,
+        ship_x_m=gps[:, 0],
+        ship_y_m=gps[:, 1],
+        ship_heading_deg=ship_heading,
+        vehicle_depth_m=_read(rng, depths, sensors["depth"]),
+        altitude_m=_read(rng, floor - depths, sensors["altimeter"]),
+        vel_x_mps=measured_velocity[:, 0],
+        vel_y_mps=measured_velocity[:, 1],
+        slant_range_m=slant,
+        cable_out_m=np.full(t.size, cable.out_m),
+        sonar=_sonar_patches(rng, grid, truth, measured_velocity, sensors["sonar"], scenario.rate_hz),
+        truth_x_m=truth[:, 0],
+        truth_y_m=truth[:, 1],
+    )
+
+
+def _sonar_patches(
+    rng: np.random.Generator, grid: Grid, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float
+) -> tuple:
+    if not spec.enabled:
+        return ()
+    every = max(int(round(spec.interval_s * rate_hz)), 1)
+    at = np.arange(0, truth.shape[0], every)
+    patches: list[SonarPatch | None] = [None] * truth.shape[0]
+    if spec.mode == "swath":
+        for n, patch in zip(at, _swath_patches(rng, grid, truth, measured_velocity, spec, rate_hz, at)):
+            patches[n] = patch
+        return tuple(patches)
+    h, w = spec.shape
+    north = (np.arange(h) - (h - 1) / 2) * grid.node_m
+    east = (np.arange(w) - (w - 1) / 2) * grid.node_m
+    x = truth[at, 0][:, None, None] + east[None, None, :]
+    y = truth[at, 1][:, None, None] + north[None, :, None]
+    x, y = np.broadcast_arrays(x, y)
+    depth = _sound(rng, _floor_depth(grid, x, y), spec)
+    for k, n in enumerate(at):
+        patches[n] = SonarPatch(depth_m=depth[k], node_m=grid.node_m)
+    return tuple(patches)
+
+
+def _sound(rng: np.random.Generator, true_depth: np.ndarray, spec: SonarSpec) -> np.ndarray:
+    """Soundings of true depths: bias, noise, outliers, and NaN for the beams with no return."""
+    depth = true_depth + spec.bias + rng.normal(0.0, spec.noise, true_depth.shape)
+    outliers = rng.random(depth.shape) < spec.outlier_rate
+    depth[outliers] += rng.uniform(-spec.outlier, spec.outlier, int(outliers.sum()))
+    depth[rng.random(depth.shape) < spec.missing_beam_rate] = np.nan
+    return depth
+
+
+def _swath_patches(
+    rng: np.random.Generator, grid: Grid, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float, at: np.ndarray
+) -> list[SonarPatch]:
+    from .sonar import grid_soundings
+
+    h, w = spec.shape
+    dt = 1.0 / rate_hz
+    velocity = np.gradient(truth, dt, axis=0)
+    speed = np.hypot(velocity[:, 0], velocity[:, 1])
+    # Beams across the vehicle's motion (to starboard positive); a vehicle at rest looks north.
+    motion = np.where(speed[:, None] > 1e-6, velocity / np.maximum(speed, 1e-6)[:, None], (0.0, 1.0))
+    starboard = np.column_stack([motion[:, 1], -motion[:, 0]])
+    width = spec.swath_width_m if spec.swath_width_m is not None else max(h, w) * grid.node_m
+    across = np.linspace(-width / 2, width / 2, spec.beams)
+    beam_offsets = across[None, :, None] * starboard[:, None, :]  # (pings, beams, 2)
+    spots = truth[:, None, :] + beam_offsets
+    depth = _sound(rng, _floor_depth(grid, spots[..., 0], spots[..., 1]), spec)
+    # Where the navigation believes each ping was: dead reckoning on the measured velocity, a dropped
+    # reading holding the last one.
+    held = measured_velocity.copy()
+    for n in range(1, held.shape[0]):
+        if np.isnan(held[n]).any():
+            held[n] = held[n - 1]
+    held[np.isnan(held)] = 0.0
+    reckoned = np.vstack([np.zeros(2), np.cumsum(held[:-1] * dt, axis=0)])
+    # The pings whose reckoned position lies within half a patch diagonal of the vehicle's, looked
+    # for at most max_window_s away: a slow vehicle gathers pings for longer.
+    half_diagonal = math.hypot(h, w) * grid.node_m / 2
+    window = int(np.ceil(spec.max_window_s * rate_hz))
+    patches = []
+    for n in at:
+        nearby = np.arange(max(n - window, 0), min(n + window + 1, truth.shape[0]))
+        pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[n]).T) <= half_diagonal]
+        offsets = beam_offsets[pings] + (reckoned[pings] - reckoned[n])[:, None, :]
+        sounded = np.isfinite(depth[pings])
+        patches.append(
+            grid_soundings(offsets[..., 0][sounded], offsets[..., 1][sounded], depth[pings][sounded], patch_shape=(h, w), node_m=grid.node_m).patch
+        )
+    return patches

@@ -1,0 +1,80 @@
+"""The map made ready for the correlator: word scale, and the hole policy."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from lost import model
+from lost.host.grid import Grid
+from lost.host.nav import PreparedMap
+
+
+def _grid(depth):
+    return Grid(np.asarray(depth, float), 0.0, 0.0, 10.0)
+
+
+def test_scale_and_offset_hold_the_map():
+    depth = np.linspace(900.0, 1100.0, 60).reshape(6, 10)
+    prepared = PreparedMap(grid=_grid(depth))
+    assert prepared.offset_m == 1000.0
+    # The finest step that holds +-100 m in half the word range: 0.01 m words hold +-327 m, half is +-163 m.
+    assert prepared.lsb_m == 0.01
+    assert np.allclose(model.dequantize(prepared.words, prepared.lsb_m, offset_m=prepared.offset_m), depth, atol=0.005)
+
+
+def test_a_given_step_is_used():
+    assert PreparedMap(grid=_grid(np.full((4, 4), 50.0)), lsb_m=0.5).lsb_m == 0.5
+
+
+def test_holes_are_filled_and_every_touching_placement_is_flagged():
+    depth = np.arange(48, dtype=float).reshape(6, 8)
+    depth[3, 4] = np.nan
+    prepared = PreparedMap(grid=_grid(depth))
+    assert prepared.holes.sum() == 1
+    words = prepared.words
+    assert words.dtype == np.int16
+    # Filled with the nearest valid node's depth, which is one of its four neighbours.
+    neighbours = [depth[2, 4], depth[4, 4], depth[3, 3], depth[3, 5]]
+    filled = model.dequantize(words[3, 4], prepared.lsb_m, offset_m=prepared.offset_m)
+    assert min(abs(filled - n) for n in neighbours) < prepared.lsb_m
+    touching = prepared.placements_touching_holes((2, 3))
+    assert touching.shape == (5, 6)
+    expected = np.zeros((5, 6), dtype=bool)
+    expected[2:4, 2:5] = True  # windows with top-left rows 2..3 and cols 2..4 cover node (3, 4)
+    assert np.array_equal(touching, expected)
+
+
+def test_patch_quantization_masks_and_counts():
+    prepared = PreparedMap(grid=_grid(np.linspace(990.0, 1010.0, 16).reshape(4, 4)))
+    patch = np.array([[1000.0, np.nan], [1e6, 1001.0]])
+    words, mask, dropped = prepared.quantize_patch(patch)
+    assert np.array_equal(mask, [[True, False], [False, True]])
+    assert dropped == 1
+    assert words[0, 0] == 0 and words[1, 1] == round(1.0 / prepared.lsb_m)
+
+
+def test_no_valid_node_is_an_error():
+    with pytest.raises(ValueError, match="no valid depth"):
+        PreparedMap(grid=_grid(np.full((3, 3), np.nan)))
+
+
+def test_a_patch_larger_than_the_map_is_an_error():
+    with pytest.raises(ValueError, match="does not fit"):
+        PreparedMap(grid=_grid(np.zeros((3, 3)))).placements_touching_holes((4, 2))
+
+
+@given(
+    holes=hnp.arrays(bool, st.tuples(st.integers(1, 12), st.integers(1, 12)), elements=st.booleans()),
+    h=st.integers(1, 5),
+    w=st.integers(1, 5),
+)
+def test_touching_holes_matches_a_naive_scan(holes, h, w):
+    rows, cols = holes.shape
+    if holes.all() or h > rows or w > cols:
+        return
+    depth = np.where(holes, np.nan, 100.0 + np.arange(holes.size).reshape(holes.shape))
+    touching = PreparedMap(grid=_grid(depth)).placements_touching_holes((h, w))
+    naive = np.array([[holes[i : i + h, j : j + w].any() for j in range(cols - w + 1)] for i in range(rows - h + 1)])
+    assert np.array_equal(touching, naive.reshape(rows - h + 1, cols - w + 1))

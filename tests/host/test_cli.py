@@ -1,0 +1,139 @@
+"""The ``lost`` command: run, demo and correlate, end to end on files."""
+
+import json
+
+import numpy as np
+import pytest
+
+from lost.host.cli import main
+from lost.host.grid import Grid
+from lost.host.scenario import builtin_scenario_path
+from lost.host.terrain import synthetic_terrain
+
+
+def test_run_a_scenario_writes_the_track_summary_and_plots(tmp_path, capsys):
+    out = tmp_path / "short"
+    assert main(["run", str(builtin_scenario_path("short")), "--out", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "map.png", "error.png"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["methods"]) == {"lost", "layback", "dead_reckoning"}
+    for stats in summary["methods"].values():
+        assert {"rms_m", "p95_m", "max_m"} <= set(stats)
+    assert summary["parameters"]["backend"] == "software"
+    assert (out / "map.png").read_bytes()[:4] == b"\x89PNG"
+    printed = capsys.readouterr().out
+    assert "LOST converged after" in printed and "layback" in printed
+
+
+def test_run_by_builtin_name_with_backend_and_matching(tmp_path):
+    out = tmp_path / "point"
+    assert main(["run", "short", "--out", str(out), "--backend", "model", "--matching", "point"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["parameters"]["backend"] == "model" and summary["parameters"]["matching"] == "point"
+
+
+def test_run_needs_a_scenario_or_log_and_bathy(capsys):
+    assert main(["run", "--log", "nav.csv"]) == 2
+    assert "needs a scenario file, or both --log" in capsys.readouterr().err
+
+
+def test_a_scenario_with_an_unknown_navigation_field_is_refused(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text("duration_s = 10\n[navigation]\nkay = 3\n")
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "kay" in capsys.readouterr().err
+
+
+def _map_file(tmp_path):
+    from lost.host.io import write_npz
+
+    depth = synthetic_terrain((60, 70), seed=11, roughness_m=10.0, hurst=0.5)
+    grid = Grid(depth, 1000.0, 2000.0, 10.0)
+    return depth, write_npz(grid, tmp_path / "map.npz")
+
+
+def test_correlate_files_prints_best_fit_and_runner_up(tmp_path, capsys):
+    depth, map_path = _map_file(tmp_path)
+    patch = depth[20:30, 33:43] + 4.0
+    patch[0, 0] = np.nan
+    np.save(tmp_path / "patch.npy", patch)
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.npy"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["best"]["i"] == 20 and result["best"]["j"] == 33 and result["best"]["value"] <= 99 * 99
+    assert result["valid_nodes"] == 99 and result["runner_up"]["value"] > result["best"]["value"]
+    np.savetxt(tmp_path / "patch.csv", patch, delimiter=",")
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.csv"), "--backend", "model"]) == 0
+    printed = capsys.readouterr().out
+    assert "best fit   (i, j) = (20, 33)" in printed and "centre x = 1375.0 m, y = 2245.0 m" in printed
+
+
+def test_correlate_rejects_a_bad_patch_file(tmp_path, capsys):
+    _, map_path = _map_file(tmp_path)
+    (tmp_path / "patch.json").write_text("[]")
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.json")]) == 2
+    assert ".npy, .npz or .csv" in capsys.readouterr().err
+
+
+def test_demo_runs_into_its_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["demo"]) == 0
+    summary = json.loads((tmp_path / "runs" / "demo" / "summary.json").read_text())
+    assert summary["name"] == "demo" and summary["convergence"]["converged"]
+    assert summary["methods"]["lost"]["rms_m"] < 5.0
+
+
+def test_run_a_recorded_tow_from_log_sonar_and_grid_files(tmp_path, capsys):
+    """The simulator's short tow written as files in NAV-io's documented layout, then read back by `lost run --log`."""
+    from lost.host.io import write_npz
+    from lost.host.scenario import load_scenario, simulate
+
+    grid, records = simulate(load_scenario(builtin_scenario_path("short")))
+    map_path = write_npz(grid, tmp_path / "map.npz")
+    columns = {
+        "t_s": records.t_s, "x_m": records.ship_x_m, "y_m": records.ship_y_m, "ship_heading_deg": records.ship_heading_deg,
+        "vehicle_depth_m": records.vehicle_depth_m, "altitude_m": records.altitude_m, "vel_x_mps": records.vel_x_mps,
+        "vel_y_mps": records.vel_y_mps, "cable_out_m": records.cable_out_m, "slant_range_m": records.slant_range_m,
+        "truth_x_m": records.truth_x_m, "truth_y_m": records.truth_y_m,
+    }
+    np.savetxt(tmp_path / "nav.csv", np.column_stack(list(columns.values())), delimiter=",", header=",".join(columns), comments="")
+    soundings = []
+    for n, patch in enumerate(records.sonar):
+        if patch is None:
+            continue
+        h, w = patch.depth_m.shape
+        north, east = np.meshgrid((np.arange(h) - (h - 1) / 2) * patch.node_m, (np.arange(w) - (w - 1) / 2) * patch.node_m, indexing="ij")
+        keep = np.isfinite(patch.depth_m)
+        soundings.append(np.column_stack([np.full(keep.sum(), records.t_s[n]), east[keep], north[keep], patch.depth_m[keep]]))
+    np.savetxt(tmp_path / "sonar.csv", np.vstack(soundings), delimiter=",", header="t_s,east_m,north_m,depth_m", comments="")
+
+    out = tmp_path / "recorded"
+    code = main(["run", "--log", str(tmp_path / "nav.csv"), "--bathy", str(map_path), "--sonar", str(tmp_path / "sonar.csv"), "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["name"] == "nav" and summary["truth_known"]
+    assert summary["convergence"]["converged"] and summary["methods"]["lost"]["rms_m"] < 7.0
+    assert summary["methods"]["layback"]["rms_m"] > 10 * summary["methods"]["lost"]["rms_m"]
+
+
+def test_long_runs_get_a_progress_bar_that_passes_every_record():
+    from lost.host.cli import PROGRESS_RECORDS, _progress
+
+    assert _progress(PROGRESS_RECORDS) is None
+    wrap = _progress(PROGRESS_RECORDS + 1)
+    assert list(wrap(range(PROGRESS_RECORDS + 1))) == list(range(PROGRESS_RECORDS + 1))
+
+
+def test_correlate_never_places_the_patch_on_a_hole(tmp_path, capsys):
+    from lost.host.io import write_npz
+
+    depth = synthetic_terrain((60, 70), seed=11, roughness_m=10.0, hurst=0.5)
+    patch = depth[20:30, 33:43].copy()
+    holed = depth.copy()
+    holed[25, 40] = np.nan
+    map_path = write_npz(Grid(holed, 0.0, 0.0, 10.0), tmp_path / "holed.npz")
+    np.save(tmp_path / "patch.npy", patch)
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.npy"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["excluded_placements"] == 100  # the 10 x 10 placements whose window covers node (25, 40)
+    best = result["best"]
+    assert not (16 <= best["i"] <= 25 and 31 <= best["j"] <= 40)

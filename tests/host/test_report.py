@@ -1,0 +1,61 @@
+"""Run reports: statistics, the convergence rule, the track CSV and summary.json."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from lost.host.nav.pipeline import NavResult
+from lost.host.report import ConvergenceRule, convergence_index, error_stats, summarize, write_summary, write_track_csv
+
+
+def test_error_stats_by_hand():
+    stats = error_stats(np.array([3.0, 4.0, np.nan, 0.0]))
+    assert stats["rms_m"] == pytest.approx(np.sqrt(25.0 / 3.0), abs=1e-3)
+    assert stats["max_m"] == 4.0 and stats["records"] == 3
+    assert error_stats(np.array([np.nan]))["rms_m"] is None
+
+
+def test_convergence_needs_an_unbroken_hold():
+    t = np.arange(10.0)
+    errors = np.array([200, 50, 10, 10, 30, 5, 5, 5, 5, 40], float)
+    assert convergence_index(t, errors, ConvergenceRule(radius_m=20.0, hold_s=3.0)) == 5
+    assert convergence_index(t, errors, ConvergenceRule(radius_m=20.0, hold_s=4.0)) is None
+    assert convergence_index(t, errors, ConvergenceRule(radius_m=35.0, hold_s=4.0)) == 2
+
+
+def _result(n=6):
+    truth = np.column_stack([np.arange(n) * 10.0, np.zeros(n)])
+    estimate = truth + np.array([[100.0, 0.0]] + [[3.0, 4.0]] * (n - 1))
+    nan2 = np.full((n, 2), np.nan)
+    return NavResult(
+        t_s=np.arange(n, dtype=float), estimate=estimate, predicted=estimate, mle=nan2, mle_source=np.array([""] * n),
+        distinctness=np.full(n, np.nan), cat=nan2, cross_velocity_mps=np.full(n, np.nan),
+        slant_corrected=np.zeros(n, bool), off_map=np.array([False] * (n - 1) + [True]),
+        layback=truth + (0.0, 50.0), dead_reckoning=truth + (0.0, 100.0), truth=truth, counts={"records": n},
+    )
+
+
+def test_summary_and_files(tmp_path):
+    result = _result()
+    summary = summarize(result, name="hand", parameters={"k": 100.0}, rule=ConvergenceRule(radius_m=10.0, hold_s=2.0))
+    assert summary["convergence"]["time_s"] == 1.0 and summary["convergence"]["initial_error_m"] == 100.0
+    assert summary["methods"]["lost"]["rms_m"] == 5.0 and summary["methods"]["lost"]["whole_run"]["max_m"] == 100.0
+    assert summary["methods"]["layback"]["p95_m"] == 50.0 and summary["methods"]["dead_reckoning"]["max_m"] == 100.0
+    assert summary["off_map_records"] == 1
+    write_summary(tmp_path / "summary.json", summary)
+    assert json.loads((tmp_path / "summary.json").read_text()) == summary
+    write_track_csv(tmp_path / "track.csv", result)
+    with open(tmp_path / "track.csv", newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert len(rows) == 6
+    assert [r["stage"] for r in rows] == ["initialization"] + ["dead_reckoning"] * 4 + ["off_map"]
+    assert float(rows[2]["error_m"]) == 5.0 and rows[2]["mle_x_m"] == "" and float(rows[2]["layback_error_m"]) == 50.0
+
+
+def test_summary_without_truth_has_no_errors():
+    result = _result()
+    result = NavResult(**{**result.__dict__, "truth": None})
+    summary = summarize(result, name="log", parameters={})
+    assert summary["truth_known"] is False and summary["methods"] == {}

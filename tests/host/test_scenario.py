@@ -1,0 +1,192 @@
+"""The tow simulator: scenario files, physics and sensors."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from lost.host.scenario import (
+    KNOT_MPS,
+    CableSpec,
+    CurrentSpec,
+    Scenario,
+    SensorSpec,
+    ShipSpec,
+    SonarSpec,
+    TerrainSpec,
+    builtin_scenario_path,
+    builtin_scenarios,
+    load_scenario,
+    simulate,
+)
+
+
+def test_the_shipped_scenarios_load():
+    names = builtin_scenarios()
+    assert {"demo", "short", "two_hour"} <= set(names)
+    for name in names:
+        scenario = load_scenario(builtin_scenario_path(name))
+        assert scenario.name == name and scenario.duration_s > 0
+
+
+def test_an_unknown_field_is_an_error(tmp_path):
+    path = tmp_path / "typo.toml"
+    path.write_text("[ship]\nspeed_knots = 3\n")
+    with pytest.raises(ValueError, match=r"\[ship\] has unknown field\(s\) \['speed_knots'\]"):
+        load_scenario(path)
+    path.write_text("[sensors.sonr]\nnoise = 1\n")
+    with pytest.raises(ValueError, match="unknown sensor"):
+        load_scenario(path)
+    path.write_text("durations = 3\n")
+    with pytest.raises(ValueError, match="unknown top-level"):
+        load_scenario(path)
+
+
+def test_bad_values_are_errors(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[sensors.gps]\ndropout_rate = 1.5\n")
+    with pytest.raises(ValueError, match="dropout_rate must lie in"):
+        load_scenario(path)
+    path.write_text("[ship]\nwaypoints_m = [[0, 0]]\n")
+    with pytest.raises(ValueError, match="two waypoints"):
+        load_scenario(path)
+    path.write_text("this is = not toml [\n")
+    with pytest.raises(ValueError, match="not valid TOML"):
+        load_scenario(path)
+    with pytest.raises(ValueError, match="no built-in scenario"):
+        builtin_scenario_path("atlantis")
+
+
+def _quiet(**changes):
+    """A straight eastward tow with perfect sensors."""
+    base = Scenario(
+        seed=3,
+        duration_s=900.0,
+        terrain=TerrainSpec(shape=(200, 500), roughness_m=5.0),
+        ship=ShipSpec(waypoints_m=((1800.0, 1000.0), (4800.0, 1000.0)), speed_kn=3.0),
+        cable=CableSpec(out_m=1200.0, catenary_factor=0.9),
+        sensors={"sonar": SonarSpec(shape=(5, 7), interval_s=3.0)},
+    )
+    return replace(base, **changes)
+
+
+def test_a_cross_current_sets_the_vehicle_off_the_track_by_the_water_angle():
+    scenario = _quiet(current=CurrentSpec(speed_kn=0.5, toward_deg=0.0))
+    grid, records = simulate(scenario)
+    v, c = 3.0 * KNOT_MPS, 0.5 * KNOT_MPS
+    depth = records.vehicle_depth_m[-1]
+    layback = 0.9 * math.sqrt(1200.0**2 - depth**2)
+    offset = records.truth_y_m[-1] - records.ship_y_m[-1]
+    assert offset == pytest.approx(layback * c / math.hypot(v, c), rel=1e-3)
+    behind = records.ship_x_m[-1] - records.truth_x_m[-1]
+    assert behind == pytest.approx(layback * v / math.hypot(v, c), rel=1e-3)
+
+
+def test_perfect_sensors_read_the_truth():
+    grid, records = simulate(_quiet())
+    truth = np.column_stack([records.truth_x_m, records.truth_y_m])
+    velocity = np.gradient(truth, 1.0, axis=0)
+    assert np.allclose(records.vel_x_mps, velocity[:, 0]) and np.allclose(records.vel_y_mps, velocity[:, 1])
+    ship_range = np.hypot(records.ship_x_m - truth[:, 0], records.ship_y_m - truth[:, 1])
+    assert np.allclose(records.slant_range_m, np.hypot(ship_range, records.vehicle_depth_m))
+    # Altimeter + pressure depth is the sea floor under the vehicle: the map interpolated at the truth.
+    from scipy.interpolate import RegularGridInterpolator
+
+    floor = RegularGridInterpolator((np.arange(grid.shape[0]) * 10.0, np.arange(grid.shape[1]) * 10.0), grid.depth_m)
+    assert np.allclose(records.vehicle_depth_m + records.altitude_m, floor(np.column_stack([truth[:, 1], truth[:, 0]])))
+    # Patches every 3 s, 5 x 7, centred on the vehicle, rows northward.
+    present = [n for n, p in enumerate(records.sonar) if p is not None]
+    assert present == list(range(0, 900, 3))
+    patch = records.sonar[30].depth_m
+    assert patch.shape == (5, 7)
+    x, y = truth[30]
+    assert patch[2, 3] == pytest.approx(floor([[y, x]])[0])
+    assert patch[4, 3] == pytest.approx(floor([[y + 20.0, x]])[0])
+    assert patch[2, 0] == pytest.approx(floor([[y, x - 30.0]])[0])
+
+
+def test_the_same_seed_gives_the_same_tow_and_noise_has_its_rates():
+    noisy = _quiet(sensors={
+        "altimeter": SensorSpec(noise=0.3, dropout_rate=0.1, outlier_rate=0.05, outlier=30.0),
+        "sonar": SonarSpec(noise=0.2, missing_beam_rate=0.2, bias=1.0),
+    })
+    _, a = simulate(noisy)
+    _, b = simulate(noisy)
+    assert np.array_equal(a.altitude_m, b.altitude_m, equal_nan=True)
+    dropped = np.isnan(a.altitude_m).mean()
+    assert 0.07 < dropped < 0.13
+    missing = np.mean([np.isnan(p.depth_m).mean() for p in a.sonar if p is not None])
+    assert 0.17 < missing < 0.23
+
+
+def test_no_slant_range_when_disabled_and_ship_velocity_without_ins():
+    from lost.host.scenario import SlantRangeSpec, VehicleSpec
+
+    scenario = _quiet(sensors={"slant_range": SlantRangeSpec(enabled=False)}, vehicle=VehicleSpec(has_velocity_sensor=False))
+    _, records = simulate(scenario)
+    assert np.isnan(records.slant_range_m).all()
+    ship_velocity = np.gradient(np.column_stack([records.ship_x_m, records.ship_y_m]), 1.0, axis=0)
+    assert np.allclose(records.vel_x_mps, ship_velocity[:, 0])
+
+
+def test_the_ship_turns_at_its_rate_through_the_waypoints():
+    scenario = _quiet(ship=ShipSpec(waypoints_m=((1800.0, 500.0), (3000.0, 500.0), (3000.0, 1500.0)), turn_rate_dps=1.0))
+    _, records = simulate(scenario)
+    turn = np.abs((np.diff(records.ship_heading_deg) + 180.0) % 360.0 - 180.0)
+    assert turn.max() <= 1.0 + 1e-9
+    final = records.ship_heading_deg[-1]
+    assert records.ship_heading_deg[0] == pytest.approx(90.0) and min(final, 360.0 - final) < 0.1  # east, then north
+
+
+def test_a_grid_file_replaces_the_synthetic_floor(tmp_path):
+    from lost.host.grid import Grid
+    from lost.host.io import write_npz
+
+    depth = np.full((150, 400), 700.0) + np.arange(400)[None, :] * 0.1
+    write_npz(Grid(depth, 500.0, 0.0, 10.0), tmp_path / "floor.npz")
+    path = tmp_path / "file.toml"
+    path.write_text(
+        'duration_s = 60\n[terrain]\nfile = "floor.npz"\n'
+        "[ship]\nwaypoints_m = [[3000.0, 700.0], [4400.0, 700.0]]\n[cable]\nout_m = 800.0\n"
+    )
+    grid, records = simulate(load_scenario(path))
+    assert grid.x0_m == 500.0 and np.array_equal(grid.depth_m, depth)
+    expected = 700.0 + (records.truth_x_m - 500.0) / 10.0 * 0.1
+    assert np.allclose(records.vehicle_depth_m + records.altitude_m, expected)
+
+
+def test_a_gps_dropout_loses_both_coordinates():
+    _, records = simulate(_quiet(sensors={"gps": SensorSpec(noise=1.0, dropout_rate=0.2)}))
+    assert np.array_equal(np.isnan(records.ship_x_m), np.isnan(records.ship_y_m))
+    assert 0.15 < np.isnan(records.ship_x_m).mean() < 0.25
+    assert not np.isnan(records.ship_heading_deg).any()
+
+
+def test_a_swath_binned_by_dead_reckoning_makes_the_gridded_patch(tmp_path):
+    from lost.host.grid import Grid
+    from lost.host.io import write_npz
+
+    plane = 500.0 + 0.05 * np.arange(500)[None, :] + 0.03 * np.arange(200)[:, None]
+    write_npz(Grid(plane, 0.0, 0.0, 10.0), tmp_path / "plane.npz")
+    on_plane = replace(_quiet(), base_dir=tmp_path, terrain=TerrainSpec(file="plane.npz"))
+    _, from_swath = simulate(replace(on_plane, sensors={"sonar": SonarSpec(mode="swath", beams=64, shape=(6, 6), interval_s=5.0)}))
+    _, from_nodes = simulate(replace(on_plane, sensors={"sonar": SonarSpec(shape=(6, 6), interval_s=5.0)}))
+    # From 30 s on, the pings behind the vehicle cover the patch (earlier, its back is still empty).
+    compared = 0
+    for a, b in zip(from_swath.sonar[30:], from_nodes.sonar[30:-30]):
+        if a is None:
+            assert b is None
+            continue
+        assert np.isfinite(a.depth_m).all()
+        # Each node holds the mean of the soundings on it: within the plane's rise over half a node.
+        assert np.max(np.abs(a.depth_m - b.depth_m)) < 0.5 * 10.0 * 0.06
+        compared += 1
+    assert compared > 100
+
+
+def test_swath_settings_are_validated():
+    with pytest.raises(ValueError, match="mode must be"):
+        Scenario(sensors={"sonar": SonarSpec(mode="sidescan")})
+    with pytest.raises(ValueError, match="at least 2 beams"):
+        Scenario(sensors={"sonar": SonarSpec(mode="swath", beams=1)})
