@@ -27,6 +27,11 @@
 /* Widest block any kernel reads: the padding every row of `a` carries past its last column. */
 #define BLOCK_MAX 64
 
+/* Below this many terms (about 0.1 ms on one core) waking a thread team costs more than it saves:
+ * the navigation pipeline correlates ~70 x 70 sub-maps at every record. */
+#define PARALLEL_MIN_TERMS 4000000
+#define ROWS_PER_BAND 8
+
 typedef void (*block_kernel)(const int32_t *a, const int32_t *c, const int32_t *offs,
                              const int32_t *qs, int nt, uint32_t *acc, int cols);
 
@@ -187,15 +192,9 @@ static PyObject *surface(PyObject *self, PyObject *args) {
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) a[(size_t)y * stride + x] = scale * M[(size_t)y * W + x];
 
-#pragma omp parallel
+    const int parallel = (int64_t)rows * cols * n >= PARALLEL_MIN_TERMS;
+#pragma omp parallel if (parallel)
     {
-        int nthreads = 1, me = 0;
-#ifdef _OPENMP
-        nthreads = omp_get_num_threads();
-        me = omp_get_thread_num();
-#endif
-        /* Contiguous row chunks, so each thread slides its column sums down its own rows. */
-        int r0 = (int)((int64_t)rows * me / nthreads), r1 = (int)((int64_t)rows * (me + 1) / nthreads);
         int32_t *colsum = calloc((size_t)W, sizeof(int32_t));
         int32_t *c = calloc((size_t)cols_padded, sizeof(int32_t));
         uint32_t *acc = calloc((size_t)cols_padded, sizeof(uint32_t));
@@ -203,39 +202,46 @@ static PyObject *surface(PyObject *self, PyObject *args) {
 #pragma omp atomic write
             failed = 1;
         } else {
-            for (int i = r0; i < r1; i++) {
-                if (mean_compensation) {
-                    if (i == r0) {
-                        for (int x = 0; x < W; x++) {
-                            int32_t s = 0;
-                            for (int k = 0; k < h; k++) s += M[(size_t)(i + k) * W + x];
-                            colsum[x] = s;
+            /* Bands of rows handed out dynamically, so a thread the OS parks does not hold up the
+             * call; within a band the column sums slide down one row at a time. */
+#pragma omp for schedule(dynamic, 1)
+            for (int band = 0; band < (rows + ROWS_PER_BAND - 1) / ROWS_PER_BAND; band++) {
+                const int r0 = band * ROWS_PER_BAND;
+                const int r1 = r0 + ROWS_PER_BAND < rows ? r0 + ROWS_PER_BAND : rows;
+                for (int i = r0; i < r1; i++) {
+                    if (mean_compensation) {
+                        if (i == r0) {
+                            for (int x = 0; x < W; x++) {
+                                int32_t s = 0;
+                                for (int k = 0; k < h; k++) s += M[(size_t)(i + k) * W + x];
+                                colsum[x] = s;
+                            }
+                        } else {
+                            for (int x = 0; x < W; x++)
+                                colsum[x] += M[(size_t)(i + h - 1) * W + x] - M[(size_t)(i - 1) * W + x];
                         }
-                    } else {
-                        for (int x = 0; x < W; x++)
-                            colsum[x] += M[(size_t)(i + h - 1) * W + x] - M[(size_t)(i - 1) * W + x];
+                        int32_t box = 0;
+                        for (int l = 0; l < w; l++) box += colsum[l];
+                        for (int j = 0; j < cols; j++) {
+                            c[j] = box;
+                            if (j + w < W) box += colsum[j + w] - colsum[j];
+                        }
+                        for (int u = 0; u < n_invalid; u++) {
+                            const int16_t *r = M + (size_t)i * W + invalid[u];
+                            for (int j = 0; j < cols; j++) c[j] -= r[j];
+                        }
+                        for (int j = 0; j < cols; j++) c[j] -= (int32_t)patch_sum;
                     }
-                    int32_t box = 0;
-                    for (int l = 0; l < w; l++) box += colsum[l];
-                    for (int j = 0; j < cols; j++) {
-                        c[j] = box;
-                        if (j + w < W) box += colsum[j + w] - colsum[j];
+                    int64_t *o = out + (size_t)i * cols;
+                    const int32_t *arow = a + (size_t)i * stride;
+                    for (int t0 = 0; t0 < n; t0 += chunk) {
+                        int nt = n - t0 < chunk ? n - t0 : chunk;
+                        KERNEL(arow, c, offs + t0, qs + t0, nt, acc, cols);
+                        if (t0 == 0)
+                            for (int j = 0; j < cols; j++) o[j] = acc[j];
+                        else
+                            for (int j = 0; j < cols; j++) o[j] += acc[j];
                     }
-                    for (int u = 0; u < n_invalid; u++) {
-                        const int16_t *r = M + (size_t)i * W + invalid[u];
-                        for (int j = 0; j < cols; j++) c[j] -= r[j];
-                    }
-                    for (int j = 0; j < cols; j++) c[j] -= (int32_t)patch_sum;
-                }
-                int64_t *o = out + (size_t)i * cols;
-                const int32_t *arow = a + (size_t)i * stride;
-                for (int t0 = 0; t0 < n; t0 += chunk) {
-                    int nt = n - t0 < chunk ? n - t0 : chunk;
-                    KERNEL(arow, c, offs + t0, qs + t0, nt, acc, cols);
-                    if (t0 == 0)
-                        for (int j = 0; j < cols; j++) o[j] = acc[j];
-                    else
-                        for (int j = 0; j < cols; j++) o[j] += acc[j];
                 }
             }
         }

@@ -8,11 +8,18 @@ spilling into the int64 output.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from lost.model import correlator_widths
 
-from . import _sad
+# libgomp reads this once, when the kernel loads it. Its default spins idle threads for a while; on
+# a busy 2-core machine a spinning or parked team member made a 1 ms correlation take 16 ms.
+# Sleeping at once costs a futex wake-up per call instead. A user's own setting wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+from . import _sad  # noqa: E402  (after the environment is set)
 
 __all__ = ["KERNEL", "software_surface"]
 

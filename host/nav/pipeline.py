@@ -27,7 +27,6 @@ from dataclasses import asdict, dataclass, field
 from typing import Callable, Iterable
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ..correlator import BACKENDS, correlate
 from ..grid import Grid
@@ -286,10 +285,7 @@ def run_lost(
         Patch matching on a tow without sonar patches, a sonar patch on other nodes than the map, a
         prepared map of another grid.
     """
-    # The sub-maps are small (about 70 x 70): an OpenMP team's wake-ups cost more than the work,
-    # and far more on a busy machine (7 ms instead of 0.03 ms per correlation measured here).
-    with threadpool_limits(limits=1, user_api="openmp"):
-        return _run(records, grid, params, prepared, progress)
+    return _run(records, grid, params, prepared, progress)
 
 
 def _run(
