@@ -5,11 +5,17 @@ top-level module: ``recursive_correlator.v`` and ``window_correlator_l1.v``/``_l
 with 1 and 4 lanes), at the paper's 501 x 501 map and 10 x 10 patch unless ``--map``/``--patch`` say
 otherwise. ``emit_src=False`` keeps absolute source paths out of the Verilog, so the files are the
 same on every machine.
+
+Yosys writes a memory's initial contents one element per line: 251 001 lines for the map memory of a
+501 x 501 core, which Verilator turns into a C++ function that takes minutes to compile. Every memory
+of the correlator starts at zero (``init=[]``), so :func:`to_verilog` rewrites each all-zero
+initializer as the equivalent ``for`` loop; a memory with any non-zero initial word keeps Yosys's text.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -18,7 +24,7 @@ from pathlib import Path
 from amaranth.back import verilog
 from amaranth.lib import wiring
 
-__all__ = ["VARIANTS", "Variant", "to_verilog", "variant", "write_verilog", "write_variants"]
+__all__ = ["VARIANTS", "Variant", "compact_zero_initializers", "to_verilog", "variant", "write_verilog", "write_variants"]
 
 DEFAULT_MAP_SHAPE = (501, 501)
 DEFAULT_PATCH_SHAPE = (10, 10)
@@ -75,9 +81,47 @@ def variant(name: str) -> Variant:
         raise ValueError(f"unknown correlator variant {name!r}; known: {', '.join(VARIANTS)}") from None
 
 
+_INITIAL_BLOCK = re.compile(r"^  initial begin\n((?:    .+\[\d+\] = \d+'h[0-9a-fA-F]+;\n)+)  end\n", re.MULTILINE)
+_ELEMENT = re.compile(r"^    (?P<memory>.+)\[(?P<index>\d+)\] = (?P<width>\d+)'h(?P<value>[0-9a-fA-F]+);$")
+
+
+def compact_zero_initializers(text: str) -> str:
+    """Rewrite each memory initializer that sets elements ``0 .. N-1`` to zero as one ``for`` loop.
+
+    The result means the same in Verilog; initializers of any other form are left as Yosys wrote them.
+    """
+    counter = 0
+
+    def compact(block: re.Match) -> str:
+        nonlocal counter
+        elements = [_ELEMENT.match(line) for line in block[1].splitlines()]
+        memories = {e["memory"] for e in elements if e}
+        if (
+            not all(elements)
+            or len(memories) != 1
+            or any(int(e["index"]) != k or int(e["value"], 16) != 0 for k, e in enumerate(elements))
+        ):
+            return block[0]
+        (memory,) = memories
+        index = f"lost_zero_init_{counter}"
+        counter += 1
+        return (
+            f"  integer {index};\n"
+            "  initial begin\n"
+            f"    for ({index} = 0; {index} < {len(elements)}; {index} = {index} + 1)\n"
+            f"      {memory}[{index}] = {elements[0]['width']}'h0;\n"
+            "  end\n"
+        )
+
+    if "lost_zero_init_" in text:
+        raise ValueError("the Verilog already uses the name prefix lost_zero_init_; cannot compact it")
+    return _INITIAL_BLOCK.sub(compact, text)
+
+
 def to_verilog(component: wiring.Component, *, name: str) -> str:
-    """The Verilog of ``component`` with top-level module ``name`` and no source locations."""
-    return verilog.convert(component, name=name, emit_src=False)
+    """The Verilog of ``component`` with top-level module ``name``, no source locations, and its
+    all-zero memory initializers compacted (:func:`compact_zero_initializers`)."""
+    return compact_zero_initializers(verilog.convert(component, name=name, emit_src=False))
 
 
 def write_verilog(component: wiring.Component, *, name: str, out: Path) -> Path:

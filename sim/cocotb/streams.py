@@ -198,8 +198,12 @@ class StreamSink:
         self._port.ready.value = 0
 
     def set_ready(self, ready: Iterator[int] | None) -> None:
-        """Change the back-pressure pattern from the next clock on."""
+        """Change the back-pressure pattern from the next clock on (or the next rise of ``valid``)."""
         self._ready = always() if ready is None else ready
+
+    def set_callback(self, on_transfer: Callable[[Transfer], None] | None) -> None:
+        """Hand each following transfer to ``on_transfer`` (None: to nobody)."""
+        self._on_transfer = on_transfer
 
     async def _monitor(self) -> None:
         port, clock = self._port, self._clocking.clock
@@ -208,8 +212,9 @@ class StreamSink:
         while True:
             await ReadOnly()
             if not port.valid.value:
-                # Idle: sleep until valid rises (on some clock edge), keeping ready as it is.
+                # Idle: sleep until valid rises (on a clock edge), then decide ready for the next edge.
                 await RisingEdge(port.valid)
+                port.ready.value = next(self._ready)
                 continue
             if port.ready.value:
                 transfer = Transfer(decode_payload(port.shape, _bits(port.payload.value)), self._clocking.next_edge_time())
