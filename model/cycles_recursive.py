@@ -1,0 +1,66 @@
+"""Cycle model of the recursive-adder correlator (:mod:`lost.hdl.recursive`).
+
+With ``surface.ready`` and ``best.ready`` held high and the patch and map loaded, counting from the
+edge on which the ``start`` beat transfers (cycle 0):
+
+* cycles ``1 .. h*w`` read the patch memory, one word per clock, and one cycle later append each valid
+  node to the compact node list; the generator issues its first map read request on the clock after,
+  which the sequencer takes on edge ``h*w + 2``;
+* then one request per clock: ``P = 2n`` per placement with mean compensation (a pass summing the
+  window, a pass forming the terms), ``P = n`` without, placements in raster order;
+* a request's word reaches the arithmetic one edge after the request; the last term of placement ``p``
+  (``(p + 1) * P - 1``-th request) fills the output register, which transfers on the following edge:
+  cycle ``h*w + 3 + (p + 1) * P``;
+* the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .cycles import Schedule, reducer_latency
+from .widths import placement_widths
+
+__all__ = ["requests_per_placement", "schedule"]
+
+
+def requests_per_placement(mask: np.ndarray, mean_compensation: bool) -> int:
+    """Map reads (and clocks) per placement: ``2n`` with mean compensation, ``n`` without."""
+    n = int(np.count_nonzero(mask))
+    return 2 * n if mean_compensation else n
+
+
+def schedule(map_shape, patch_shape, mask=None, mean_compensation=True, *, exclusion_radius=1) -> Schedule:
+    """The cycle of every surface beat and of the best beat of one correlation.
+
+    Parameters
+    ----------
+    map_shape, patch_shape : (int, int)
+        ``(H, W)`` and ``(h, w)``.
+    mask : (h, w) bool array, optional
+        The valid patch nodes; all when omitted.
+    mean_compensation : bool
+        The mode of the start command.
+    exclusion_radius : int
+        The reducer's radius (its final scan does not depend on it, its row store does).
+
+    Raises
+    ------
+    ValueError
+        A patch larger than the map, a mask of another shape or with no valid node.
+    """
+    (H, W), (h, w) = map_shape, patch_shape
+    placement_widths(map_shape, patch_shape)  # validates the shapes
+    if mask is None:
+        mask = np.ones((h, w), dtype=bool)
+    mask = np.asarray(mask)
+    if mask.shape != (h, w) or mask.dtype != np.bool_:
+        raise ValueError(f"mask must be a boolean array of shape {(h, w)}, got {mask.dtype} {mask.shape}")
+    if not mask.any():
+        raise ValueError("mask has no valid node: there is nothing to correlate")
+    rows, cols = H - h + 1, W - w + 1
+    per_placement = requests_per_placement(mask, mean_compensation)
+    placements = np.arange(rows * cols, dtype=np.int64)
+    surface = h * w + 3 + (placements + 1) * per_placement
+    best = int(surface[-1]) + reducer_latency((rows, cols), 1, exclusion_radius)
+    return Schedule(surface=surface, best=best)
