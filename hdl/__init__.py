@@ -10,11 +10,18 @@ from .interface import (
     decode_payload,
     encode_payload,
 )
+from .recursive import RecursiveCore, RecursiveCorrelator
+from .reducer import BestFitReducer
+from .sequencer import MapSequencer
 
 __all__ = [
     "BestFitBeat",
+    "BestFitReducer",
     "CorrelatorParameters",
+    "MapSequencer",
     "PatchWord",
+    "RecursiveCore",
+    "RecursiveCorrelator",
     "StartCommand",
     "SurfaceBeat",
     "correlator_signature",
