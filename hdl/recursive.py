@@ -14,10 +14,18 @@ modes::
 
 ``n``, ``sum_valid S`` and a compact list of the valid nodes (map offset, depth) are formed once per
 correlation, at start, by one pass over the patch memory; only valid nodes are visited afterwards, so a
-sparse mask costs fewer cycles. ``D`` must be known before a placement's terms, so with mean
-compensation each placement takes two passes over its valid nodes: one summing the map words, one
-forming the terms (``2n`` clocks per placement, ``n`` without mean compensation). The schedule is
-modelled exactly by :func:`lost.model.cycles_recursive.schedule`.
+sparse mask costs fewer cycles.
+
+``D`` must be known before a placement's first term. Rather than reading the map twice, the core reads
+each map word once and uses it twice, one placement apart: on each step it adds the word of node ``k``
+of placement ``q`` to the window sum and writes it into a small window memory (``h * w`` words) at
+``k``, whose read port returns, on the same edge, the word it overwrote: node ``k`` of placement
+``q - 1``, whose ``D`` is complete by then. The term unit forms that term on the next clock. So a
+placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the last placement
+empties the pipeline. The schedule is modelled exactly by :func:`lost.model.cycles_recursive.schedule`.
+
+A patch without any valid node has nothing to correlate; the host refuses it
+(:func:`lost.model.check_inputs`) before it reaches the core.
 """
 
 from __future__ import annotations
@@ -129,16 +137,25 @@ class RecursiveCore(wiring.Component):
         with m.If(seen & word.valid):
             m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + word.depth)]
 
-        # --- the address generator: one map read per request ---------------------------------------
-        tag_layout = data.StructLayout({"term": 1, "first": 1, "last": 1, "depth": signed(p.depth_bits)})
+        # --- the address generator: one map read per valid node and placement -------------------
+        # After the last placement, one more round of n reads (``flush``) pushes its terms out.
+        tag_layout = data.StructLayout({
+            "index": unsigned(max((nodes_total - 1).bit_length(), 1)),
+            "first": 1,
+            "last": 1,
+            "depth": signed(p.depth_bits),
+            "current": 1,   # the word belongs to a placement (not the flush round)
+            "previous": 1,  # a previous placement's terms are due on this step
+        })
         map_read = _map_read_signature(p)
         m.submodules.sequencer = sequencer = MapSequencer(
             addr_width=map_read.addr_width, shape=signed(p.depth_bits), tag_shape=tag_layout)
         wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
 
         generating = Signal()
+        flushing = Signal()
+        has_previous = Signal()
         node_index = Signal(range(nodes_total))
-        term_pass = Signal()
         base = Signal(range(H * W))
         gen_i, gen_j = Signal(range(rows)), Signal(range(cols))
         node = nodes_read.data
@@ -148,40 +165,64 @@ class RecursiveCore(wiring.Component):
         m.d.comb += [
             request.valid.eq(generating),
             request.payload.addr.eq(base + node.offset),
-            request.payload.tag.term.eq(term_pass),
+            request.payload.tag.index.eq(node_index),
             request.payload.tag.first.eq(node_index == 0),
             request.payload.tag.last.eq(last_node),
             request.payload.tag.depth.eq(node.depth),
+            request.payload.tag.current.eq(~flushing),
+            request.payload.tag.previous.eq(has_previous),
             # The read port always holds the node the generator is at.
             nodes_read.addr.eq(Mux(advance, Mux(last_node, 0, node_index + 1), node_index)),
         ]
         with m.If(advance):
             m.d.sync += node_index.eq(Mux(last_node, 0, node_index + 1))
             with m.If(last_node):
-                with m.If(mean & ~term_pass):
-                    m.d.sync += term_pass.eq(1)
+                m.d.sync += has_previous.eq(1)
+                with m.If(flushing):
+                    m.d.sync += generating.eq(0)
+                with m.Elif((gen_i == rows - 1) & (gen_j == cols - 1)):
+                    m.d.sync += flushing.eq(1)
+                with m.Elif(gen_j == cols - 1):
+                    m.d.sync += [gen_j.eq(0), gen_i.eq(gen_i + 1), base.eq(base + w)]
                 with m.Else():
-                    m.d.sync += term_pass.eq(~mean)
-                    with m.If((gen_i == rows - 1) & (gen_j == cols - 1)):
-                        m.d.sync += generating.eq(0)
-                    with m.Elif(gen_j == cols - 1):
-                        m.d.sync += [gen_j.eq(0), gen_i.eq(gen_i + 1), base.eq(base + w)]
-                    with m.Else():
-                        m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
+                    m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
 
-        # --- the arithmetic: one term per clock ----------------------------------------------------
+        # --- step: sum the window of placement q, keep its words, fetch placement q-1's ------------
+        m.submodules.window = window = memory.Memory(shape=signed(p.depth_bits), depth=nodes_total, init=[])
+        window_write = window.write_port()
+        window_read = window.read_port()  # not transparent: it reads the word being overwritten
         response = sequencer.response
         tag = response.payload.tag
         map_word = response.payload.data
+        step = response.valid & response.ready
+
         window_sum = Signal(signed(widths.window_sum.bits))
-        sum_difference = Signal(signed(widths.sum_difference.bits))
+        next_difference = Signal(signed(widths.sum_difference.bits))     # D of placement q
+        sum_difference = Signal(signed(widths.sum_difference.bits))      # D of placement q-1
+        window_sum_new = Mux(tag.first, 0, window_sum) + map_word
+        m.d.comb += [
+            window_write.addr.eq(tag.index),
+            window_write.data.eq(map_word),
+            window_write.en.eq(step & tag.current),
+            window_read.addr.eq(tag.index),
+            window_read.en.eq(step),  # held while the term stage waits
+        ]
+        with m.If(step & tag.current):
+            m.d.sync += window_sum.eq(window_sum_new)
+            with m.If(tag.last):
+                m.d.sync += next_difference.eq(window_sum_new - patch_sum)
+        with m.If(step & tag.previous & tag.first):
+            m.d.sync += sum_difference.eq(next_difference)
+
+        # --- term: one absolute difference and one accumulator, a cycle after the step -------------
+        term_valid, term_first, term_last = Signal(), Signal(), Signal()
+        term_depth = Signal(signed(p.depth_bits))
         accumulator = Signal(unsigned(widths.accumulator.bits))
         out_value = Signal(unsigned(widths.accumulator.bits))
         out_full = Signal()
         out_i, out_j = Signal(range(rows)), Signal(range(cols))
 
-        window_sum_new = Mux(tag.first, 0, window_sum) + map_word
-        scaled = Mux(mean, count, 1) * (map_word - tag.depth)
+        scaled = Mux(mean, count, 1) * (window_read.data - term_depth)
         # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
         term = Signal(signed(max(widths.term.bits, widths.difference.bits)))
         abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
@@ -189,17 +230,20 @@ class RecursiveCore(wiring.Component):
             term.eq(scaled - Mux(mean, sum_difference, 0)),
             abs_term.eq(abs(term)),
         ]
-        accumulator_new = Mux(tag.first, 0, accumulator) + abs_term
+        accumulator_new = Mux(term_first, 0, accumulator) + abs_term
         surface_taken = self.surface.valid & self.surface.ready
         # Only a placement's last term needs the output register; it waits while that is still full.
-        m.d.comb += response.ready.eq(~(tag.term & tag.last & out_full & ~self.surface.ready))
-        with m.If(response.valid & response.ready):
-            with m.If(~tag.term):
-                m.d.sync += window_sum.eq(window_sum_new)
-                with m.If(tag.last):
-                    m.d.sync += sum_difference.eq(window_sum_new - patch_sum)
-            with m.Else():
-                m.d.sync += accumulator.eq(accumulator_new)
+        term_fire = term_valid & ~(term_last & out_full & ~self.surface.ready)
+        m.d.comb += response.ready.eq(~term_valid | term_fire)
+        with m.If(term_fire):
+            m.d.sync += [term_valid.eq(0), accumulator.eq(accumulator_new)]
+        with m.If(step):
+            m.d.sync += [
+                term_valid.eq(tag.previous),
+                term_first.eq(tag.first),
+                term_last.eq(tag.last),
+                term_depth.eq(tag.depth),
+            ]
 
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
         m.d.comb += [
@@ -218,7 +262,7 @@ class RecursiveCore(wiring.Component):
                 m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
             with m.Else():
                 m.d.sync += out_j.eq(out_j + 1)
-        with m.If(response.valid & response.ready & tag.term & tag.last):
+        with m.If(term_fire & term_last):
             m.d.sync += [out_value.eq(accumulator_new), out_full.eq(1)]
 
         # The reducer watches the surface's transfers and answers on ``best``.
@@ -260,8 +304,9 @@ class RecursiveCore(wiring.Component):
                 m.d.sync += [
                     seen.eq(0),
                     generating.eq(1),
+                    flushing.eq(0),
+                    has_previous.eq(0),
                     node_index.eq(0),
-                    term_pass.eq(~mean),
                     base.eq(0),
                     gen_i.eq(0),
                     gen_j.eq(0),

@@ -5,12 +5,15 @@ edge on which the ``start`` beat transfers (cycle 0):
 
 * cycles ``1 .. h*w`` read the patch memory, one word per clock, and one cycle later append each valid
   node to the compact node list; the generator issues its first map read request on the clock after,
-  which the sequencer takes on edge ``h*w + 2``;
-* then one request per clock: ``P = 2n`` per placement with mean compensation (a pass summing the
-  window, a pass forming the terms), ``P = n`` without, placements in raster order;
-* a request's word reaches the arithmetic one edge after the request; the last term of placement ``p``
-  (``(p + 1) * P - 1``-th request) fills the output register, which transfers on the following edge:
-  cycle ``h*w + 3 + (p + 1) * P``;
+  which the sequencer takes on edge ``T0 = h*w + 2``;
+* then one request per clock, ``n`` (the valid nodes) per placement in either mode, placements in
+  raster order, followed by one flush round of ``n`` requests: request ``q`` transfers on edge
+  ``T0 + q``;
+* its word reaches the step stage on the next edge (``T0 + q + 1``), which sums it into placement
+  ``q // n``'s window and fetches the word of the same node of the previous placement; the term unit
+  takes that on the edge after (``T0 + q + 2``). The last term of placement ``p`` comes with request
+  ``(p + 2) * n - 1`` and fills the output register, which transfers one edge later: cycle
+  ``h*w + 4 + (p + 2) * n``;
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 """
 
@@ -25,9 +28,8 @@ __all__ = ["requests_per_placement", "schedule"]
 
 
 def requests_per_placement(mask: np.ndarray, mean_compensation: bool) -> int:
-    """Map reads (and clocks) per placement: ``2n`` with mean compensation, ``n`` without."""
-    n = int(np.count_nonzero(mask))
-    return 2 * n if mean_compensation else n
+    """Map reads (and clocks) per placement: ``n``, the valid nodes, in either mode."""
+    return int(np.count_nonzero(mask))
 
 
 def schedule(map_shape, patch_shape, mask=None, mean_compensation=True, *, exclusion_radius=1) -> Schedule:
@@ -59,8 +61,8 @@ def schedule(map_shape, patch_shape, mask=None, mean_compensation=True, *, exclu
     if not mask.any():
         raise ValueError("mask has no valid node: there is nothing to correlate")
     rows, cols = H - h + 1, W - w + 1
-    per_placement = requests_per_placement(mask, mean_compensation)
+    n = requests_per_placement(mask, mean_compensation)
     placements = np.arange(rows * cols, dtype=np.int64)
-    surface = h * w + 3 + (placements + 1) * per_placement
+    surface = h * w + 4 + (placements + 2) * n
     best = int(surface[-1]) + reducer_latency((rows, cols), 1, exclusion_radius)
     return Schedule(surface=surface, best=best)
