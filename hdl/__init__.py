@@ -13,6 +13,7 @@ from .interface import (
 from .recursive import RecursiveCore, RecursiveCorrelator
 from .reducer import BestFitReducer
 from .sequencer import MapSequencer
+from .window import WindowCore, WindowCorrelator
 
 __all__ = [
     "BestFitBeat",
@@ -24,6 +25,8 @@ __all__ = [
     "RecursiveCorrelator",
     "StartCommand",
     "SurfaceBeat",
+    "WindowCore",
+    "WindowCorrelator",
     "correlator_signature",
     "decode_payload",
     "encode_payload",
