@@ -32,6 +32,7 @@ from typing import Any
 
 from amaranth.hdl import Array, Const, Module, Mux, Shape, Signal, signed, unsigned
 from amaranth.lib import data, memory, wiring
+from amaranth.lib.fifo import SyncFIFO
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
@@ -178,10 +179,16 @@ class WindowCore(wiring.Component):
         step_row = Signal(range(H + t.flush_steps + 2))
         step_group = Signal(range(G))
 
-        out = Signal(p.surface_beat)
-        out_valid = Signal()
-        m.d.comb += [self.surface.valid.eq(out_valid), self.surface.payload.eq(out)]
-        out_free = ~out_valid | self.surface.ready
+        # The output queue: the pipeline advances only while the queue has room, a registered flag, so
+        # no combinational path runs from ``surface.ready`` to the pipeline's enables. It adds no
+        # latency: a beat written on one edge can transfer on the next.
+        m.submodules.output_queue = output_queue = SyncFIFO(width=Shape.cast(p.surface_beat).width, depth=4)
+        m.d.comb += [
+            self.surface.valid.eq(output_queue.r_rdy),
+            self.surface.payload.eq(output_queue.r_data),
+            output_queue.r_en.eq(self.surface.ready),
+        ]
+        out_free = output_queue.w_rdy
 
         from_memory = running & (words_taken != self.map_depth)
         flushing = running & (words_taken == self.map_depth) & (flush_left != 0)
@@ -294,20 +301,18 @@ class WindowCore(wiring.Component):
                         ]
             lane_values.append(_pipelined_sum(m, advance, a, value, f"lane{q}_sum"))
 
-        # ---- the output register ----------------------------------------------------------------------
+        # ---- into the output queue ---------------------------------------------------------------------
         last_meta = meta[-1]
-        with m.If(advance):
-            m.d.sync += [
-                out_valid.eq(last_meta.emit),
-                out.i.eq(last_meta.i),
-                out.j.eq(last_meta.j),
-                out.count.eq(last_meta.count),
-                out.last.eq(last_meta.last),
-            ]
-            for q in range(L):
-                m.d.sync += out.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0))
-        with m.Elif(self.surface.ready):
-            m.d.sync += out_valid.eq(0)
+        beat = Signal(p.surface_beat)
+        m.d.comb += [
+            beat.i.eq(last_meta.i),
+            beat.j.eq(last_meta.j),
+            beat.count.eq(last_meta.count),
+            beat.last.eq(last_meta.last),
+            output_queue.w_data.eq(beat),
+            output_queue.w_en.eq(advance & last_meta.emit),
+        ]
+        m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(L)]
 
         # The reducer watches the surface's transfers and answers on ``best``.
         m.d.comb += [
@@ -336,7 +341,6 @@ class WindowCore(wiring.Component):
                         flush_left.eq(t.flush_steps),
                         step_row.eq(0),
                         step_group.eq(0),
-                        out_valid.eq(0),
                     ]
                     m.d.sync += [meta[x].emit.eq(0) for x in range(t.output_delay)]
                     m.next = "COUNT"

@@ -15,7 +15,7 @@ which the ``start`` beat transfers (cycle 0):
   memory row holds the rightmost column of the beat's windows, unless ``g + D`` runs past the row
   (possible only for a row's last beat), when the next map row's first step (or a flush step, after
   the last row) completes it: step ``(i + h) * G``;
-* a step's beat stands in the output register ``output_delay`` steps after the step is taken and
+* a step's beat is written into the output queue ``output_delay`` steps after the step is taken and
   transfers on the next edge;
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 
@@ -56,9 +56,9 @@ class WindowTiming:
     prepare_cycles : int
         ``2 * h * w``: cycles after the start beat spent on the two passes over the patch.
     output_delay : int
-        Steps from taking a step to its beat standing in the output register: the window register,
+        Steps from taking a step to writing its beat into the output queue: the window register,
         the window-sum levels, the three term stages (``f*M - C``, minus the window sum, absolute
-        value), the value-tree levels and the output register.
+        value), the value-tree levels and the write itself.
     flush_steps : int
         Steps without a map word after the last one, enough to move the last beat to the output.
     """
