@@ -15,15 +15,18 @@ that can be computed once::
     f          = 1,  Ssum = 0,            Wsum = 0            without
 
 ``f * M`` is formed once per map word, as it leaves the memory, and travels beside ``M`` through the
-line buffers. The window sum (over the valid nodes only, so the mask is honoured) is an adder tree that
-starts on the columns as soon as they enter the window register; the terms are formed ``ceil(log2(h *
-w))`` steps later from the same columns, which have moved down the register by then, so the sum needs
-no delay line of its own.
+line buffers. The window sum runs over the valid nodes only, so with a mask each column offset has its
+own column sum and a sliding accumulator does not apply; per lane it costs ``h * w - 1`` adders either
+as masked column sums plus a row sum or, as here, as one balanced tree. The tree starts on the columns
+as soon as they enter the window register; the terms are formed ``ceil(log2(h * w))`` steps later from
+the same columns, which have moved down the register by then, so neither the sum nor the terms need a
+delay line.
 
 The pipeline is step-synchronous: every register advances when a map word (or, at the end, one of a
-fixed number of flush steps) is taken and the surface output can accept, so a stall anywhere holds
-every value in place and nothing is lost or duplicated. Its cycles are modelled exactly by
-:mod:`lost.model.cycles_window`, whose constants come from :func:`window_timing`.
+fixed number of flush steps) is taken and the output queue has room, so a stall anywhere holds every
+value in place and nothing is lost or duplicated. Its cycles are modelled exactly by
+:mod:`lost.model.cycles_window`, whose :func:`~lost.model.cycles_window.window_timing` gives the
+pipeline its constants.
 """
 
 from __future__ import annotations

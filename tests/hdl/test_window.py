@@ -127,6 +127,8 @@ SHAPES = [
     ((1, 6), (1, 3), 3),
     ((9, 1), (4, 1), 1),
     ((12, 13), (4, 4), 1),
+    ((6, 12), (3, 3), 4),
+    ((5, 6), (2, 2), 2),
 ]
 
 
@@ -152,6 +154,32 @@ def test_every_value_best_fit_and_cycle(map_shape, patch_shape, lanes):
         surface_cycles, best_cycle = bench.cycles(run)
         np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
         assert best_cycle == expected_cycles.best
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_random_configurations(seed):
+    """Seeded random shapes, lanes, radius, mask and mode: values, best fit and cycles."""
+    rng = np.random.default_rng(1000 + seed)
+    map_shape = (int(rng.integers(1, 11)), int(rng.integers(1, 15)))
+    patch_shape = (int(rng.integers(1, min(map_shape[0], 5) + 1)), int(rng.integers(1, min(map_shape[1], 4) + 1)))
+    lanes, radius, mode = int(rng.integers(1, 5)), int(rng.integers(0, 3)), bool(rng.integers(2))
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
+    terrain, patch, mask = random_case(rng, map_shape, patch_shape)
+    results = []
+
+    async def testbench(ctx):
+        await bench.load(ctx, terrain=terrain, patch=patch, mask=mask)
+        results.append(await bench.correlate(ctx, mean_compensation=mode))
+
+    bench.run(testbench)
+    surface, best = results[0]
+    expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
+    np.testing.assert_array_equal(surface, expected)
+    assert best == expected_best(expected, radius)
+    surface_cycles, best_cycle = bench.cycles(0)
+    expected_cycles = schedule(map_shape, patch_shape, lanes, exclusion_radius=radius)
+    np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
+    assert best_cycle == expected_cycles.best
 
 
 @pytest.mark.parametrize("lanes", [1, 3])
