@@ -115,7 +115,8 @@ def completing_steps(map_shape: tuple[int, int], patch_shape: tuple[int, int], l
     return steps.ravel()
 
 
-def schedule(map_shape, patch_shape, lanes: int = 1, *, exclusion_radius: int = 1) -> Schedule:
+def schedule(map_shape, patch_shape, lanes: int = 1, mask=None, mean_compensation: bool = True, *,
+             exclusion_radius: int = 1) -> Schedule:
     """The cycle of every surface beat and of the best beat of one correlation.
 
     Parameters
@@ -124,15 +125,27 @@ def schedule(map_shape, patch_shape, lanes: int = 1, *, exclusion_radius: int = 
         ``(H, W)`` and ``(h, w)``.
     lanes : int
         ``L``, placements per beat.
+    mask : (h, w) bool array, optional
+        The valid patch nodes. The window core's timing does not depend on it (nor on the mode);
+        both are taken, and checked, so that both variants' schedules are called alike.
+    mean_compensation : bool
+        The mode of the start command.
     exclusion_radius : int
         The reducer's radius (its row store, and so its final scan, depends on it).
 
     Raises
     ------
     ValueError
-        A patch larger than the map, fewer than one lane, a negative radius.
+        A patch larger than the map, fewer than one lane, a mask of another shape or with no valid
+        node, a negative radius.
     """
     timing = window_timing(map_shape, patch_shape, lanes)
+    if mask is not None:
+        mask = np.asarray(mask)
+        if mask.shape != tuple(patch_shape) or mask.dtype != np.bool_:
+            raise ValueError(f"mask must be a boolean array of shape {tuple(patch_shape)}, got {mask.dtype} {mask.shape}")
+        if not mask.any():
+            raise ValueError("mask has no valid node: there is nothing to correlate")
     steps = completing_steps(map_shape, patch_shape, lanes)
     surface = timing.prepare_cycles + 2 + steps + timing.output_delay + 1
     (H, W), (h, w) = map_shape, patch_shape

@@ -85,6 +85,26 @@ def test_wrap_case_is_one_step_late():
     np.testing.assert_array_equal(completing_steps((3, 4), (1, 2), 2), [1, 2, 3, 4, 5, 6])
 
 
+def test_mask_and_mode_do_not_change_the_schedule():
+    mask = np.zeros((3, 2), dtype=bool)
+    mask[1, 0] = True
+    plain = schedule((8, 9), (3, 2), 2)
+    for mode in (True, False):
+        masked = schedule((8, 9), (3, 2), 2, mask, mode)
+        np.testing.assert_array_equal(masked.surface, plain.surface)
+        assert masked.best == plain.best
+    with pytest.raises(ValueError, match="no valid node"):
+        schedule((8, 9), (3, 2), 2, np.zeros((3, 2), dtype=bool))
+    with pytest.raises(ValueError, match="shape"):
+        schedule((8, 9), (3, 2), 2, np.ones((2, 3), dtype=bool))
+
+
+def test_radius_changes_only_the_best_beat():
+    near, far = schedule((9, 9), (2, 2), 1, exclusion_radius=0), schedule((9, 9), (2, 2), 1, exclusion_radius=2)
+    np.testing.assert_array_equal(near.surface, far.surface)
+    assert far.best - near.best == (6 - 2) * 8  # 2r + 2 row slots of 8 one-value words to scan
+
+
 @pytest.mark.parametrize("args, message", [
     (((4, 4), (5, 4), 1), "larger than the map"),
     (((4, 4), (2, 2), 0), "lanes"),
