@@ -327,7 +327,11 @@ class WindowCore(wiring.Component):
         # ---- control ----------------------------------------------------------------------------------
         prepare_step = Signal(range(2 * nodes + 1))
         # The patch is read in place (not rotated), so a reset mid-pass leaves it intact.
-        node = Mux(prepare_step >= nodes, prepare_step - nodes, prepare_step)
+        node = Signal(range(nodes))
+        with m.If(idle | (node == nodes - 1)):
+            m.d.sync += node.eq(0)
+        with m.Else():
+            m.d.sync += node.eq(node + 1)
         head_depth = Array(patch_depth)[node]
         head_valid = Array(patch_valid)[node]
         with m.FSM():

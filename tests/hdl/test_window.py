@@ -114,7 +114,8 @@ class Bench:
 
 
 # (map_shape, patch_shape, lanes): W a multiple of L and not, a row's last beat completed by the next
-# row (5x4/1x2/2, 3x9/2x5/4), one-group rows (L >= W), 1x1 and one-row/one-column patches and maps.
+# row (5x4/1x2/2, 6x12/3x3/4, 5x6/2x2/2), one-group rows (L >= W), 1x1 and one-row/one-column patches
+# and maps, a patch as large as the map.
 SHAPES = [
     ((6, 7), (2, 3), 1),
     ((5, 4), (1, 2), 2),
@@ -129,6 +130,8 @@ SHAPES = [
     ((12, 13), (4, 4), 1),
     ((6, 12), (3, 3), 4),
     ((5, 6), (2, 2), 2),
+    ((1, 1), (1, 1), 4),
+    ((2, 2), (2, 2), 3),
 ]
 
 
