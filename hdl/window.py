@@ -325,15 +325,22 @@ class WindowCore(wiring.Component):
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
         # ---- control ----------------------------------------------------------------------------------
-        prepare_step = Signal(range(2 * nodes + 1))
-        # The patch is read in place (not rotated), so a reset mid-pass leaves it intact.
+        prepare_step = Signal(range(2 * nodes + 2))
+        # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; one register
+        # after the node multiplexer and one after the multiplier keep the passes' paths short.
         node = Signal(range(nodes))
         with m.If(idle | (node == nodes - 1)):
             m.d.sync += node.eq(0)
         with m.Else():
             m.d.sync += node.eq(node + 1)
-        head_depth = Array(patch_depth)[node]
-        head_valid = Array(patch_valid)[node]
+        head_depth = Signal(depth)
+        head_valid = Signal()
+        product = Signal(scaled)
+        m.d.sync += [
+            head_depth.eq(Array(patch_depth)[node]),
+            head_valid.eq(Array(patch_valid)[node]),
+            product.eq(factor * head_depth),
+        ]
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
@@ -352,24 +359,24 @@ class WindowCore(wiring.Component):
                     m.d.sync += [meta[x].emit.eq(0) for x in range(t.output_delay)]
                     m.next = "COUNT"
             with m.State("COUNT"):
-                # First pass over the patch: n and sum_valid S.
-                m.d.sync += [
-                    valid_count.eq(valid_count + head_valid),
-                    patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
-                    prepare_step.eq(prepare_step + 1),
-                ]
-                with m.If(prepare_step == nodes - 1):
+                # First pass: n and sum_valid S, from node k - 1 on cycle k = 1 .. hw.
+                m.d.sync += prepare_step.eq(prepare_step + 1)
+                with m.If(prepare_step != 0):
+                    m.d.sync += [
+                        valid_count.eq(valid_count + head_valid),
+                        patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
+                    ]
+                with m.If(prepare_step == nodes):
                     m.d.sync += factor.eq(Mux(mean_compensation, valid_count + head_valid, 1))
                     m.next = "CENTRE"
             with m.State("CENTRE"):
-                # Second pass: C = f * S - Ssum shifted into the centred register, in node order.
-                for x in range(nodes - 1):
-                    m.d.sync += centred_patch[x].eq(centred_patch[x + 1])
-                m.d.sync += [
-                    centred_patch[-1].eq(factor * head_depth - Mux(mean_compensation, patch_sum, 0)),
-                    prepare_step.eq(prepare_step + 1),
-                ]
-                with m.If(prepare_step == 2 * nodes - 1):
+                # Second pass: C = f * S - Ssum of node k - hw - 2 on cycle k = hw + 2 .. 2hw + 1,
+                # shifted into the centred register so that it ends in node order.
+                m.d.sync += prepare_step.eq(prepare_step + 1)
+                with m.If(prepare_step >= nodes + 2):
+                    m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
+                    m.d.sync += centred_patch[-1].eq(product - Mux(mean_compensation, patch_sum, 0))
+                with m.If(prepare_step == 2 * nodes + 1):
                     m.d.sync += [running.eq(1), requesting.eq(1)]
                     m.next = "RUN"
             with m.State("RUN"):

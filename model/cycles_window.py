@@ -5,11 +5,12 @@ the last one, a flush step without a word), and every pipeline register advances
 ``surface.ready`` and ``best.ready`` held high and the patch and map loaded, counting from the edge on
 which the ``start`` beat transfers (cycle 0):
 
-* cycles ``1 .. 2hw`` read the patch twice, once for ``n`` and ``sum_valid S``, once for
-  ``C = f * S - Ssum``; the first map read request transfers on edge ``2hw + 1``;
+* cycles ``1 .. 2hw + 2`` read the patch twice, once for ``n`` and ``sum_valid S``, once for
+  ``C = f * S - Ssum`` (each pass ``hw`` nodes plus one register stage, the second plus the
+  multiplier's); the first map read request transfers on edge ``2hw + 3``;
 * one request per clock, in raster order of the ``H * ceil(W / L)`` memory rows; the sequencer hands a
   word on one edge after its request, so step ``t`` (counting map words first, flush steps after) is
-  taken on edge ``2hw + 2 + t``;
+  taken on edge ``2hw + 4 + t``;
 * the beat ``(i, g)`` (surface row ``i``, its ``g``-th group of ``L`` placements) is completed by step
   ``(i + h - 1) * G + g + D`` with ``G = ceil(W / L)`` and ``D = ceil((w - 1) / L)``, the step whose
   memory row holds the rightmost column of the beat's windows, unless ``g + D`` runs past the row
@@ -54,7 +55,7 @@ class WindowTiming:
     sum_levels : int
         ``ceil(log2(h * w))``: register levels of the window-sum tree and of the value tree.
     prepare_cycles : int
-        ``2 * h * w``: cycles after the start beat spent on the two passes over the patch.
+        ``2 * h * w + 2``: cycles after the start beat spent on the two passes over the patch.
     output_delay : int
         Steps from taking a step to writing its beat into the output queue: the window register,
         the window-sum levels, the three term stages (``f*M - C``, minus the window sum, absolute
@@ -98,7 +99,7 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
         lead=lead,
         wraps=wraps,
         sum_levels=sum_levels,
-        prepare_cycles=2 * h * w,
+        prepare_cycles=2 * h * w + 2,
         output_delay=output_delay,
         flush_steps=int(wraps) + output_delay,
     )
