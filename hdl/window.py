@@ -55,20 +55,27 @@ def _union_bits(*bounds: tuple[int, int]) -> Shape:
     return signed(width) if is_signed else unsigned(width)
 
 
-def _pipelined_sum(m: Module, enable: Any, values: list, shape: Shape, name: str) -> Any:
-    """Sum ``values`` with a balanced adder tree, one register level per adder level."""
+def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
+    """Sum ``values`` with a balanced adder tree, one register level per adder level.
+
+    Each register is as wide as the sums it can hold: ``k`` leaves in ``[leaf_lo, leaf_hi]`` give
+    ``[k * leaf_lo, k * leaf_hi]``, never more than the bound ``cap`` of the whole sum.
+    """
+    nodes = [(value, 1) for value in values]
     level = 0
-    while len(values) > 1:
+    while len(nodes) > 1:
         sums = []
-        for index in range(0, len(values), 2):
-            total = Signal(shape, name=f"{name}_l{level}_{index // 2}")
-            pair = values[index : index + 2]
+        for index in range(0, len(nodes), 2):
+            pair = nodes[index : index + 2]
+            leaves = sum(count for _, count in pair)
+            lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
+            total = Signal(_union_bits((lo, hi)), name=f"{name}_l{level}_{index // 2}")
             with m.If(enable):
-                m.d.sync += total.eq(pair[0] + pair[1] if len(pair) == 2 else pair[0])
-            sums.append(total)
-        values = sums
+                m.d.sync += total.eq(pair[0][0] + pair[1][0] if len(pair) == 2 else pair[0][0])
+            sums.append((total, leaves))
+        nodes = sums
         level += 1
-    return values[0]
+    return nodes[0][0]
 
 
 class WindowCore(wiring.Component):
@@ -131,7 +138,6 @@ class WindowCore(wiring.Component):
         # A valid node's term lies within the bound, so truncating the full difference is exact.
         term = _union_bits((-term_max, term_max))
         abs_term = unsigned(term_max.bit_length())
-        value = unsigned(p.value_bits)
 
         # ---- the patch, its count and sum, and C = f * S - Ssum (formed at start) ----------------
         # Reset-less: like the map memory, the patch persists through a reset until reloaded.
@@ -285,7 +291,8 @@ class WindowCore(wiring.Component):
                 for l in range(w):
                     x = k * w + l
                     masked.append(Mux(patch_valid[x] & mean_compensation, window[top + q + l][k].depth, 0))
-            wsum = _pipelined_sum(m, advance, masked, window_sum, f"lane{q}_wsum")
+            wsum = _pipelined_sum(m, advance, masked, (widths.depth.lo, widths.depth.hi),
+                                  (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
 
             # The same columns, sum_levels steps later, at the bottom of the register.
             y = [Signal(offset, name=f"lane{q}_y_{x}") for x in range(nodes)]
@@ -302,7 +309,7 @@ class WindowCore(wiring.Component):
                             z[x].eq(y[x] - wsum_y),
                             a[x].eq(Mux(patch_valid[x], Mux(z[x] < 0, -z[x], z[x]), 0)),
                         ]
-            lane_values.append(_pipelined_sum(m, advance, a, value, f"lane{q}_sum"))
+            lane_values.append(_pipelined_sum(m, advance, a, (0, term_max), (0, widths.accumulator.hi), f"lane{q}_sum"))
 
         # ---- into the output queue ---------------------------------------------------------------------
         last_meta = meta[-1]
