@@ -25,7 +25,8 @@ placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps 
 empties the pipeline. The schedule is modelled exactly by :func:`lost.model.cycles_recursive.schedule`.
 
 A patch without any valid node has nothing to correlate; the host refuses it
-(:func:`lost.model.check_inputs`) before it reaches the core.
+(:func:`lost.model.check_inputs`) before it reaches the core, which would give an all-zero surface (one
+clock per placement) rather than hang.
 """
 
 from __future__ import annotations
@@ -161,10 +162,12 @@ class RecursiveCore(wiring.Component):
         node = nodes_read.data
         request = sequencer.request
         advance = request.valid & request.ready
-        last_node = node_index == count - 1
+        # Without a valid node each placement still takes one step, whose term is zero.
+        empty = count == 0
+        last_node = (node_index == count - 1) | empty
         m.d.comb += [
             request.valid.eq(generating),
-            request.payload.addr.eq(base + node.offset),
+            request.payload.addr.eq(base + Mux(empty, 0, node.offset)),
             request.payload.tag.index.eq(node_index),
             request.payload.tag.first.eq(node_index == 0),
             request.payload.tag.last.eq(last_node),
@@ -228,7 +231,7 @@ class RecursiveCore(wiring.Component):
         abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
         m.d.comb += [
             term.eq(scaled - Mux(mean, sum_difference, 0)),
-            abs_term.eq(abs(term)),
+            abs_term.eq(Mux(empty, 0, abs(term))),
         ]
         accumulator_new = Mux(term_first, 0, accumulator) + abs_term
         surface_taken = self.surface.valid & self.surface.ready

@@ -235,6 +235,28 @@ def test_reset_mid_correlation_then_a_correct_one():
         assert best == expected_best(golden, 1)
 
 
+def test_a_patch_without_valid_nodes_gives_a_zero_surface():
+    # The host refuses such a patch; the core must still finish, with nothing accumulated.
+    map_shape, patch_shape = (5, 6), (2, 3)
+    rng = np.random.default_rng(3)
+    terrain = rng.integers(-1000, 1000, map_shape).astype(np.int16)
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    results = []
+
+    async def testbench(ctx):
+        await feed(ctx, bench.dut.map_in, [int(x) for x in terrain.ravel()])
+        await feed(ctx, bench.dut.patch_in, [{"depth": 77, "valid": 0}] * 6)
+        for mean in (True, False):
+            results.append(await bench.correlate(ctx, mean_compensation=mean))
+
+    bench.sim.add_testbench(testbench)
+    bench.sim.run()
+    zeros = np.zeros((4, 4), dtype=np.int64)
+    for surface, best in results:
+        np.testing.assert_array_equal(surface, zeros)
+        assert best == expected_best(zeros, 1)
+
+
 def test_inputs_are_refused_while_busy():
     map_shape, patch_shape = (4, 4), (2, 2)
     bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
