@@ -96,8 +96,8 @@ class RecursiveCore(wiring.Component):
         # --- the patch: loaded while idle, compacted to its valid nodes at start ------------------
         m.submodules.patch = patch = memory.Memory(shape=p.patch_word, depth=nodes_total, init=[])
         patch_write, patch_read = patch.write_port(), patch.read_port()
-        # A node's map offset and its centred depth C = f * S - f_sum (f * S - Ssum with mean
-        # compensation, S without); a plain depth is wider than the centred bound when n = 1.
+        # A node's map offset and its centred depth C (n * S - Ssum with mean compensation, S without);
+        # a plain depth is wider than the centred bound when n = 1.
         centred_shape = signed(max(widths.centred_depth.bits, widths.depth.bits))
         node_layout = data.StructLayout({
             "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
@@ -247,7 +247,7 @@ class RecursiveCore(wiring.Component):
         term = Signal(signed(max(widths.term.bits, widths.difference.bits)))
         abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
         m.d.comb += [
-            # f * M - (f * S - f_sum) - f_window_sum: n * (M - S) - (Msum - Ssum), or M - S.
+            # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
             term.eq(window_read.data - term_centred - Mux(mean, previous_window_sum, 0)),
             abs_term.eq(Mux(empty, 0, abs(term))),
         ]
