@@ -60,9 +60,9 @@ def random_pattern(seed, busy):
 class Bench:
     """A window correlator in a module with an explicit sync domain (so tests can reset it), with transfer logs."""
 
-    def __init__(self, *, map_shape, patch_shape, lanes, exclusion_radius=1):
+    def __init__(self, *, map_shape, patch_shape, lanes, exclusion_radius=1, depth_bits=16):
         self.dut = WindowCorrelator(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes,
-                                    exclusion_radius=exclusion_radius)
+                                    exclusion_radius=exclusion_radius, depth_bits=depth_bits)
         self.parameters = self.dut.parameters
         self.top = Module()
         self.top.domains.sync = self.domain = ClockDomain("sync")
@@ -221,6 +221,29 @@ def test_extreme_depths_reach_the_widths(lanes):
     map_shape, patch_shape = (6, 8), (3, 3)
     bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape, extreme=True)
+    results = []
+
+    async def testbench(ctx):
+        await bench.load(ctx, terrain=terrain, patch=patch, mask=mask)
+        for mode in (True, False):
+            results.append(await bench.correlate(ctx, mean_compensation=mode))
+
+    bench.run(testbench)
+    for (surface, best), mode in zip(results, (True, False)):
+        expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
+        np.testing.assert_array_equal(surface, expected)
+        assert best == expected_best(expected, 1)
+
+
+def test_narrow_depth_words():
+    """5-bit depth words at their extremes: every width follows depth_bits."""
+    rng = np.random.default_rng(5)
+    map_shape, patch_shape, lanes = (7, 9), (3, 4), 2
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, depth_bits=5)
+    terrain = rng.choice([-16, 15, 0], size=map_shape).astype(np.int16)
+    patch = rng.choice([-16, 15], size=patch_shape).astype(np.int16)
+    mask = rng.random(patch_shape) < 0.8
+    mask[0, 0] = True
     results = []
 
     async def testbench(ctx):
