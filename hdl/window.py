@@ -55,6 +55,11 @@ def _union_bits(*bounds: tuple[int, int]) -> Shape:
     return signed(width) if is_signed else unsigned(width)
 
 
+def _index(count: int) -> range:
+    """The range of an index below ``count``, at least one bit wide (Verilog has no empty vector)."""
+    return range(max(count, 2))
+
+
 def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
     """Sum ``values`` with a balanced adder tree, one register level per adder level.
 
@@ -199,7 +204,7 @@ class WindowCore(wiring.Component):
         words_taken = Signal(range(self.map_depth + 1))
         flush_left = Signal(range(t.flush_steps + 1))
         step_row = Signal(range(H + t.flush_steps + 2))
-        step_group = Signal(range(G))
+        step_group = Signal(_index(G))
 
         # The output queue: the pipeline advances only while the queue has room, a registered flag, so
         # no combinational path runs from ``surface.ready`` to the pipeline's enables. It adds no
@@ -250,7 +255,7 @@ class WindowCore(wiring.Component):
         node_layout = data.StructLayout({"depth": depth, "scaled": scaled})
         row_layout = data.ArrayLayout(node_layout, L)
         step_nodes = Signal(row_layout)
-        step_group_reg = Signal(range(G))
+        step_group_reg = Signal(_index(G))
         step_is_word = Signal()
         meta = [Signal(meta_layout, name=f"meta_{x}") for x in range(t.output_delay)]
         with m.If(advance):
@@ -348,7 +353,7 @@ class WindowCore(wiring.Component):
         prepare_step = Signal(range(2 * nodes + 2))
         # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; one register
         # after the node multiplexer and one after the multiplier keep the passes' paths short.
-        node = Signal(range(nodes))
+        node = Signal(_index(nodes))
         with m.If(idle | (node == nodes - 1)):
             m.d.sync += node.eq(0)
         with m.Else():
@@ -466,9 +471,9 @@ class WindowCorrelator(wiring.Component):
         # The loader: word c of map row r goes to lane c % L of memory row r * ceil(W / L) + c // L.
         write = map_memory.write_port(granularity=1)
         row_base = Signal(range(core.map_depth + 1))
-        group = Signal(range(core.timing.groups))
-        lane = Signal(range(L))
-        column = Signal(range(W))
+        group = Signal(_index(core.timing.groups))
+        lane = Signal(_index(L))
+        column = Signal(_index(W))
         loading = self.map_in.valid & self.map_in.ready
         m.d.comb += [
             self.map_in.ready.eq(~core.busy),
