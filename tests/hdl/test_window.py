@@ -170,6 +170,27 @@ def test_every_value_best_fit_and_cycle(map_shape, patch_shape, lanes):
         assert not bench.busy[start + best_cycle + 1]
 
 
+def test_the_papers_patch_size():
+    """A 10 x 10 patch (Nygren's) on a 24 x 37 map with 4 lanes and radius 3: values, best fit, cycles."""
+    map_shape, patch_shape, lanes, radius = (24, 37), (10, 10), 4, 3
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
+    terrain, patch, mask = random_case(np.random.default_rng(9), map_shape, patch_shape)
+    results = []
+
+    async def testbench(ctx):
+        await bench.load(ctx, terrain=terrain, patch=patch, mask=mask)
+        results.append(await bench.correlate(ctx, mean_compensation=True))
+
+    bench.run(testbench)
+    expected = correlate(terrain, patch, mask=mask)
+    np.testing.assert_array_equal(results[0][0], expected)
+    assert results[0][1] == expected_best(expected, radius)
+    surface_cycles, best_cycle = bench.cycles(0)
+    expected_cycles = schedule(map_shape, patch_shape, lanes, exclusion_radius=radius)
+    np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
+    assert best_cycle == expected_cycles.best
+
+
 @pytest.mark.parametrize("seed", range(8))
 def test_random_configurations(seed):
     """Seeded random shapes, lanes, radius, mask and mode: values, best fit and cycles."""
