@@ -416,6 +416,12 @@ class WindowCore(wiring.Component):
 class WindowCorrelator(wiring.Component):
     """The window correlator with its map memory, map loader and best-fit reducer.
 
+    Throughput and latency, with ``surface.ready`` and ``best.ready`` high: one memory row (``L``
+    words) and one beat of ``L`` placements per clock once the pipeline is full; a correlation takes
+    ``2hw + 4 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
+    row's last beat wraps to the next row's first step), then the reducer's scan. Every beat's cycle is
+    :func:`lost.model.cycles_window.schedule`; ``output_delay = 2 * ceil(log2(h * w)) + 5``.
+
     Parameters
     ----------
     map_shape : (int, int)
