@@ -181,7 +181,7 @@ class InOrderChecker:
 class Run:
     """One correlation as the bench saw it."""
 
-    start_ns: float
+    start_time: int
     surface: list[Transfer] = field(default_factory=list)
     best: Transfer | None = None
 
@@ -276,13 +276,13 @@ class Testbench:
         self.best.set_ready(None if best_ready is None else pattern(best_ready))
         self.surface.set_callback(checker)
 
-        (start_ns,) = await self._within_budget(
+        (start_time,) = await self._within_budget(
             self.start.send([{"mean_compensation": int(mean_compensation)}]), "start beat"
         )
         best = (await self._within_budget(self.best.wait_for(1), "best beat"))[0]
         # The best beat comes after the surface's last beat; a few more clocks catch any extra beat.
         await ClockCycles(self.dut.clk, 4 * self.config.lanes + 8)
-        run = Run(start_ns, list(self.surface.transfers), best)
+        run = Run(start_time, list(self.surface.transfers), best)
         self.surface.set_callback(None)
 
         checker.verdict()
@@ -290,14 +290,14 @@ class Testbench:
         want = best_payload(fit)
         got = {k: (v if want[k] is not None else None) for k, v in best.payload.items()}
         assert got == want, f"best beat {best.payload}, lost.model.best_fit gives {fit}"
-        assert best.time_ns > run.surface[-1].time_ns, "the best beat came before the surface's last beat"
+        assert best.time > run.surface[-1].time, "the best beat came before the surface's last beat"
         await ReadOnly()
         assert not self.dut.busy.value, "busy is still high after the best beat"
         await RisingEdge(self.dut.clk)
 
         if check_cycles:
             surface_cycles, best_cycle = expected_cycles(self.config, self.mask, mean_compensation)
-            got_cycles = [self.clocking.cycle(t.time_ns, since=start_ns) for t in run.surface]
+            got_cycles = [self.clocking.cycle(t.time, since=start_time) for t in run.surface]
             if got_cycles != surface_cycles:
                 first = next(
                     (k for k, (a, b) in enumerate(zip(got_cycles, surface_cycles)) if a != b),
@@ -309,12 +309,12 @@ class Testbench:
                     f"{surface_cycles[first] if first < len(surface_cycles) else None} "
                     f"({len(got_cycles)} beats seen)"
                 )
-            got_best = self.clocking.cycle(best.time_ns, since=start_ns)
+            got_best = self.clocking.cycle(best.time, since=start_time)
             assert got_best == best_cycle, f"best beat on cycle {got_best}, the cycle model says {best_cycle}"
         self.dut._log.info(
             "correlation of %s map, %s patch (n=%d, mean_compensation=%s): %d beats, best beat on cycle %d",
             self.config.map_shape, self.config.patch_shape, int(self.mask.sum()), mean_compensation,
-            len(run.surface), self.clocking.cycle(best.time_ns, since=start_ns),
+            len(run.surface), self.clocking.cycle(best.time, since=start_time),
         )
         return run
 
