@@ -39,13 +39,15 @@ __all__ = [
 
 # C++ optimisation: cocotb's runner makes every signal public (--public-flat-rw), which triples the C++
 # of an Amaranth design, and the window core's wide packed registers make each clock expensive. Measured
-# on this machine for the 1-lane window core at 501 x 501: -O0 builds in about 35 s but simulates 4.5k
-# clocks/s; -O1 builds in about 60 s and simulates 44k clocks/s (31k with a coroutine woken every
-# clock), which a 500k-clock correlation needs. No tracing unless WAVES=1 is set for cocotb's runner.
-# The wheel's configure found no C++ standard flag (its own CLI sets one the same way), and cocotb's
-# VPI glue needs C++17.
+# on this machine for the 1-lane window core at 501 x 501: at -O0 it simulates 4.5k clocks/s, at -O1
+# 44k clocks/s (31k with a coroutine woken every clock), which a 500k-clock correlation needs. The
+# run-once code (the constructor that registers every public signal with VPI) is compiled at -O0:
+# at -O1 GCC spent over 3 minutes on that one file of the 4-lane core. The levels are make variables
+# (see verilator_environment); a caller may add "-CFLAGS -O2" to build_args, which then wins for all.
+# No tracing unless WAVES=1 is set for cocotb's runner. The wheel's configure found no C++ standard
+# flag (its own CLI sets one the same way), and cocotb's VPI glue needs C++17.
 BUILD_ARGS: tuple[str, ...] = (
-    "-CFLAGS", "-O1 -std=c++17",
+    "-CFLAGS", "-std=c++17",
     "-Wno-fatal",  # lint is `make lint`'s job; a width warning must not stop a bench build
     "--x-assign", "unique",  # Amaranth's Verilog resets every register; X only in unreachable defaults
     "--x-initial", "unique",
@@ -75,7 +77,12 @@ def _field_view(message: str) -> bool:
     return name is not None and any(mark in name["name"] for mark in ".[")
 
 
-_PCH_FLAG = "CFG_CXXFLAGS_PCH_I=-include"
+_MAKE_VARIABLES = (
+    "CFG_CXXFLAGS_PCH_I=-include",
+    "OPT_FAST=-O1",  # the per-clock code
+    "OPT_SLOW=-O0",  # constructors and initial blocks: run once, and huge with every signal public
+    "OPT_GLOBAL=-O1",  # Verilator's runtime library
+)
 
 
 def verilator_root() -> Path:
@@ -95,8 +102,11 @@ def verilator_environment(env: Mapping[str, str] | None = None) -> dict[str, str
     # CFG_CXXFLAGS_PCH_I empty), so a design large enough to be split into several C++ files fails
     # to compile ("...__pch.h.fast: linker input file not found"). A make variable given in MAKEFLAGS
     # overrides the makefile's, and reaches the `make` that cocotb's runner calls.
-    if _PCH_FLAG not in env.get("MAKEFLAGS", ""):
-        env["MAKEFLAGS"] = f"{env.get('MAKEFLAGS', '')} {_PCH_FLAG}".strip()
+    # The optimisation levels go the same way (see BUILD_ARGS).
+    flags = env.get("MAKEFLAGS", "")
+    missing = [flag for flag in _MAKE_VARIABLES if flag not in flags.split()]
+    if missing:
+        env["MAKEFLAGS"] = " ".join([flags, *missing]).strip()
     return env
 
 
