@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench synth clean verilog lint sim-full
+.PHONY: setup demo test bench synth clean verilog lint sim-full cycles
 
 setup: $(STAMP)
 
