@@ -1,3 +1,5 @@
+# amaranth: UnusedElaboratable=no
+# (the bad-argument tests build a design that the flow rightly refuses to use)
 import pytest
 from amaranth import Module, Signal
 from amaranth.lib import wiring
