@@ -189,7 +189,7 @@ def _cmd_correlate(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="lost", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="lost", description=__doc__.splitlines()[0].replace("``", ""))
     commands = parser.add_subparsers(dest="command", required=True)
 
     def navigation_options(sub: argparse.ArgumentParser) -> None:
