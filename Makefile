@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench synth clean
+.PHONY: setup demo test bench synth clean verilog lint sim-full
 
 setup: $(STAMP)
 
@@ -35,6 +35,18 @@ $(FPGA_STAMP): $(STAMP)
 
 synth: $(FPGA_STAMP)
 	$(BIN)/python -m pytest -m fpga tests
+
+# Verilog of each correlator variant at 501 x 501 / 10 x 10 (python -m lost.hdl.generate --help for sizes).
+verilog: setup
+	$(BIN)/python -m lost.hdl.generate --out build/verilog
+
+# verilator --lint-only -Wall on each; the waivers and their reasons are in sim/verilator.py.
+lint: verilog
+	$(BIN)/python -m lost.sim.verilator lint build/verilog/*.v
+
+# The recursive core at full size on Verilator: too slow for `make test` (pytest marker `slow`).
+sim-full: setup
+	$(BIN)/python -m pytest -m slow tests/sim
 
 clean:
 	rm -rf build .pytest_cache .hypothesis

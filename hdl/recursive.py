@@ -1,0 +1,380 @@
+"""The recursive-adder correlator: one absolute-difference unit and one accumulator, the fewest gates.
+
+The principle of the 2002 correlator (Nygren, FOI-R--0764--SE, section 8), made exact: the placements
+are taken one after the other, and for each the terms are formed one per clock by one arithmetic unit
+and summed by one accumulator. The map memory is read once per term, through the
+:class:`~lost.hdl.sequencer.MapSequencer`.
+
+The arithmetic follows :mod:`lost.model.correlator`, rearranged so that one multiplier serves both
+modes::
+
+    term(k) = f * (M[i+k] - S[k]) - D(i, j)      for each valid patch node k
+    f = n,  D = sum_valid M[i+.] - sum_valid S    with mean compensation
+    f = 1,  D = 0                                 without
+
+``n``, ``sum_valid S`` and a compact list of the valid nodes (map offset, depth) are formed once per
+correlation, at start, by one pass over the patch memory; only valid nodes are visited afterwards, so a
+sparse mask costs fewer cycles.
+
+``D`` must be known before a placement's first term. Rather than reading the map twice, the core reads
+each map word once and uses it twice, one placement apart: on each step it adds the word of node ``k``
+of placement ``q`` to the window sum and writes it into a small window memory (``h * w`` words) at
+``k``, whose read port returns, on the same edge, the word it overwrote: node ``k`` of placement
+``q - 1``, whose ``D`` is complete by then. The term unit forms that term on the next clock. So a
+placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the last placement
+empties the pipeline. The schedule is modelled exactly by :func:`lost.model.cycles_recursive.schedule`.
+
+A patch without any valid node has nothing to correlate; the host refuses it
+(:func:`lost.model.check_inputs`) before it reaches the core.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from amaranth.hdl import Module, Mux, Signal, signed, unsigned
+from amaranth.lib import data, memory, wiring
+from amaranth.lib.wiring import In
+from amaranth.utils import ceil_log2
+
+from lost.hdl.interface import CorrelatorParameters, correlator_signature
+from lost.hdl.reducer import BestFitReducer
+from lost.hdl.sequencer import MapSequencer
+
+__all__ = ["RecursiveCore", "RecursiveCorrelator"]
+
+
+def _parameters(map_shape, patch_shape, depth_bits, exclusion_radius) -> CorrelatorParameters:
+    return CorrelatorParameters(map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits,
+                                lanes=1, exclusion_radius=exclusion_radius)
+
+
+def _map_read_signature(parameters: CorrelatorParameters) -> memory.ReadPort.Signature:
+    (H, W) = parameters.map_shape
+    return memory.ReadPort.Signature(addr_width=ceil_log2(H * W), shape=signed(parameters.depth_bits))
+
+
+class RecursiveCore(wiring.Component):
+    """The recursive-adder correlator without its map memory, which it reads through ``map_read``.
+
+    Parameters
+    ----------
+    map_shape, patch_shape, depth_bits, exclusion_radius
+        As :class:`RecursiveCorrelator`.
+
+    Members
+    -------
+    patch_in, start, surface, best, busy
+        As :func:`lost.hdl.interface.correlator_signature` (``surface`` has one lane).
+    map_read : ``In(memory.ReadPort.Signature(addr_width=ceil_log2(H * W), shape=signed(depth_bits)))``
+        A synchronous read port of the map memory, map word ``(r, c)`` at address ``r * W + c``.
+    """
+
+    def __init__(self, *, map_shape, patch_shape, depth_bits=16, exclusion_radius=1):
+        self._parameters = parameters = _parameters(map_shape, patch_shape, depth_bits, exclusion_radius)
+        members = correlator_signature(parameters)
+        del members["map_in"]
+        members["map_read"] = In(_map_read_signature(parameters))
+        super().__init__(members)
+
+    @property
+    def parameters(self) -> CorrelatorParameters:
+        return self._parameters
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        p = self._parameters
+        (H, W), (h, w) = p.map_shape, p.patch_shape
+        rows, cols = p.surface_shape
+        widths = p.widths
+        nodes_total = h * w
+
+        # --- the patch: loaded while idle, compacted to its valid nodes at start ------------------
+        m.submodules.patch = patch = memory.Memory(shape=p.patch_word, depth=nodes_total, init=[])
+        patch_write, patch_read = patch.write_port(), patch.read_port()
+        node_layout = data.StructLayout({
+            "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
+            "depth": signed(p.depth_bits),
+        })
+        m.submodules.nodes = nodes = memory.Memory(shape=node_layout, depth=nodes_total, init=[])
+        nodes_write = nodes.write_port()
+        # Transparent: the first node may be written on the very edge the generator first reads it.
+        nodes_read = nodes.read_port(transparent_for=(nodes_write,))
+
+        busy = Signal()
+        running = Signal()
+        m.submodules.reducer = reducer = BestFitReducer(parameters=p)
+        m.d.comb += [busy.eq(running | reducer.busy), self.busy.eq(busy)]
+
+        load_index = Signal(range(nodes_total))
+        m.d.comb += [
+            self.patch_in.ready.eq(~busy),
+            patch_write.addr.eq(load_index),
+            patch_write.data.eq(self.patch_in.payload),
+            patch_write.en.eq(self.patch_in.valid & self.patch_in.ready),
+        ]
+        with m.If(patch_write.en):
+            m.d.sync += load_index.eq(Mux(load_index == nodes_total - 1, 0, load_index + 1))
+
+        mean = Signal()                                   # latched from the start command
+        count = Signal(range(nodes_total + 1))            # n, the valid nodes
+        patch_sum = Signal(signed(widths.window_sum.bits))
+
+        # Preparation: read patch word k, then (one cycle later) append it to the nodes if valid.
+        prepare_index = Signal(range(nodes_total))
+        prepare_offset = Signal(node_layout["offset"].shape)
+        prepare_col = Signal(range(w))
+        seen = Signal()
+        seen_offset = Signal(node_layout["offset"].shape)
+        m.d.comb += patch_read.addr.eq(prepare_index)
+        word = patch_read.data
+        m.d.comb += [
+            nodes_write.addr.eq(count),
+            nodes_write.data.offset.eq(seen_offset),
+            nodes_write.data.depth.eq(word.depth),
+            nodes_write.en.eq(seen & word.valid),
+        ]
+        with m.If(seen & word.valid):
+            m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + word.depth)]
+
+        # --- the address generator: one map read per valid node and placement -------------------
+        # After the last placement, one more round of n reads (``flush``) pushes its terms out.
+        tag_layout = data.StructLayout({
+            "index": unsigned(max((nodes_total - 1).bit_length(), 1)),
+            "first": 1,
+            "last": 1,
+            "depth": signed(p.depth_bits),
+            "current": 1,   # the word belongs to a placement (not the flush round)
+            "previous": 1,  # a previous placement's terms are due on this step
+        })
+        map_read = _map_read_signature(p)
+        m.submodules.sequencer = sequencer = MapSequencer(
+            addr_width=map_read.addr_width, shape=signed(p.depth_bits), tag_shape=tag_layout)
+        wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
+
+        generating = Signal()
+        flushing = Signal()
+        has_previous = Signal()
+        node_index = Signal(range(nodes_total))
+        base = Signal(range(H * W))
+        gen_i, gen_j = Signal(range(rows)), Signal(range(cols))
+        node = nodes_read.data
+        request = sequencer.request
+        advance = request.valid & request.ready
+        last_node = node_index == count - 1
+        m.d.comb += [
+            request.valid.eq(generating),
+            request.payload.addr.eq(base + node.offset),
+            request.payload.tag.index.eq(node_index),
+            request.payload.tag.first.eq(node_index == 0),
+            request.payload.tag.last.eq(last_node),
+            request.payload.tag.depth.eq(node.depth),
+            request.payload.tag.current.eq(~flushing),
+            request.payload.tag.previous.eq(has_previous),
+            # The read port always holds the node the generator is at.
+            nodes_read.addr.eq(Mux(advance, Mux(last_node, 0, node_index + 1), node_index)),
+        ]
+        with m.If(advance):
+            m.d.sync += node_index.eq(Mux(last_node, 0, node_index + 1))
+            with m.If(last_node):
+                m.d.sync += has_previous.eq(1)
+                with m.If(flushing):
+                    m.d.sync += generating.eq(0)
+                with m.Elif((gen_i == rows - 1) & (gen_j == cols - 1)):
+                    m.d.sync += flushing.eq(1)
+                with m.Elif(gen_j == cols - 1):
+                    m.d.sync += [gen_j.eq(0), gen_i.eq(gen_i + 1), base.eq(base + w)]
+                with m.Else():
+                    m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
+
+        # --- step: sum the window of placement q, keep its words, fetch placement q-1's ------------
+        m.submodules.window = window = memory.Memory(shape=signed(p.depth_bits), depth=nodes_total, init=[])
+        window_write = window.write_port()
+        window_read = window.read_port()  # not transparent: it reads the word being overwritten
+        response = sequencer.response
+        tag = response.payload.tag
+        map_word = response.payload.data
+        step = response.valid & response.ready
+
+        window_sum = Signal(signed(widths.window_sum.bits))
+        next_difference = Signal(signed(widths.sum_difference.bits))     # D of placement q
+        sum_difference = Signal(signed(widths.sum_difference.bits))      # D of placement q-1
+        window_sum_new = Mux(tag.first, 0, window_sum) + map_word
+        m.d.comb += [
+            window_write.addr.eq(tag.index),
+            window_write.data.eq(map_word),
+            window_write.en.eq(step & tag.current),
+            window_read.addr.eq(tag.index),
+            window_read.en.eq(step),  # held while the term stage waits
+        ]
+        with m.If(step & tag.current):
+            m.d.sync += window_sum.eq(window_sum_new)
+            with m.If(tag.last):
+                m.d.sync += next_difference.eq(window_sum_new - patch_sum)
+        with m.If(step & tag.previous & tag.first):
+            m.d.sync += sum_difference.eq(next_difference)
+
+        # --- term: one absolute difference and one accumulator, a cycle after the step -------------
+        term_valid, term_first, term_last = Signal(), Signal(), Signal()
+        term_depth = Signal(signed(p.depth_bits))
+        accumulator = Signal(unsigned(widths.accumulator.bits))
+        out_value = Signal(unsigned(widths.accumulator.bits))
+        out_full = Signal()
+        out_i, out_j = Signal(range(rows)), Signal(range(cols))
+
+        scaled = Mux(mean, count, 1) * (window_read.data - term_depth)
+        # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
+        term = Signal(signed(max(widths.term.bits, widths.difference.bits)))
+        abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
+        m.d.comb += [
+            term.eq(scaled - Mux(mean, sum_difference, 0)),
+            abs_term.eq(abs(term)),
+        ]
+        accumulator_new = Mux(term_first, 0, accumulator) + abs_term
+        surface_taken = self.surface.valid & self.surface.ready
+        # Only a placement's last term needs the output register; it waits while that is still full.
+        term_fire = term_valid & ~(term_last & out_full & ~self.surface.ready)
+        m.d.comb += response.ready.eq(~term_valid | term_fire)
+        with m.If(term_fire):
+            m.d.sync += [term_valid.eq(0), accumulator.eq(accumulator_new)]
+        with m.If(step):
+            m.d.sync += [
+                term_valid.eq(tag.previous),
+                term_first.eq(tag.first),
+                term_last.eq(tag.last),
+                term_depth.eq(tag.depth),
+            ]
+
+        surface_last = (out_i == rows - 1) & (out_j == cols - 1)
+        m.d.comb += [
+            self.surface.valid.eq(out_full),
+            self.surface.payload.values[0].eq(out_value),
+            self.surface.payload.count.eq(1),
+            self.surface.payload.i.eq(out_i),
+            self.surface.payload.j.eq(out_j),
+            self.surface.payload.last.eq(surface_last),
+        ]
+        with m.If(surface_taken):
+            m.d.sync += out_full.eq(0)
+            with m.If(surface_last):
+                m.d.sync += running.eq(0)
+            with m.Elif(out_j == cols - 1):
+                m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
+            with m.Else():
+                m.d.sync += out_j.eq(out_j + 1)
+        with m.If(term_fire & term_last):
+            m.d.sync += [out_value.eq(accumulator_new), out_full.eq(1)]
+
+        # The reducer watches the surface's transfers and answers on ``best``.
+        m.d.comb += [
+            reducer.surface.valid.eq(surface_taken),
+            reducer.surface.payload.eq(self.surface.payload),
+        ]
+        wiring.connect(m, reducer.best, wiring.flipped(self.best))
+
+        # --- control -------------------------------------------------------------------------------
+        m.d.comb += self.start.ready.eq(~busy)
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(self.start.valid & self.start.ready):
+                    m.d.sync += [
+                        running.eq(1),
+                        mean.eq(self.start.payload.mean_compensation),
+                        count.eq(0),
+                        patch_sum.eq(0),
+                        prepare_index.eq(0),
+                        prepare_offset.eq(0),
+                        prepare_col.eq(0),
+                        out_i.eq(0),
+                        out_j.eq(0),
+                    ]
+                    m.next = "PREPARE"
+            with m.State("PREPARE"):
+                m.d.sync += [seen.eq(1), seen_offset.eq(prepare_offset)]
+                with m.If(prepare_col == w - 1):
+                    m.d.sync += [prepare_col.eq(0), prepare_offset.eq(prepare_offset + W - w + 1)]
+                with m.Else():
+                    m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
+                with m.If(prepare_index == nodes_total - 1):
+                    m.next = "PREPARE_LAST"
+                with m.Else():
+                    m.d.sync += prepare_index.eq(prepare_index + 1)
+            with m.State("PREPARE_LAST"):
+                # The last patch word is appended on this cycle's edge.
+                m.d.sync += [
+                    seen.eq(0),
+                    generating.eq(1),
+                    flushing.eq(0),
+                    has_previous.eq(0),
+                    node_index.eq(0),
+                    base.eq(0),
+                    gen_i.eq(0),
+                    gen_j.eq(0),
+                ]
+                m.next = "RUN"
+            with m.State("RUN"):
+                with m.If(~running):
+                    m.next = "IDLE"
+        return m
+
+
+class RecursiveCorrelator(wiring.Component):
+    """The recursive-adder correlator with its map memory: the contract's ports.
+
+    Parameters
+    ----------
+    map_shape : (int, int)
+        ``(H, W)``, the map the core stores.
+    patch_shape : (int, int)
+        ``(h, w)``, the patch.
+    depth_bits : int
+        Width of a depth word.
+    exclusion_radius : int
+        Radius around the best fit that the runner-up is searched outside of.
+
+    Members
+    -------
+    map_in, patch_in, start, surface, best, busy
+        As :func:`lost.hdl.interface.correlator_signature`, with one lane.
+
+    Raises
+    ------
+    ValueError
+        See :class:`lost.hdl.interface.CorrelatorParameters`.
+    """
+
+    def __init__(self, *, map_shape, patch_shape, depth_bits=16, exclusion_radius=1):
+        self._parameters = _parameters(map_shape, patch_shape, depth_bits, exclusion_radius)
+        super().__init__(correlator_signature(self._parameters))
+
+    @property
+    def parameters(self) -> CorrelatorParameters:
+        return self._parameters
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        p = self._parameters
+        (H, W), (h, w) = p.map_shape, p.patch_shape
+        m.submodules.core = core = RecursiveCore(
+            map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits,
+            exclusion_radius=p.exclusion_radius)
+        m.submodules.map = map_memory = memory.Memory(shape=signed(p.depth_bits), depth=H * W, init=[])
+        map_write = map_memory.write_port()
+        wiring.connect(m, core.map_read, map_memory.read_port())
+
+        load_address = Signal(range(H * W))
+        m.d.comb += [
+            self.map_in.ready.eq(~core.busy),
+            map_write.addr.eq(load_address),
+            map_write.data.eq(self.map_in.payload),
+            map_write.en.eq(self.map_in.valid & self.map_in.ready),
+        ]
+        with m.If(map_write.en):
+            m.d.sync += load_address.eq(Mux(load_address == H * W - 1, 0, load_address + 1))
+
+        wiring.connect(m, wiring.flipped(self.patch_in), core.patch_in)
+        wiring.connect(m, wiring.flipped(self.start), core.start)
+        wiring.connect(m, core.surface, wiring.flipped(self.surface))
+        wiring.connect(m, core.best, wiring.flipped(self.best))
+        m.d.comb += self.busy.eq(core.busy)
+        return m

@@ -1,0 +1,488 @@
+"""The shift-register / window correlator: every lane produces one placement per clock.
+
+Nygren's shift-register principle (FOI-R--0764--SE, section 8.2) made exact and streaming: the map is
+read once per correlation, one memory row of ``L`` words per clock in raster order; ``h - 1`` line
+buffers turn that stream into columns of ``h`` words; a window register of columns holds every
+``h x w`` window that the ``L`` lanes need; each lane then forms its ``h * w`` terms, their absolute
+values and their sum, with a register after every adder level.
+
+The arithmetic follows :mod:`lost.model.correlator` rearranged so that nothing is computed per term
+that can be computed once::
+
+    term(k, l) = (f * M[i+k, j+l] - C[k, l]) - Wsum(i, j)     for a valid node (k, l), 0 otherwise
+    C[k, l]    = f * S[k, l] - Ssum                           once per correlation, at start
+    f          = n,  Ssum = sum_valid S,  Wsum = sum_valid M  with mean compensation
+    f          = 1,  Ssum = 0,            Wsum = 0            without
+
+``f * M`` is formed once per map word, as it leaves the memory, and travels beside ``M`` through the
+line buffers. The window sum runs over the valid nodes only, so with a mask each column offset has its
+own column sum and a sliding accumulator does not apply; per lane it costs ``h * w - 1`` adders either
+as masked column sums plus a row sum or, as here, as one balanced tree. The tree starts on the columns
+as soon as they enter the window register; the terms are formed ``ceil(log2(h * w))`` steps later from
+the same columns, which have moved down the register by then, so neither the sum nor the terms need a
+delay line.
+
+The pipeline is step-synchronous: every register advances when a map word (or, at the end, one of a
+fixed number of flush steps) is taken and the output queue has room, so a stall anywhere holds every
+value in place and nothing is lost or duplicated. Its cycles are modelled exactly by
+:mod:`lost.model.cycles_window`, whose :func:`~lost.model.cycles_window.window_timing` gives the
+pipeline its constants.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from amaranth.hdl import Array, Const, Module, Mux, Shape, Signal, signed, unsigned
+from amaranth.lib import data, memory, wiring
+from amaranth.lib.fifo import SyncFIFO
+from amaranth.lib.wiring import In
+from amaranth.utils import ceil_log2
+
+from lost.hdl.interface import CorrelatorParameters, correlator_signature
+from lost.hdl.reducer import BestFitReducer
+from lost.hdl.sequencer import MapSequencer
+from lost.model.cycles_window import WindowTiming, window_timing
+from lost.model.widths import bits_for
+
+__all__ = ["WindowCore", "WindowCorrelator"]
+
+
+def _union_bits(*bounds: tuple[int, int]) -> Shape:
+    lo = min(b[0] for b in bounds)
+    hi = max(b[1] for b in bounds)
+    width, is_signed = bits_for(lo, hi)
+    return signed(width) if is_signed else unsigned(width)
+
+
+def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
+    """Sum ``values`` with a balanced adder tree, one register level per adder level.
+
+    Each register is as wide as the sums it can hold: ``k`` leaves in ``[leaf_lo, leaf_hi]`` give
+    ``[k * leaf_lo, k * leaf_hi]``, never more than the bound ``cap`` of the whole sum.
+    """
+    nodes = [(value, 1) for value in values]
+    level = 0
+    while len(nodes) > 1:
+        sums = []
+        for index in range(0, len(nodes), 2):
+            pair = nodes[index : index + 2]
+            leaves = sum(count for _, count in pair)
+            lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
+            total = Signal(_union_bits((lo, hi)), name=f"{name}_l{level}_{index // 2}")
+            with m.If(enable):
+                m.d.sync += total.eq(pair[0][0] + pair[1][0] if len(pair) == 2 else pair[0][0])
+            sums.append((total, leaves))
+        nodes = sums
+        level += 1
+    return nodes[0][0]
+
+
+class WindowCore(wiring.Component):
+    """The window correlator without its map memory, which it reads through ``map_read``.
+
+    Parameters
+    ----------
+    map_shape, patch_shape, depth_bits, lanes, exclusion_radius
+        See :class:`WindowCorrelator`.
+
+    Members
+    -------
+    patch_in, start, surface, best, busy
+        As in :func:`lost.hdl.interface.correlator_signature`.
+    map_read : ``In(memory.ReadPort.Signature(addr_width, shape=map_word))``
+        A synchronous read port of the map memory: ``H * ceil(W / L)`` rows of ``L`` words, map row
+        ``r`` at rows ``r * ceil(W / L) ...``, word ``c`` of it in lane ``c % L`` of row ``c // L``.
+    """
+
+    def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1):
+        self._parameters = CorrelatorParameters(
+            map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
+            exclusion_radius=exclusion_radius)
+        self._timing = window_timing(self._parameters.map_shape, self._parameters.patch_shape, lanes)
+        H = self._parameters.map_shape[0]
+        self.map_word = data.ArrayLayout(signed(depth_bits), lanes)
+        self.map_depth = H * self._timing.groups
+        ports = correlator_signature(self._parameters)
+        del ports["map_in"]
+        ports["map_read"] = In(memory.ReadPort.Signature(addr_width=ceil_log2(self.map_depth), shape=self.map_word))
+        super().__init__(ports)
+
+    @property
+    def parameters(self) -> CorrelatorParameters:
+        return self._parameters
+
+    @property
+    def timing(self) -> WindowTiming:
+        return self._timing
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        p, t = self._parameters, self._timing
+        (H, W), (h, w), L, b = p.map_shape, p.patch_shape, p.lanes, p.depth_bits
+        widths = p.widths
+        nodes = h * w
+        Ho, Wo = p.surface_shape
+        G = t.groups
+
+        depth = signed(b)
+        count = unsigned(widths.count.bits)
+        scaled = signed(widths.scaled_depth.bits)
+        window_sum = signed(widths.window_sum.bits)
+        # Plain mode uses f = 1 and C = S, so every shape holds both modes' ranges.
+        centred_lo = min(widths.centred_depth.lo, widths.depth.lo)
+        centred_hi = max(widths.centred_depth.hi, widths.depth.hi)
+        centred = _union_bits((centred_lo, centred_hi))
+        offset = _union_bits((widths.scaled_depth.lo - centred_hi, widths.scaled_depth.hi - centred_lo))
+        term_max = max(widths.term.hi, widths.difference.hi)
+        # A valid node's term lies within the bound, so truncating the full difference is exact.
+        term = _union_bits((-term_max, term_max))
+        abs_term = unsigned(term_max.bit_length())
+
+        # ---- the patch, its count and sum, and C = f * S - Ssum (formed at start) ----------------
+        # Reset-less: like the map memory, the patch persists through a reset until reloaded.
+        patch_depth = [Signal(depth, name=f"patch_depth_{x}", reset_less=True) for x in range(nodes)]
+        patch_valid = [Signal(name=f"patch_valid_{x}", reset_less=True) for x in range(nodes)]
+        centred_patch = [Signal(centred, name=f"centred_{x}") for x in range(nodes)]
+        mean_compensation = Signal()
+        valid_count = Signal(count)
+        patch_sum = Signal(window_sum)
+        factor = Signal(count)
+
+        idle = Signal()
+        m.submodules.reducer = reducer = BestFitReducer(parameters=p)
+        ready_for_more = idle & ~reducer.busy
+        m.d.comb += [
+            self.patch_in.ready.eq(ready_for_more),
+            self.start.ready.eq(ready_for_more),
+            self.busy.eq(~ready_for_more),
+        ]
+
+        with m.If(self.patch_in.valid & self.patch_in.ready):
+            for x in range(nodes - 1):
+                m.d.sync += [patch_depth[x].eq(patch_depth[x + 1]), patch_valid[x].eq(patch_valid[x + 1])]
+            m.d.sync += [
+                patch_depth[-1].eq(self.patch_in.payload.depth),
+                patch_valid[-1].eq(self.patch_in.payload.valid),
+            ]
+
+        # ---- the steps: map words through the sequencer, then flush steps -----------------------
+        m.submodules.sequencer = sequencer = MapSequencer(
+            addr_width=ceil_log2(self.map_depth), shape=self.map_word)
+        wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
+
+        request_addr = Signal(range(self.map_depth + 1))
+        requesting = Signal()
+        m.d.comb += [
+            sequencer.request.valid.eq(requesting),
+            sequencer.request.payload.addr.eq(request_addr),
+        ]
+        with m.If(sequencer.request.valid & sequencer.request.ready):
+            m.d.sync += request_addr.eq(request_addr + 1)
+            with m.If(request_addr == self.map_depth - 1):
+                m.d.sync += requesting.eq(0)
+
+        running = Signal()
+        words_taken = Signal(range(self.map_depth + 1))
+        flush_left = Signal(range(t.flush_steps + 1))
+        step_row = Signal(range(H + t.flush_steps + 2))
+        step_group = Signal(range(G))
+
+        # The output queue: the pipeline advances only while the queue has room, a registered flag, so
+        # no combinational path runs from ``surface.ready`` to the pipeline's enables. It adds no
+        # latency: a beat written on one edge can transfer on the next.
+        m.submodules.output_queue = output_queue = SyncFIFO(width=Shape.cast(p.surface_beat).width, depth=4)
+        m.d.comb += [
+            self.surface.valid.eq(output_queue.r_rdy),
+            self.surface.payload.eq(output_queue.r_data),
+            output_queue.r_en.eq(self.surface.ready),
+        ]
+        out_free = output_queue.w_rdy
+
+        from_memory = running & (words_taken != self.map_depth)
+        flushing = running & (words_taken == self.map_depth) & (flush_left != 0)
+        m.d.comb += sequencer.response.ready.eq(from_memory & out_free)
+        advance = Signal()
+        m.d.comb += advance.eq(out_free & ((from_memory & sequencer.response.valid) | flushing))
+
+        with m.If(advance):
+            with m.If(step_group == G - 1):
+                m.d.sync += [step_group.eq(0), step_row.eq(step_row + 1)]
+            with m.Else():
+                m.d.sync += step_group.eq(step_group + 1)
+            with m.If(from_memory):
+                m.d.sync += words_taken.eq(words_taken + 1)
+            with m.Else():
+                m.d.sync += flush_left.eq(flush_left - 1)
+
+        # ---- the beat a step completes (known when the step is taken) -------------------------------
+        meta_layout = data.StructLayout({
+            "emit": 1, "i": unsigned(p.row_bits), "j": unsigned(p.col_bits),
+            "count": p.surface_beat["count"].shape, "last": 1,
+        })
+        normal = (step_row >= h - 1) & (step_row <= H - 1) & (step_group >= t.lead)
+        wrapped = Const(t.wraps) & (step_group == 0) & (step_row >= h) & (step_row <= H)
+        beat_row = Mux(normal, step_row - (h - 1), step_row - h)
+        beat_group = Mux(normal, step_group - t.lead, t.out_groups - 1)
+        step_meta = Signal(meta_layout)
+        m.d.comb += [
+            step_meta.emit.eq(normal | wrapped),
+            step_meta.i.eq(beat_row),
+            step_meta.j.eq(beat_group * L),
+            step_meta.count.eq(Mux(beat_group == t.out_groups - 1, Wo - (t.out_groups - 1) * L, L)),
+            step_meta.last.eq((beat_row == Ho - 1) & (beat_group == t.out_groups - 1)),
+        ]
+
+        # ---- step register: the word, f * word, and its beat ------------------------------------
+        node_layout = data.StructLayout({"depth": depth, "scaled": scaled})
+        row_layout = data.ArrayLayout(node_layout, L)
+        step_nodes = Signal(row_layout)
+        step_group_reg = Signal(range(G))
+        step_is_word = Signal()
+        meta = [Signal(meta_layout, name=f"meta_{x}") for x in range(t.output_delay)]
+        with m.If(advance):
+            m.d.sync += [
+                step_group_reg.eq(step_group),
+                step_is_word.eq(from_memory),
+                meta[0].eq(step_meta),
+            ]
+            for q in range(L):
+                word = sequencer.response.payload.data[q]
+                m.d.sync += [step_nodes[q].depth.eq(word), step_nodes[q].scaled.eq(factor * word)]
+            for x in range(1, t.output_delay):
+                m.d.sync += meta[x].eq(meta[x - 1])
+
+        # ---- line buffers: rows r-1 .. r-h+1 of the group being taken ------------------------------
+        buffer_rows = []
+        for x in range(h - 1):
+            line = memory.Memory(shape=row_layout, depth=G, init=[])
+            m.submodules[f"line_buffer_{x}"] = line
+            write = line.write_port()
+            # Transparent, so that a one-group row reads the row written on the same edge.
+            read = line.read_port(transparent_for=(write,))
+            m.d.comb += [
+                read.addr.eq(step_group),
+                read.en.eq(advance),
+                write.addr.eq(step_group_reg),
+                write.en.eq(advance & step_is_word),
+                write.data.eq(step_nodes if x == 0 else buffer_rows[x - 1]),
+            ]
+            buffer_rows.append(read.data)
+
+        # ---- window register: columns, oldest first; the newest L enter on the right ---------------
+        span = t.sum_levels * L + (t.lead + 1) * L
+        window = [[Signal(node_layout, name=f"window_{c}_{k}") for k in range(h)] for c in range(span)]
+        with m.If(advance):
+            for c in range(span - L):
+                for k in range(h):
+                    m.d.sync += window[c][k].eq(window[c + L][k])
+            for q in range(L):
+                column = [buffer_rows[h - 2 - k][q] for k in range(h - 1)] + [step_nodes[q]]
+                for k in range(h):
+                    m.d.sync += window[span - L + q][k].eq(column[k])
+
+        # ---- the lanes ------------------------------------------------------------------------------
+        top = t.sum_levels * L
+        lane_values = []
+        for q in range(L):
+            # Window sum of the valid nodes, on the columns as they arrive.
+            masked = []
+            for k in range(h):
+                for l in range(w):
+                    x = k * w + l
+                    masked.append(Mux(patch_valid[x] & mean_compensation, window[top + q + l][k].depth, 0))
+            wsum = _pipelined_sum(m, advance, masked, (widths.depth.lo, widths.depth.hi),
+                                  (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
+
+            # The same columns, sum_levels steps later, at the bottom of the register.
+            y = [Signal(offset, name=f"lane{q}_y_{x}") for x in range(nodes)]
+            wsum_y = Signal(window_sum, name=f"lane{q}_wsum_y")
+            z = [Signal(term, name=f"lane{q}_z_{x}") for x in range(nodes)]
+            a = [Signal(abs_term, name=f"lane{q}_abs_{x}") for x in range(nodes)]
+            with m.If(advance):
+                m.d.sync += wsum_y.eq(wsum)
+                for k in range(h):
+                    for l in range(w):
+                        x = k * w + l
+                        m.d.sync += [
+                            y[x].eq(window[q + l][k].scaled - centred_patch[x]),
+                            z[x].eq(y[x] - wsum_y),
+                            a[x].eq(Mux(patch_valid[x], Mux(z[x] < 0, -z[x], z[x]), 0)),
+                        ]
+            lane_values.append(_pipelined_sum(m, advance, a, (0, term_max), (0, widths.accumulator.hi), f"lane{q}_sum"))
+
+        # ---- into the output queue ---------------------------------------------------------------------
+        last_meta = meta[-1]
+        beat = Signal(p.surface_beat)
+        m.d.comb += [
+            beat.i.eq(last_meta.i),
+            beat.j.eq(last_meta.j),
+            beat.count.eq(last_meta.count),
+            beat.last.eq(last_meta.last),
+            output_queue.w_data.eq(beat),
+            output_queue.w_en.eq(advance & last_meta.emit),
+        ]
+        m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(L)]
+
+        # The reducer watches the surface's transfers and answers on ``best``.
+        m.d.comb += [
+            reducer.surface.valid.eq(self.surface.valid & self.surface.ready),
+            reducer.surface.payload.eq(self.surface.payload),
+        ]
+        wiring.connect(m, reducer.best, wiring.flipped(self.best))
+
+        # ---- control ----------------------------------------------------------------------------------
+        prepare_step = Signal(range(2 * nodes + 2))
+        # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; one register
+        # after the node multiplexer and one after the multiplier keep the passes' paths short.
+        node = Signal(range(nodes))
+        with m.If(idle | (node == nodes - 1)):
+            m.d.sync += node.eq(0)
+        with m.Else():
+            m.d.sync += node.eq(node + 1)
+        head_depth = Signal(depth)
+        head_valid = Signal()
+        product = Signal(scaled)
+        m.d.sync += [
+            head_depth.eq(Array(patch_depth)[node]),
+            head_valid.eq(Array(patch_valid)[node]),
+            product.eq(factor * head_depth),
+        ]
+        with m.FSM():
+            with m.State("IDLE"):
+                m.d.comb += idle.eq(1)
+                with m.If(self.start.valid & self.start.ready):
+                    m.d.sync += [
+                        mean_compensation.eq(self.start.payload.mean_compensation),
+                        valid_count.eq(0),
+                        patch_sum.eq(0),
+                        prepare_step.eq(0),
+                        request_addr.eq(0),
+                        words_taken.eq(0),
+                        flush_left.eq(t.flush_steps),
+                        step_row.eq(0),
+                        step_group.eq(0),
+                    ]
+                    m.d.sync += [meta[x].emit.eq(0) for x in range(t.output_delay)]
+                    m.next = "COUNT"
+            with m.State("COUNT"):
+                # First pass: n and sum_valid S, from node k - 1 on cycle k = 1 .. hw.
+                m.d.sync += prepare_step.eq(prepare_step + 1)
+                with m.If(prepare_step != 0):
+                    m.d.sync += [
+                        valid_count.eq(valid_count + head_valid),
+                        patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
+                    ]
+                with m.If(prepare_step == nodes):
+                    m.d.sync += factor.eq(Mux(mean_compensation, valid_count + head_valid, 1))
+                    m.next = "CENTRE"
+            with m.State("CENTRE"):
+                # Second pass: C = f * S - Ssum of node k - hw - 2 on cycle k = hw + 2 .. 2hw + 1,
+                # shifted into the centred register so that it ends in node order.
+                m.d.sync += prepare_step.eq(prepare_step + 1)
+                with m.If(prepare_step >= nodes + 2):
+                    m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
+                    m.d.sync += centred_patch[-1].eq(product - Mux(mean_compensation, patch_sum, 0))
+                with m.If(prepare_step == 2 * nodes + 1):
+                    m.d.sync += [running.eq(1), requesting.eq(1)]
+                    m.next = "RUN"
+            with m.State("RUN"):
+                with m.If(self.surface.valid & self.surface.ready & self.surface.payload.last):
+                    m.d.sync += running.eq(0)
+                    m.next = "IDLE"
+
+        return m
+
+
+
+class WindowCorrelator(wiring.Component):
+    """The window correlator with its map memory, map loader and best-fit reducer.
+
+    Parameters
+    ----------
+    map_shape : (int, int)
+        ``(H, W)``, the terrain map stored in the core's memory.
+    patch_shape : (int, int)
+        ``(h, w)``, the sonar patch; no larger than the map.
+    depth_bits : int
+        Width of a depth word.
+    lanes : int
+        ``L``, placements computed per clock and values per surface beat; the map memory holds ``L``
+        words per row, each map row padded to a multiple of ``L``.
+    exclusion_radius : int
+        Chebyshev radius around the best fit outside which the runner-up is searched.
+
+    Members
+    -------
+    map_in, patch_in, start, surface, best, busy
+        See :func:`lost.hdl.interface.correlator_signature`.
+
+    Raises
+    ------
+    ValueError
+        See :class:`lost.hdl.interface.CorrelatorParameters`.
+    """
+
+    def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1):
+        self._parameters = CorrelatorParameters(
+            map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
+            exclusion_radius=exclusion_radius)
+        super().__init__(correlator_signature(self._parameters))
+
+    @property
+    def parameters(self) -> CorrelatorParameters:
+        return self._parameters
+
+    @property
+    def timing(self) -> WindowTiming:
+        p = self._parameters
+        return window_timing(p.map_shape, p.patch_shape, p.lanes)
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        p = self._parameters
+        (H, W), L = p.map_shape, p.lanes
+
+        m.submodules.core = core = WindowCore(
+            map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits, lanes=L,
+            exclusion_radius=p.exclusion_radius)
+        m.submodules.map_memory = map_memory = memory.Memory(
+            shape=core.map_word, depth=core.map_depth, init=[])
+        wiring.connect(m, core.map_read, map_memory.read_port())
+
+        # The loader: word c of map row r goes to lane c % L of memory row r * ceil(W / L) + c // L.
+        write = map_memory.write_port(granularity=1)
+        row_base = Signal(range(core.map_depth + 1))
+        group = Signal(range(core.timing.groups))
+        lane = Signal(range(L))
+        column = Signal(range(W))
+        loading = self.map_in.valid & self.map_in.ready
+        m.d.comb += [
+            self.map_in.ready.eq(~core.busy),
+            write.addr.eq(row_base + group),
+            write.en.eq(Mux(loading, 1 << lane, 0)),
+        ]
+        m.d.comb += [write.data[q].eq(self.map_in.payload) for q in range(L)]
+        with m.If(loading):
+            with m.If(column == W - 1):
+                m.d.sync += [column.eq(0), lane.eq(0), group.eq(0)]
+                with m.If(row_base == core.map_depth - core.timing.groups):
+                    m.d.sync += row_base.eq(0)
+                with m.Else():
+                    m.d.sync += row_base.eq(row_base + core.timing.groups)
+            with m.Else():
+                m.d.sync += column.eq(column + 1)
+                with m.If(lane == L - 1):
+                    m.d.sync += [lane.eq(0), group.eq(group + 1)]
+                with m.Else():
+                    m.d.sync += lane.eq(lane + 1)
+        with m.If(self.start.valid & self.start.ready):
+            # A fresh correlation: a half-loaded map is abandoned, the next map starts at its origin.
+            m.d.sync += [row_base.eq(0), group.eq(0), lane.eq(0), column.eq(0)]
+
+        wiring.connect(m, wiring.flipped(self.patch_in), core.patch_in)
+        wiring.connect(m, wiring.flipped(self.start), core.start)
+        wiring.connect(m, core.surface, wiring.flipped(self.surface))
+        wiring.connect(m, core.best, wiring.flipped(self.best))
+        m.d.comb += self.busy.eq(core.busy)
+        return m

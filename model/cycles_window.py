@@ -1,0 +1,154 @@
+"""Cycle model of the window correlator (:mod:`lost.hdl.window`).
+
+The window core is step-synchronous: each *step* takes one memory row of ``L`` map words (or, after
+the last one, a flush step without a word), and every pipeline register advances with it. With
+``surface.ready`` and ``best.ready`` held high and the patch and map loaded, counting from the edge on
+which the ``start`` beat transfers (cycle 0):
+
+* cycles ``1 .. 2hw + 2`` read the patch twice, once for ``n`` and ``sum_valid S``, once for
+  ``C = f * S - Ssum`` (each pass ``hw`` nodes plus one register stage, the second plus the
+  multiplier's); the first map read request transfers on edge ``2hw + 3``;
+* one request per clock, in raster order of the ``H * ceil(W / L)`` memory rows; the sequencer hands a
+  word on one edge after its request, so step ``t`` (counting map words first, flush steps after) is
+  taken on edge ``2hw + 4 + t``;
+* the beat ``(i, g)`` (surface row ``i``, its ``g``-th group of ``L`` placements) is completed by step
+  ``(i + h - 1) * G + g + D`` with ``G = ceil(W / L)`` and ``D = ceil((w - 1) / L)``, the step whose
+  memory row holds the rightmost column of the beat's windows, unless ``g + D`` runs past the row
+  (possible only for a row's last beat), when the next map row's first step (or a flush step, after
+  the last row) completes it: step ``(i + h) * G``;
+* a step's beat is written into the output queue ``output_delay`` steps after the step is taken and
+  transfers on the next edge;
+* the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
+
+The schedule does not depend on the data, the mask or the mode. Numpy only; :mod:`lost.hdl.window`
+sizes its pipeline from :func:`window_timing`, so the gateware and this model share every constant.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cycles import Schedule, reducer_latency
+from .widths import placement_widths
+
+__all__ = ["WindowTiming", "completing_steps", "schedule", "window_timing"]
+
+
+@dataclass(frozen=True)
+class WindowTiming:
+    """The fixed schedule constants of the window pipeline for one parameter set.
+
+    Attributes
+    ----------
+    groups : int
+        ``G = ceil(W / L)``: memory rows (steps) per map row.
+    out_groups : int
+        ``ceil((W - w + 1) / L)``: surface beats per surface row.
+    lead : int
+        ``D = ceil((w - 1) / L)``: steps from the memory row holding a beat's first column to the one
+        holding its windows' last column.
+    wraps : bool
+        A surface row's last beat is completed by the next map row's first step (or, after the last
+        row, by one extra flush step), because ``out_groups - 1 + lead == groups``.
+    sum_levels : int
+        ``ceil(log2(h * w))``: register levels of the window-sum tree and of the value tree.
+    prepare_cycles : int
+        ``2 * h * w + 2``: cycles after the start beat spent on the two passes over the patch.
+    output_delay : int
+        Steps from taking a step to writing its beat into the output queue: the window register,
+        the window-sum levels, the three term stages (``f*M - C``, minus the window sum, absolute
+        value), the value-tree levels and the write itself.
+    flush_steps : int
+        Steps without a map word after the last one, enough to move the last beat to the output.
+    """
+
+    groups: int
+    out_groups: int
+    lead: int
+    wraps: bool
+    sum_levels: int
+    prepare_cycles: int
+    output_delay: int
+    flush_steps: int
+
+
+def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lanes: int) -> WindowTiming:
+    """The schedule constants of the window core.
+
+    Raises
+    ------
+    ValueError
+        A patch larger than the map, or fewer than one lane.
+    """
+    placement_widths(map_shape, patch_shape)  # validates the shapes
+    if isinstance(lanes, bool) or not isinstance(lanes, (int, np.integer)) or lanes < 1:
+        raise ValueError(f"lanes must be a positive integer, got {lanes!r}")
+    (_, W), (h, w), L = map_shape, patch_shape, int(lanes)
+    groups = -(-W // L)
+    out_groups = -(-(W - w + 1) // L)
+    lead = -(-(w - 1) // L)
+    # ceil(a/L) + ceil(b/L) <= ceil((a+b)/L) + 1, so a row's last beat is late by at most one step.
+    wraps = out_groups - 1 + lead == groups
+    sum_levels = (h * w - 1).bit_length()
+    output_delay = 1 + sum_levels + 3 + sum_levels + 1
+    return WindowTiming(
+        groups=groups,
+        out_groups=out_groups,
+        lead=lead,
+        wraps=wraps,
+        sum_levels=sum_levels,
+        prepare_cycles=2 * h * w + 2,
+        output_delay=output_delay,
+        flush_steps=int(wraps) + output_delay,
+    )
+
+
+def completing_steps(map_shape: tuple[int, int], patch_shape: tuple[int, int], lanes: int) -> np.ndarray:
+    """The step that completes each surface beat, beats in raster order."""
+    timing = window_timing(map_shape, patch_shape, lanes)
+    (H, _), (h, _) = map_shape, patch_shape
+    rows = np.arange(H - h + 1, dtype=np.int64)[:, None]
+    groups = np.arange(timing.out_groups, dtype=np.int64)[None, :]
+    in_row = groups + timing.lead < timing.groups
+    steps = np.where(in_row, (rows + h - 1) * timing.groups + groups + timing.lead, (rows + h) * timing.groups)
+    return steps.ravel()
+
+
+def schedule(map_shape, patch_shape, lanes: int = 1, mask=None, mean_compensation: bool = True, *,
+             exclusion_radius: int = 1) -> Schedule:
+    """The cycle of every surface beat and of the best beat of one correlation.
+
+    Parameters
+    ----------
+    map_shape, patch_shape : (int, int)
+        ``(H, W)`` and ``(h, w)``.
+    lanes : int
+        ``L``, placements per beat.
+    mask : (h, w) bool array, optional
+        The valid patch nodes. The window core's timing does not depend on it (nor on the mode);
+        both are taken, and checked, so that both variants' schedules are called alike.
+    mean_compensation : bool
+        The mode of the start command.
+    exclusion_radius : int
+        The reducer's radius (its row store, and so its final scan, depends on it).
+
+    Raises
+    ------
+    ValueError
+        A patch larger than the map, fewer than one lane, a mask of another shape or with no valid
+        node, a negative radius.
+    """
+    timing = window_timing(map_shape, patch_shape, lanes)
+    if mask is not None:
+        mask = np.asarray(mask)
+        if mask.shape != tuple(patch_shape) or mask.dtype != np.bool_:
+            raise ValueError(f"mask must be a boolean array of shape {tuple(patch_shape)}, got {mask.dtype} {mask.shape}")
+        if not mask.any():
+            raise ValueError("mask has no valid node: there is nothing to correlate")
+    steps = completing_steps(map_shape, patch_shape, lanes)
+    surface = timing.prepare_cycles + 2 + steps + timing.output_delay + 1
+    (H, W), (h, w) = map_shape, patch_shape
+    best = int(surface[-1]) + reducer_latency((H - h + 1, W - w + 1), lanes, exclusion_radius)
+    return Schedule(surface=surface, best=best)
