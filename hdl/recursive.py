@@ -5,27 +5,31 @@ are taken one after the other, and for each the terms are formed one per clock b
 and summed by one accumulator. The map memory is read once per term, through the
 :class:`~lost.hdl.sequencer.MapSequencer`.
 
-The arithmetic follows :mod:`lost.model.correlator`, rearranged so that one multiplier serves both
-modes::
+The arithmetic follows :mod:`lost.model.correlator`, rearranged so that nothing is computed per term
+that can be computed once, and one datapath serves both modes::
 
-    term(k) = f * (M[i+k] - S[k]) - D(i, j)      for each valid patch node k
-    f = n,  D = sum_valid M[i+.] - sum_valid S    with mean compensation
-    f = 1,  D = 0                                 without
+    term(k) = f * M[i+k] - C[k] - f_sum(i, j)      for each valid patch node k
+    C[k]    = f * S[k] - Ssum                      once per correlation, at start (the centred patch)
+    f = n,  Ssum = sum_valid S,  f_sum = sum_valid M[i+.]   with mean compensation
+    f = 1,  Ssum = 0,            f_sum = 0                  without
 
-``n``, ``sum_valid S`` and a compact list of the valid nodes (map offset, depth) are formed once per
-correlation, at start, by one pass over the patch memory; only valid nodes are visited afterwards, so a
-sparse mask costs fewer cycles.
+At start, two passes over the patch memory form ``n`` and ``Ssum``, then a compact list of the valid
+nodes (map offset, ``C``); only valid nodes are visited afterwards, so a sparse mask costs fewer
+cycles. ``f * M`` is formed once per map word as it is read, so the term unit itself has no multiplier:
+two subtractions, an absolute value and the accumulator.
 
-``D`` must be known before a placement's first term. Rather than reading the map twice, the core reads
-each map word once and uses it twice, one placement apart: on each step it adds the word of node ``k``
-of placement ``q`` to the window sum and writes it into a small window memory (``h * w`` words) at
-``k``, whose read port returns, on the same edge, the word it overwrote: node ``k`` of placement
-``q - 1``, whose ``D`` is complete by then. The term unit forms that term on the next clock. So a
-placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the last placement
-empties the pipeline. The schedule is modelled exactly by :func:`lost.model.cycles_recursive.schedule`.
+The window sum must be known before a placement's first term. Rather than reading the map twice, the
+core reads each map word once and uses it twice, one placement apart: on each step it adds the word of
+node ``k`` of placement ``q`` to the window sum and writes ``f * M`` into a small window memory
+(``h * w`` words) at ``k``, whose read port returns, on the same edge, the word it overwrote: node ``k``
+of placement ``q - 1``, whose window sum is complete by then. The term unit forms that term on the next
+clock. So a placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the
+last placement empties the pipeline. The schedule is modelled exactly by
+:func:`lost.model.cycles_recursive.schedule`.
 
 A patch without any valid node has nothing to correlate; the host refuses it
-(:func:`lost.model.check_inputs`) before it reaches the core.
+(:func:`lost.model.check_inputs`) before it reaches the core, which would give an all-zero surface (one
+clock per placement) rather than hang.
 """
 
 from __future__ import annotations
@@ -92,9 +96,12 @@ class RecursiveCore(wiring.Component):
         # --- the patch: loaded while idle, compacted to its valid nodes at start ------------------
         m.submodules.patch = patch = memory.Memory(shape=p.patch_word, depth=nodes_total, init=[])
         patch_write, patch_read = patch.write_port(), patch.read_port()
+        # A node's map offset and its centred depth C (n * S - Ssum with mean compensation, S without);
+        # a plain depth is wider than the centred bound when n = 1.
+        centred_shape = signed(max(widths.centred_depth.bits, widths.depth.bits))
         node_layout = data.StructLayout({
             "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
-            "depth": signed(p.depth_bits),
+            "centred": centred_shape,
         })
         m.submodules.nodes = nodes = memory.Memory(shape=node_layout, depth=nodes_total, init=[])
         nodes_write = nodes.write_port()
@@ -120,22 +127,32 @@ class RecursiveCore(wiring.Component):
         count = Signal(range(nodes_total + 1))            # n, the valid nodes
         patch_sum = Signal(signed(widths.window_sum.bits))
 
-        # Preparation: read patch word k, then (one cycle later) append it to the nodes if valid.
+        # f = n with mean compensation, 1 without; it scales map words and patch depths alike.
+        factor = Mux(mean, count, 1)
+
+        # Preparation, two passes over the patch memory: read word k, then (one cycle later) count it
+        # and add it to Ssum (first pass), or append it to the node list with its centred depth
+        # (second pass, when n and Ssum are known).
         prepare_index = Signal(range(nodes_total))
+        prepare_second = Signal()
         prepare_offset = Signal(node_layout["offset"].shape)
         prepare_col = Signal(range(w))
-        seen = Signal()
+        seen, seen_second = Signal(), Signal()
         seen_offset = Signal(node_layout["offset"].shape)
+        append_index = Signal(range(nodes_total))
         m.d.comb += patch_read.addr.eq(prepare_index)
         word = patch_read.data
         m.d.comb += [
-            nodes_write.addr.eq(count),
+            nodes_write.addr.eq(append_index),
             nodes_write.data.offset.eq(seen_offset),
-            nodes_write.data.depth.eq(word.depth),
-            nodes_write.en.eq(seen & word.valid),
+            nodes_write.data.centred.eq(factor * word.depth - Mux(mean, patch_sum, 0)),
+            nodes_write.en.eq(seen & seen_second & word.valid),
         ]
         with m.If(seen & word.valid):
-            m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + word.depth)]
+            with m.If(seen_second):
+                m.d.sync += append_index.eq(append_index + 1)
+            with m.Else():
+                m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + word.depth)]
 
         # --- the address generator: one map read per valid node and placement -------------------
         # After the last placement, one more round of n reads (``flush``) pushes its terms out.
@@ -143,7 +160,7 @@ class RecursiveCore(wiring.Component):
             "index": unsigned(max((nodes_total - 1).bit_length(), 1)),
             "first": 1,
             "last": 1,
-            "depth": signed(p.depth_bits),
+            "centred": centred_shape,
             "current": 1,   # the word belongs to a placement (not the flush round)
             "previous": 1,  # a previous placement's terms are due on this step
         })
@@ -161,14 +178,16 @@ class RecursiveCore(wiring.Component):
         node = nodes_read.data
         request = sequencer.request
         advance = request.valid & request.ready
-        last_node = node_index == count - 1
+        # Without a valid node each placement still takes one step, whose term is zero.
+        empty = count == 0
+        last_node = (node_index == count - 1) | empty
         m.d.comb += [
             request.valid.eq(generating),
-            request.payload.addr.eq(base + node.offset),
+            request.payload.addr.eq(base + Mux(empty, 0, node.offset)),
             request.payload.tag.index.eq(node_index),
             request.payload.tag.first.eq(node_index == 0),
             request.payload.tag.last.eq(last_node),
-            request.payload.tag.depth.eq(node.depth),
+            request.payload.tag.centred.eq(node.centred),
             request.payload.tag.current.eq(~flushing),
             request.payload.tag.previous.eq(has_previous),
             # The read port always holds the node the generator is at.
@@ -188,7 +207,9 @@ class RecursiveCore(wiring.Component):
                     m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
 
         # --- step: sum the window of placement q, keep its words, fetch placement q-1's ------------
-        m.submodules.window = window = memory.Memory(shape=signed(p.depth_bits), depth=nodes_total, init=[])
+        # The window memory keeps f * M: the one multiplication per map word, off the term's path.
+        scaled_shape = signed(max(widths.scaled_depth.bits, widths.depth.bits))
+        m.submodules.window = window = memory.Memory(shape=scaled_shape, depth=nodes_total, init=[])
         window_write = window.write_port()
         window_read = window.read_port()  # not transparent: it reads the word being overwritten
         response = sequencer.response
@@ -197,12 +218,12 @@ class RecursiveCore(wiring.Component):
         step = response.valid & response.ready
 
         window_sum = Signal(signed(widths.window_sum.bits))
-        next_difference = Signal(signed(widths.sum_difference.bits))     # D of placement q
-        sum_difference = Signal(signed(widths.sum_difference.bits))      # D of placement q-1
+        next_window_sum = Signal(signed(widths.window_sum.bits))        # sum_valid M of placement q
+        previous_window_sum = Signal(signed(widths.window_sum.bits))    # that of placement q-1
         window_sum_new = Mux(tag.first, 0, window_sum) + map_word
         m.d.comb += [
             window_write.addr.eq(tag.index),
-            window_write.data.eq(map_word),
+            window_write.data.eq(factor * map_word),
             window_write.en.eq(step & tag.current),
             window_read.addr.eq(tag.index),
             window_read.en.eq(step),  # held while the term stage waits
@@ -210,25 +231,25 @@ class RecursiveCore(wiring.Component):
         with m.If(step & tag.current):
             m.d.sync += window_sum.eq(window_sum_new)
             with m.If(tag.last):
-                m.d.sync += next_difference.eq(window_sum_new - patch_sum)
+                m.d.sync += next_window_sum.eq(window_sum_new)
         with m.If(step & tag.previous & tag.first):
-            m.d.sync += sum_difference.eq(next_difference)
+            m.d.sync += previous_window_sum.eq(next_window_sum)
 
         # --- term: one absolute difference and one accumulator, a cycle after the step -------------
         term_valid, term_first, term_last = Signal(), Signal(), Signal()
-        term_depth = Signal(signed(p.depth_bits))
+        term_centred = Signal(centred_shape)
         accumulator = Signal(unsigned(widths.accumulator.bits))
         out_value = Signal(unsigned(widths.accumulator.bits))
         out_full = Signal()
         out_i, out_j = Signal(range(rows)), Signal(range(cols))
 
-        scaled = Mux(mean, count, 1) * (window_read.data - term_depth)
         # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
         term = Signal(signed(max(widths.term.bits, widths.difference.bits)))
         abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
         m.d.comb += [
-            term.eq(scaled - Mux(mean, sum_difference, 0)),
-            abs_term.eq(abs(term)),
+            # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
+            term.eq(window_read.data - term_centred - Mux(mean, previous_window_sum, 0)),
+            abs_term.eq(Mux(empty, 0, abs(term))),
         ]
         accumulator_new = Mux(term_first, 0, accumulator) + abs_term
         surface_taken = self.surface.valid & self.surface.ready
@@ -242,7 +263,7 @@ class RecursiveCore(wiring.Component):
                 term_valid.eq(tag.previous),
                 term_first.eq(tag.first),
                 term_last.eq(tag.last),
-                term_depth.eq(tag.depth),
+                term_centred.eq(tag.centred),
             ]
 
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
@@ -282,7 +303,9 @@ class RecursiveCore(wiring.Component):
                         mean.eq(self.start.payload.mean_compensation),
                         count.eq(0),
                         patch_sum.eq(0),
+                        append_index.eq(0),
                         prepare_index.eq(0),
+                        prepare_second.eq(0),
                         prepare_offset.eq(0),
                         prepare_col.eq(0),
                         out_i.eq(0),
@@ -290,15 +313,18 @@ class RecursiveCore(wiring.Component):
                     ]
                     m.next = "PREPARE"
             with m.State("PREPARE"):
-                m.d.sync += [seen.eq(1), seen_offset.eq(prepare_offset)]
-                with m.If(prepare_col == w - 1):
-                    m.d.sync += [prepare_col.eq(0), prepare_offset.eq(prepare_offset + W - w + 1)]
-                with m.Else():
-                    m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
+                m.d.sync += [seen.eq(1), seen_second.eq(prepare_second), seen_offset.eq(prepare_offset)]
                 with m.If(prepare_index == nodes_total - 1):
-                    m.next = "PREPARE_LAST"
+                    m.d.sync += [prepare_index.eq(0), prepare_col.eq(0), prepare_offset.eq(0),
+                                 prepare_second.eq(1)]
+                    with m.If(prepare_second):
+                        m.next = "PREPARE_LAST"
                 with m.Else():
                     m.d.sync += prepare_index.eq(prepare_index + 1)
+                    with m.If(prepare_col == w - 1):
+                        m.d.sync += [prepare_col.eq(0), prepare_offset.eq(prepare_offset + W - w + 1)]
+                    with m.Else():
+                        m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
             with m.State("PREPARE_LAST"):
                 # The last patch word is appended on this cycle's edge.
                 m.d.sync += [

@@ -50,9 +50,9 @@ class BestFitReducer(wiring.Component):
     transfers of its own surface stream. Beats must arrive in raster order, the first at ``(0, 0)``,
     the last with ``last`` set; no beat may arrive while ``busy``.
 
-    Latency: the ``best`` beat is offered from :func:`lost.model.cycles.reducer_latency` ``- 1``
-    cycles after the edge on which the last beat arrived, and transfers that many cycles after it when
-    ``best.ready`` is high.
+    Latency: with ``L = reducer_latency(...)`` (:func:`lost.model.cycles.reducer_latency`), the ``best``
+    beat is offered from edge ``L - 1`` after the one on which the last surface beat arrived, and
+    transfers on edge ``L`` after it when ``best.ready`` is high.
 
     Parameters
     ----------

@@ -93,6 +93,19 @@ class WindowCore(wiring.Component):
     map_read : ``In(memory.ReadPort.Signature(addr_width, shape=map_word))``
         A synchronous read port of the map memory: ``H * ceil(W / L)`` rows of ``L`` words, map row
         ``r`` at rows ``r * ceil(W / L) ...``, word ``c`` of it in lane ``c % L`` of row ``c // L``.
+        Read through a :class:`~lost.hdl.sequencer.MapSequencer`, each row once per correlation.
+
+    Attributes
+    ----------
+    map_word : ArrayLayout
+        One memory row: ``L`` signed depth words.
+    map_depth : int
+        Rows of the map memory.
+    timing : WindowTiming
+        The pipeline's constants; the cycle of every beat is :func:`lost.model.cycles_window.schedule`.
+
+    A patch without a valid node (which :func:`lost.model.check_inputs` refuses on the host) gives
+    an all-zero surface.
     """
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1):

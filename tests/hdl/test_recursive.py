@@ -192,9 +192,10 @@ def test_reset_mid_correlation_then_a_correct_one():
     terrain, patch, mask = random_case(rng, map_shape, patch_shape, sparse=True)
     other_patch = rng.integers(-500, 500, patch_shape).astype(np.int16)
     bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
-    results, busy_after_reset = [], []
+    results, busy_before_reset, busy_after_reset = [], [], []
 
     async def reset(ctx):
+        busy_before_reset.append(ctx.get(bench.dut.busy))
         ctx.set(bench.domain.rst, 1)
         await ctx.tick()
         ctx.set(bench.domain.rst, 0)
@@ -216,14 +217,44 @@ def test_reset_mid_correlation_then_a_correct_one():
         await reset(ctx)
         await feed(ctx, bench.dut.patch_in, patch_words(other_patch, mask))
         results.append(await bench.correlate(ctx, mean_compensation=True))
+        # Reset while the reducer scans, after the whole surface, before the best beat.
+        await stream_put(ctx, bench.dut.start, {"mean_compensation": 0})
+        await drain(ctx, bench.dut.surface, 4 * 6)
+        await ctx.tick().repeat(4)
+        await reset(ctx)
+        results.append(await bench.correlate(ctx, mean_compensation=True))
 
     bench.sim.add_testbench(testbench)
     bench.sim.run()
-    assert busy_after_reset == [0, 0]
-    for (surface, best), (this_patch, mean) in zip(results, [(patch, False), (other_patch, True)]):
+    assert busy_before_reset == [1, 1, 1]
+    assert busy_after_reset == [0, 0, 0]
+    assert len(results) == 3
+    for (surface, best), (this_patch, mean) in zip(results, [(patch, False), (other_patch, True), (other_patch, True)]):
         golden = correlate(terrain, this_patch, mask=mask, mean_compensation=mean)
         np.testing.assert_array_equal(surface, golden)
         assert best == expected_best(golden, 1)
+
+
+def test_a_patch_without_valid_nodes_gives_a_zero_surface():
+    # The host refuses such a patch; the core must still finish, with nothing accumulated.
+    map_shape, patch_shape = (5, 6), (2, 3)
+    rng = np.random.default_rng(3)
+    terrain = rng.integers(-1000, 1000, map_shape).astype(np.int16)
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    results = []
+
+    async def testbench(ctx):
+        await feed(ctx, bench.dut.map_in, [int(x) for x in terrain.ravel()])
+        await feed(ctx, bench.dut.patch_in, [{"depth": 77, "valid": 0}] * 6)
+        for mean in (True, False):
+            results.append(await bench.correlate(ctx, mean_compensation=mean))
+
+    bench.sim.add_testbench(testbench)
+    bench.sim.run()
+    zeros = np.zeros((4, 4), dtype=np.int64)
+    for surface, best in results:
+        np.testing.assert_array_equal(surface, zeros)
+        assert best == expected_best(zeros, 1)
 
 
 def test_inputs_are_refused_while_busy():
