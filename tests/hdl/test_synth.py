@@ -171,7 +171,7 @@ def test_critical_path_summary_takes_the_longest_path_and_its_sources():
 
 def test_markdown_table_says_met_or_not_reached():
     entry = {
-        "variant": "window", "lanes": 2, "memory": "external", "map_shape": [501, 501],
+        "variant": "window", "lanes": 2, "memory": "external", "map_shape": [501, 501], "routed": True,
         "seeds": {"1": 101.0, "2": 99.5},
         "result": {"fmax_mhz": 101.0, "lut4": 8364, "ff": 10, "ebr": 3, "dsp": 2},
         "lut4_percent": 10.0, "cycles": 127452, "seconds": 127452 / 101e6, "map_bandwidth_gbit_s": 3.232,
@@ -180,6 +180,11 @@ def test_markdown_table_says_met_or_not_reached():
     row = markdown_table([entry]).splitlines()[-1]
     assert "| 101.0 |" in row and "1: 101.0, 2: 99.5" in row and "127,452" in row
     assert "1.262 ms" in row and "3.23 Gbit/s" in row and "not reached (<= 0.266 ms)" in row
+    over = {"variant": "window", "lanes": 8, "memory": "external", "map_shape": [501, 501], "routed": False,
+            "packed": {"lut4": 90000, "ff": 1, "ebr": 2, "dsp": 8}, "lut4_percent": 107.6, "max_lut_percent": 60.0,
+            "cycles": 33000}
+    row = markdown_table([over]).splitlines()[-1]
+    assert "not placed: LUT4 use over 60 %" in row and "90000 (108 %, packed)" in row and "33,000" in row
 
 
 @pytest.mark.fpga
