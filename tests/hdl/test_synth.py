@@ -165,6 +165,7 @@ def test_critical_path_summary_takes_the_longest_path_and_its_sources():
     assert summary["from"] == "start" and summary["to"] == "end"
     assert summary["delay_ns"] == 4.7 and summary["logic_ns"] == 1.0 and summary["routing_ns"] == 3.0
     assert summary["logic_cells"] == 2 and summary["sources"] == ["hdl/reducer.py:135"]
+    assert summary["longest_net"] == {"net": "", "ns": 2.0}
     with pytest.raises(FlowError, match="no critical path"):
         critical_path_summary({"critical_paths": []})
 
@@ -181,7 +182,7 @@ def test_markdown_table_says_met_or_not_reached():
     assert "| 101.0 |" in row and "1: 101.0, 2: 99.5" in row and "127,452" in row
     assert "1.262 ms" in row and "3.23 Gbit/s" in row and "not reached (<= 0.266 ms)" in row
     over = {"variant": "window", "lanes": 8, "memory": "external", "map_shape": [501, 501], "routed": False,
-            "packed": {"lut4": 90000, "ff": 1, "ebr": 2, "dsp": 8}, "lut4_percent": 107.6, "max_lut_percent": 60.0,
+            "reason": "LUT4 use over 60 %", "packed": {"lut4": 90000, "ff": 1, "ebr": 2, "dsp": 8}, "lut4_percent": 107.6, "max_lut_percent": 60.0,
             "cycles": 33000}
     row = markdown_table([over]).splitlines()[-1]
     assert "not placed: LUT4 use over 60 %" in row and "90000 (108 %, packed)" in row and "33,000" in row
