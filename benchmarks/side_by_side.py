@@ -46,6 +46,8 @@ def rows(report: dict, *, rounds: int) -> list[tuple[str, str, float, str]]:
     """``(what, where, seconds, exact)`` for every row of the table."""
     table = []
     for entry in report["configurations"]:
+        if not entry["routed"]:
+            continue  # packed only: no Fmax, so no time
         H, W = entry["map_shape"]
         lanes = f", {entry['lanes']} lane{'s' if entry['lanes'] > 1 else ''}" if entry["variant"] == "window" else ""
         where = (f"LFE5U-85F post-route, {entry['result']['fmax_mhz']:.1f} MHz, map {entry['memory']}"

@@ -393,7 +393,7 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         return entry | {
             "routed": False,
             "reason": (f"LUT4 use over {max_lut_percent:g} %" if lut4_percent > max_lut_percent
-                       else "not placed in this run"),
+                       else "no time in this run"),
             "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
                        "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
             "lut4_percent": lut4_percent,
@@ -416,6 +416,18 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
             tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
         log(f"{name}: seed {seed}: {tried['result']['fmax_mhz']:.1f} MHz")
         tries.append(tried)
+    # Seeds routed by earlier runs of the same netlist, router and target count too: every seed tried is reported.
+    for cached in sorted(out_dir.glob(f"{name}-seed*.json")):
+        if cached.name.endswith("-report.json"):
+            continue
+        tried = json.loads(cached.read_text())
+        if (tried["result"]["seed"] not in seeds and tried["il_sha256"] == fingerprint
+                and tried.get("router") == router and tried["result"]["target_mhz"] == target_mhz):
+            report_path = out_dir / f"{name}-seed{tried['result']['seed']}-report.json"
+            if report_path.exists():
+                tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
+            tries.append(tried)
+    tries.sort(key=lambda tried: tried["result"]["seed"])
     best = max(tries, key=lambda tried: tried["result"]["fmax_mhz"])
     result = best["result"]
     seconds = cycles / (result["fmax_mhz"] * 1e6)
