@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench synth clean verilog lint sim-full
+.PHONY: setup demo test bench synth clean verilog lint sim-full cycles
 
 setup: $(STAMP)
 
@@ -52,6 +52,10 @@ lint: verilog
 # The recursive core at full size on Verilator: too slow for `make test` (pytest marker `slow`).
 sim-full: setup
 	$(BIN)/python -m pytest -m slow tests/sim
+
+# Cycles of each variant at 501 x 501 / 10 x 10 from the cycle models the simulations check beat by beat.
+cycles: setup
+	$(BIN)/python -m lost.sim.cycles
 
 clean:
 	rm -rf build .pytest_cache .hypothesis

@@ -219,7 +219,7 @@ class BestFitReducer(wiring.Component):
             self.best.payload.runner_up_i.eq(runner_i),
             self.best.payload.runner_up_j.eq(runner_j),
             self.best.payload.runner_up_valid.eq(runner_valid),
-            self.busy.eq(scanning | done),
+            self.busy.eq(scanning | seen | done),
         ]
 
         # --- state -------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Array, Const, Module, Mux, Shape, Signal, signed, unsigned
+from amaranth.hdl import Const, Module, Mux, Shape, Signal, signed, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.fifo import SyncFIFO
 from amaranth.lib.wiring import In
@@ -55,27 +55,30 @@ def _union_bits(*bounds: tuple[int, int]) -> Shape:
     return signed(width) if is_signed else unsigned(width)
 
 
+def _index(count: int) -> range:
+    """The range of an index below ``count``, at least one bit wide (Verilog has no empty vector)."""
+    return range(max(count, 2))
+
+
 def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
     """Sum ``values`` with a balanced adder tree, one register level per adder level.
 
     Each register is as wide as the sums it can hold: ``k`` leaves in ``[leaf_lo, leaf_hi]`` give
     ``[k * leaf_lo, k * leaf_hi]``, never more than the bound ``cap`` of the whole sum.
     """
-    nodes = [(value, 1) for value in values]
-    level = 0
-    while len(nodes) > 1:
-        sums = []
-        for index in range(0, len(nodes), 2):
-            pair = nodes[index : index + 2]
-            leaves = sum(count for _, count in pair)
-            lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
-            total = Signal(_union_bits((lo, hi)), name=f"{name}_l{level}_{index // 2}")
-            with m.If(enable):
-                m.d.sync += total.eq(pair[0][0] + pair[1][0] if len(pair) == 2 else pair[0][0])
-            sums.append((total, leaves))
-        nodes = sums
+    level, leaves = 0, 1
+    while len(values) > 1:
+        # One array register per level (fewer, wider signals keep the generated Verilog small).
+        leaves *= 2
+        lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
+        sums = Signal(data.ArrayLayout(_union_bits((lo, hi)), (len(values) + 1) // 2), name=f"{name}_l{level}")
+        with m.If(enable):
+            for index in range(0, len(values), 2):
+                pair = values[index : index + 2]
+                m.d.sync += sums[index // 2].eq(pair[0] + pair[1] if len(pair) == 2 else pair[0])
+        values = [sums[index] for index in range((len(values) + 1) // 2)]
         level += 1
-    return nodes[0][0]
+    return values[0]
 
 
 class WindowCore(wiring.Component):
@@ -154,9 +157,9 @@ class WindowCore(wiring.Component):
 
         # ---- the patch, its count and sum, and C = f * S - Ssum (formed at start) ----------------
         # Reset-less: like the map memory, the patch persists through a reset until reloaded.
-        patch_depth = [Signal(depth, name=f"patch_depth_{x}", reset_less=True) for x in range(nodes)]
-        patch_valid = [Signal(name=f"patch_valid_{x}", reset_less=True) for x in range(nodes)]
-        centred_patch = [Signal(centred, name=f"centred_{x}") for x in range(nodes)]
+        patch_depth = Signal(data.ArrayLayout(depth, nodes), reset_less=True)
+        patch_valid = Signal(nodes, reset_less=True)
+        centred_patch = Signal(data.ArrayLayout(centred, nodes))
         mean_compensation = Signal()
         valid_count = Signal(count)
         patch_sum = Signal(window_sum)
@@ -175,8 +178,8 @@ class WindowCore(wiring.Component):
             for x in range(nodes - 1):
                 m.d.sync += [patch_depth[x].eq(patch_depth[x + 1]), patch_valid[x].eq(patch_valid[x + 1])]
             m.d.sync += [
-                patch_depth[-1].eq(self.patch_in.payload.depth),
-                patch_valid[-1].eq(self.patch_in.payload.valid),
+                patch_depth[nodes - 1].eq(self.patch_in.payload.depth),
+                patch_valid[nodes - 1].eq(self.patch_in.payload.valid),
             ]
 
         # ---- the steps: map words through the sequencer, then flush steps -----------------------
@@ -199,7 +202,7 @@ class WindowCore(wiring.Component):
         words_taken = Signal(range(self.map_depth + 1))
         flush_left = Signal(range(t.flush_steps + 1))
         step_row = Signal(range(H + t.flush_steps + 2))
-        step_group = Signal(range(G))
+        step_group = Signal(_index(G))
 
         # The output queue: the pipeline advances only while the queue has room, a registered flag, so
         # no combinational path runs from ``surface.ready`` to the pipeline's enables. It adds no
@@ -250,9 +253,9 @@ class WindowCore(wiring.Component):
         node_layout = data.StructLayout({"depth": depth, "scaled": scaled})
         row_layout = data.ArrayLayout(node_layout, L)
         step_nodes = Signal(row_layout)
-        step_group_reg = Signal(range(G))
+        step_group_reg = Signal(_index(G))
         step_is_word = Signal()
-        meta = [Signal(meta_layout, name=f"meta_{x}") for x in range(t.output_delay)]
+        meta = Signal(data.ArrayLayout(meta_layout, t.output_delay))
         with m.If(advance):
             m.d.sync += [
                 step_group_reg.eq(step_group),
@@ -284,7 +287,9 @@ class WindowCore(wiring.Component):
 
         # ---- window register: columns, oldest first; the newest L enter on the right ---------------
         span = t.sum_levels * L + (t.lead + 1) * L
-        window = [[Signal(node_layout, name=f"window_{c}_{k}") for k in range(h)] for c in range(span)]
+        # One signal per column: fewer signals than one per node, while the Python simulator (whose
+        # generated code spells masks as decimal literals) still handles their width.
+        window = [Signal(data.ArrayLayout(node_layout, h), name=f"window_{c}") for c in range(span)]
         with m.If(advance):
             for c in range(span - L):
                 for k in range(h):
@@ -308,10 +313,10 @@ class WindowCore(wiring.Component):
                                   (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
 
             # The same columns, sum_levels steps later, at the bottom of the register.
-            y = [Signal(offset, name=f"lane{q}_y_{x}") for x in range(nodes)]
+            y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y")
             wsum_y = Signal(window_sum, name=f"lane{q}_wsum_y")
-            z = [Signal(term, name=f"lane{q}_z_{x}") for x in range(nodes)]
-            a = [Signal(abs_term, name=f"lane{q}_abs_{x}") for x in range(nodes)]
+            z = Signal(data.ArrayLayout(term, nodes), name=f"lane{q}_z")
+            a = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_abs")
             with m.If(advance):
                 m.d.sync += wsum_y.eq(wsum)
                 for k in range(h):
@@ -322,10 +327,10 @@ class WindowCore(wiring.Component):
                             z[x].eq(y[x] - wsum_y),
                             a[x].eq(Mux(patch_valid[x], Mux(z[x] < 0, -z[x], z[x]), 0)),
                         ]
-            lane_values.append(_pipelined_sum(m, advance, a, (0, term_max), (0, widths.accumulator.hi), f"lane{q}_sum"))
+            lane_values.append(_pipelined_sum(m, advance, [a[x] for x in range(nodes)], (0, term_max), (0, widths.accumulator.hi), f"lane{q}_sum"))
 
         # ---- into the output queue ---------------------------------------------------------------------
-        last_meta = meta[-1]
+        last_meta = meta[t.output_delay - 1]
         beat = Signal(p.surface_beat)
         m.d.comb += [
             beat.i.eq(last_meta.i),
@@ -348,7 +353,7 @@ class WindowCore(wiring.Component):
         prepare_step = Signal(range(2 * nodes + 2))
         # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; one register
         # after the node multiplexer and one after the multiplier keep the passes' paths short.
-        node = Signal(range(nodes))
+        node = Signal(_index(nodes))
         with m.If(idle | (node == nodes - 1)):
             m.d.sync += node.eq(0)
         with m.Else():
@@ -357,8 +362,8 @@ class WindowCore(wiring.Component):
         head_valid = Signal()
         product = Signal(scaled)
         m.d.sync += [
-            head_depth.eq(Array(patch_depth)[node]),
-            head_valid.eq(Array(patch_valid)[node]),
+            head_depth.eq(patch_depth[node]),
+            head_valid.eq(patch_valid.bit_select(node, 1)),
             product.eq(factor * head_depth),
         ]
         with m.FSM():
@@ -395,7 +400,7 @@ class WindowCore(wiring.Component):
                 m.d.sync += prepare_step.eq(prepare_step + 1)
                 with m.If(prepare_step >= nodes + 2):
                     m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
-                    m.d.sync += centred_patch[-1].eq(product - Mux(mean_compensation, patch_sum, 0))
+                    m.d.sync += centred_patch[nodes - 1].eq(product - Mux(mean_compensation, patch_sum, 0))
                 with m.If(prepare_step == 2 * nodes + 1):
                     m.d.sync += [running.eq(1), requesting.eq(1)]
                     m.next = "RUN"
@@ -410,6 +415,12 @@ class WindowCore(wiring.Component):
 
 class WindowCorrelator(wiring.Component):
     """The window correlator with its map memory, map loader and best-fit reducer.
+
+    Throughput and latency, with ``surface.ready`` and ``best.ready`` high: one memory row (``L``
+    words) and one beat of ``L`` placements per clock once the pipeline is full; a correlation takes
+    ``2hw + 4 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
+    row's last beat wraps to the next row's first step), then the reducer's scan. Every beat's cycle is
+    :func:`lost.model.cycles_window.schedule`; ``output_delay = 2 * ceil(log2(h * w)) + 5``.
 
     Parameters
     ----------
@@ -466,9 +477,9 @@ class WindowCorrelator(wiring.Component):
         # The loader: word c of map row r goes to lane c % L of memory row r * ceil(W / L) + c // L.
         write = map_memory.write_port(granularity=1)
         row_base = Signal(range(core.map_depth + 1))
-        group = Signal(range(core.timing.groups))
-        lane = Signal(range(L))
-        column = Signal(range(W))
+        group = Signal(_index(core.timing.groups))
+        lane = Signal(_index(L))
+        column = Signal(_index(W))
         loading = self.map_in.valid & self.map_in.ready
         m.d.comb += [
             self.map_in.ready.eq(~core.busy),

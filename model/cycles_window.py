@@ -13,7 +13,8 @@ which the ``start`` beat transfers (cycle 0):
   taken on edge ``2hw + 4 + t``;
 * the beat ``(i, g)`` (surface row ``i``, its ``g``-th group of ``L`` placements) is completed by step
   ``(i + h - 1) * G + g + D`` with ``G = ceil(W / L)`` and ``D = ceil((w - 1) / L)``, the step whose
-  memory row holds the rightmost column of the beat's windows, unless ``g + D`` runs past the row
+  memory row holds the rightmost column of the beat's ``L`` windows (the lanes run in lockstep, also
+  past a row's end), unless ``g + D`` runs past the row
   (possible only for a row's last beat), when the next map row's first step (or a flush step, after
   the last row) completes it: step ``(i + h) * G``;
 * a step's beat is written into the output queue ``output_delay`` steps after the step is taken and

@@ -24,7 +24,7 @@ import cocotb
 from amaranth.hdl import Shape
 from cocotb.clock import Clock
 from cocotb.handle import HierarchyObject
-from cocotb.simtime import get_sim_time
+from cocotb.simtime import convert, get_sim_time
 from cocotb.triggers import Event, ReadOnly, RisingEdge
 from cocotb.types import Logic, LogicArray
 
@@ -49,6 +49,9 @@ def pattern(bits: Iterable[int]) -> Iterator[int]:
 class Clocking:
     """The clock of a bench: starts it, and converts simulation times to cycle counts.
 
+    Times are integer simulator steps: nanoseconds as floats lose the last digit after some 10^8 ns,
+    which a full-size recursive correlation reaches.
+
     Parameters
     ----------
     clock : handle
@@ -60,29 +63,30 @@ class Clocking:
     def __init__(self, clock: Any, *, period_ns: int = 10) -> None:
         self.clock = clock
         self.period_ns = period_ns
+        self.period_steps = convert(period_ns, "ns", to="step")
         Clock(clock, period_ns, unit="ns").start()
 
-    def now(self) -> float:
-        return get_sim_time("ns")
+    def now(self) -> int:
+        return get_sim_time("step")
 
-    def next_edge_time(self) -> float:
+    def next_edge_time(self) -> int:
         """Time of the next rising edge, when called on a rising edge (or in its ReadOnly phase)."""
-        return self.now() + self.period_ns
+        return self.now() + self.period_steps
 
-    def cycle(self, time_ns: float, *, since: float) -> int:
-        """Whole clock periods from the edge at ``since`` to the edge at ``time_ns``."""
-        cycles, remainder = divmod(time_ns - since, self.period_ns)
+    def cycle(self, time: int, *, since: int) -> int:
+        """Whole clock periods from the edge at ``since`` to the edge at ``time`` (both in steps)."""
+        cycles, remainder = divmod(time - since, self.period_steps)
         if remainder:
-            raise ValueError(f"{time_ns} ns is not a clock edge {since} ns + k * {self.period_ns} ns")
-        return int(cycles)
+            raise ValueError(f"step {time} is not a clock edge: {since} + k * {self.period_steps}")
+        return cycles
 
 
 @dataclass(frozen=True)
 class Transfer:
-    """One beat of a stream: its decoded payload and the simulation time of its clock edge."""
+    """One beat of a stream: its decoded payload and the simulation time (steps) of its clock edge."""
 
     payload: Any
-    time_ns: float
+    time: int
 
 
 def _bits(value: Logic | LogicArray) -> int:
@@ -122,7 +126,7 @@ class StreamSource:
         self._clocking = clocking
         self._port.valid.value = 0
 
-    async def send(self, words: Iterable[Any], *, valid: Iterator[int] | None = None) -> list[float]:
+    async def send(self, words: Iterable[Any], *, valid: Iterator[int] | None = None) -> list[int]:
         """Transfer ``words`` in order; return the time of each one's transfer edge.
 
         Starts on the next rising edge and leaves ``valid`` low after the last transfer. ``valid``

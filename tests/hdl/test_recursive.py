@@ -279,6 +279,34 @@ def test_inputs_are_refused_while_busy():
     assert seen == [(1, 0, 0, 0), (0, 1, 1, 1)]
 
 
+def test_start_refused_on_every_cycle_until_the_best_beat():
+    map_shape, patch_shape = (5, 5), (2, 2)
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    readiness = []
+
+    async def testbench(ctx):
+        await feed(ctx, bench.dut.map_in, list(range(25)))
+        await feed(ctx, bench.dut.patch_in, [{"depth": d, "valid": 1} for d in (3, 1, 4, 1)])
+        await stream_put(ctx, bench.dut.start, {"mean_compensation": 1})
+        ctx.set(bench.dut.surface.ready, 1)
+        ctx.set(bench.dut.best.ready, 1)
+        while True:
+            _, _, start_ready, map_ready, patch_ready, best_done = await ctx.tick().sample(
+                bench.dut.start.ready, bench.dut.map_in.ready, bench.dut.patch_in.ready,
+                bench.dut.best.valid & bench.dut.best.ready)
+            readiness.append((start_ready, map_ready, patch_ready))
+            if best_done:
+                break
+        await ctx.tick()
+        readiness.append((ctx.get(bench.dut.start.ready), ctx.get(bench.dut.map_in.ready),
+                          ctx.get(bench.dut.patch_in.ready)))
+
+    bench.sim.add_testbench(testbench)
+    bench.sim.run()
+    assert len(readiness) == schedule(map_shape, patch_shape).best + 1
+    assert set(readiness[:-1]) == {(0, 0, 0)} and readiness[-1] == (1, 1, 1)
+
+
 def test_rejects_bad_parameters():
     with pytest.raises(ValueError, match="larger than the map"):
         RecursiveCorrelator(map_shape=(4, 4), patch_shape=(5, 1))

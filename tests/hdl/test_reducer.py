@@ -151,6 +151,33 @@ def test_best_beat_waits_for_ready():
     assert len(best_log) == 3
 
 
+def test_busy_from_the_last_beat_until_the_best_beat():
+    # A core starts its next correlation only when the reducer is idle: busy must not drop early.
+    rng = np.random.default_rng(21)
+    surface = random_surface(rng, (4, 5), high=30)
+    reducer = BestFitReducer(parameters=parameters_for(surface.shape, lanes=2, radius=1))
+    trace = []
+
+    async def testbench(ctx):
+        await feed(ctx, reducer.surface, beats_of(surface, 2))
+        ctx.set(reducer.best.ready, 1)
+        while True:
+            _, _, busy, valid = await ctx.tick().sample(reducer.busy, reducer.best.valid)
+            trace.append(busy)
+            if valid:
+                break
+        await ctx.tick()
+        trace.append(ctx.get(reducer.busy))
+
+    sim = Simulator(reducer)
+    sim.add_clock(1e-8)
+    sim.add_testbench(testbench)
+    sim.run()
+    # Sampled on every edge from the one after the last beat to the best beat's transfer, then after it.
+    assert len(trace) == reducer_latency(surface.shape, 2, 1) + 1
+    assert trace[:-1] == [1] * (len(trace) - 1) and trace[-1] == 0
+
+
 def test_rejects_bad_parameters():
     with pytest.raises(ValueError, match="CorrelatorParameters"):
         BestFitReducer(parameters={"map_shape": (4, 4)})

@@ -60,9 +60,9 @@ def random_pattern(seed, busy):
 class Bench:
     """A window correlator in a module with an explicit sync domain (so tests can reset it), with transfer logs."""
 
-    def __init__(self, *, map_shape, patch_shape, lanes, exclusion_radius=1):
+    def __init__(self, *, map_shape, patch_shape, lanes, exclusion_radius=1, depth_bits=16):
         self.dut = WindowCorrelator(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes,
-                                    exclusion_radius=exclusion_radius)
+                                    exclusion_radius=exclusion_radius, depth_bits=depth_bits)
         self.parameters = self.dut.parameters
         self.top = Module()
         self.top.domains.sync = self.domain = ClockDomain("sync")
@@ -164,28 +164,31 @@ def test_every_value_best_fit_and_cycle(map_shape, patch_shape, lanes):
         surface_cycles, best_cycle = bench.cycles(run)
         np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
         assert best_cycle == expected_cycles.best
-        # Busy from the edge after the start beat until after the last surface beat (the reducer's
-        # share of busy is checked in test_busy_until_the_best_beat), idle after the best beat.
+        # Busy from the edge after the start beat up to the best beat's edge, idle right after it.
         start = bench.logs["start"][run][0]
-        assert all(bench.busy[start + 1:start + surface_cycles[-1] + 2])
+        assert all(bench.busy[start + 1:start + best_cycle + 1])
         assert not bench.busy[start + best_cycle + 1]
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "hdl/reducer.py drops busy for the one cycle between its scan and its answer (busy = scanning | "
-    "done, without seen), so a start beat could be taken before the best beat is out"))
-def test_busy_until_the_best_beat():
-    map_shape, patch_shape, lanes = (6, 7), (2, 3), 2
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
-    terrain, patch, mask = random_case(np.random.default_rng(3), map_shape, patch_shape)
+def test_the_papers_patch_size():
+    """A 10 x 10 patch (Nygren's) on a 24 x 37 map with 4 lanes and radius 3: values, best fit, cycles."""
+    map_shape, patch_shape, lanes, radius = (24, 37), (10, 10), 4, 3
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
+    terrain, patch, mask = random_case(np.random.default_rng(9), map_shape, patch_shape)
+    results = []
 
     async def testbench(ctx):
         await bench.load(ctx, terrain=terrain, patch=patch, mask=mask)
-        await bench.correlate(ctx, mean_compensation=True)
+        results.append(await bench.correlate(ctx, mean_compensation=True))
 
     bench.run(testbench)
-    start, best = bench.logs["start"][0][0], bench.logs["best"][0][0]
-    assert all(bench.busy[start + 1:best + 1])
+    expected = correlate(terrain, patch, mask=mask)
+    np.testing.assert_array_equal(results[0][0], expected)
+    assert results[0][1] == expected_best(expected, radius)
+    surface_cycles, best_cycle = bench.cycles(0)
+    expected_cycles = schedule(map_shape, patch_shape, lanes, exclusion_radius=radius)
+    np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
+    assert best_cycle == expected_cycles.best
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -221,6 +224,29 @@ def test_extreme_depths_reach_the_widths(lanes):
     map_shape, patch_shape = (6, 8), (3, 3)
     bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape, extreme=True)
+    results = []
+
+    async def testbench(ctx):
+        await bench.load(ctx, terrain=terrain, patch=patch, mask=mask)
+        for mode in (True, False):
+            results.append(await bench.correlate(ctx, mean_compensation=mode))
+
+    bench.run(testbench)
+    for (surface, best), mode in zip(results, (True, False)):
+        expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
+        np.testing.assert_array_equal(surface, expected)
+        assert best == expected_best(expected, 1)
+
+
+def test_narrow_depth_words():
+    """5-bit depth words at their extremes: every width follows depth_bits."""
+    rng = np.random.default_rng(5)
+    map_shape, patch_shape, lanes = (7, 9), (3, 4), 2
+    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, depth_bits=5)
+    terrain = rng.choice([-16, 15, 0], size=map_shape).astype(np.int16)
+    patch = rng.choice([-16, 15], size=patch_shape).astype(np.int16)
+    mask = rng.random(patch_shape) < 0.8
+    mask[0, 0] = True
     results = []
 
     async def testbench(ctx):

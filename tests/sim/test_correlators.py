@@ -1,0 +1,62 @@
+"""Each correlator variant's generated Verilog on Verilator with cocotb 2 (``lost.sim.cocotb.correlator``).
+
+Every surface value and the best fit are compared with ``lost.model``; with ready held high every
+beat's cycle is compared with the variant's cycle model. The window core runs at the paper's full
+size (501 x 501 map, 10 x 10 patch) with 1 and 4 lanes, and at a small size whose rows end on a
+partial beat; the recursive core at a reduced size here and at full size in ``make sim-full``.
+"""
+
+from pathlib import Path
+
+import pytest
+
+from lost.hdl.generate import write_variants
+from lost.sim.cocotb.correlator import ENVIRONMENT_VARIABLE, BenchConfig
+from lost.sim.verilator import build_and_test, build_folder_lock
+
+BUILD = Path(__file__).resolve().parents[2] / "build" / "sim"
+
+CORE_MODULES = {"recursive": "lost.hdl.recursive", "window": "lost.hdl.window"}
+
+CASES = [
+    pytest.param(BenchConfig(variant="window", map_shape=(501, 501), patch_shape=(10, 10), lanes=1, seed=1),
+                 id="window-l1-501x501-10x10"),
+    pytest.param(BenchConfig(variant="window", map_shape=(501, 501), patch_shape=(10, 10), lanes=4, seed=2),
+                 id="window-l4-501x501-10x10"),
+    # 27 placements per row: every row ends on a beat of 3 values out of 4.
+    pytest.param(BenchConfig(variant="window", map_shape=(23, 30), patch_shape=(5, 4), lanes=4,
+                             exclusion_radius=2, seed=3),
+                 id="window-l4-23x30-5x4"),
+    pytest.param(BenchConfig(variant="recursive", map_shape=(32, 40), patch_shape=(10, 10), seed=4),
+                 id="recursive-32x40-10x10"),
+    pytest.param(BenchConfig(variant="recursive", map_shape=(501, 501), patch_shape=(10, 10), seed=5),
+                 id="recursive-501x501-10x10", marks=pytest.mark.slow),
+]
+
+
+def _module_name(config: BenchConfig) -> str:
+    return "recursive_correlator" if config.variant == "recursive" else f"window_correlator_l{config.lanes}"
+
+
+@pytest.mark.parametrize("config", CASES)
+def test_correlator_on_verilator(config: BenchConfig):
+    pytest.importorskip(CORE_MODULES[config.variant], reason=f"the {config.variant} core is not written yet")
+    (H, W), (h, w) = config.map_shape, config.patch_shape
+    folder = BUILD / f"{config.variant}-l{config.lanes}-{H}x{W}-{h}x{w}-r{config.exclusion_radius}"
+    name = _module_name(config)
+    with build_folder_lock(folder):
+        (source,) = write_variants(
+            folder,
+            names=[name],
+            map_shape=config.map_shape,
+            patch_shape=config.patch_shape,
+            depth_bits=config.depth_bits,
+            exclusion_radius=config.exclusion_radius,
+        )
+        build_and_test(
+            sources=[source],
+            toplevel=name,
+            test_module="lost.sim.cocotb.correlator",
+            build_dir=folder,
+            extra_env={ENVIRONMENT_VARIABLE: config.to_json(), "PYTHONFAULTHANDLER": "1"},
+        )
