@@ -33,8 +33,13 @@ $(FPGA_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[dev,fpga]'
 	touch $@
 
+# The flow's own tests, then every configuration (cached per netlist and seed in build/fpga; about an
+# hour from scratch on 2 cores), its report (build/fpga/report.json, report.md) and the side-by-side
+# with the software correlators. SYNTH_ARGS passes options, e.g. SYNTH_ARGS="--seeds 1 2 3 --lanes 1 2".
 synth: $(FPGA_STAMP)
 	$(BIN)/python -m pytest -m fpga tests
+	$(BIN)/python -m lost.hdl.synth --out build/fpga $(SYNTH_ARGS)
+	$(BIN)/python benchmarks/side_by_side.py build/fpga/report.json
 
 # Verilog of each correlator variant at 501 x 501 / 10 x 10 (python -m lost.hdl.generate --help for sizes).
 verilog: setup

@@ -1,11 +1,28 @@
 # amaranth: UnusedElaboratable=no
-# (the bad-argument tests build a design that the flow rightly refuses to use)
-import pytest
-from amaranth import Module, Signal
-from amaranth.lib import wiring
-from amaranth.lib.wiring import Out
+# (constructors refused on purpose leave half-built components behind)
+import json
+import math
 
-from lost.hdl.synth import FlowError, parse_nextpnr_report, place_and_route
+import numpy as np
+import pytest
+from amaranth import Cat, Module, Signal
+from amaranth.lib import memory, wiring
+from amaranth.lib.wiring import In, Out
+from amaranth.sim import Simulator
+
+from lost.hdl.harness import MeasurementHarness
+from lost.hdl.synth import (
+    CONFIGURATIONS,
+    Configuration,
+    FlowError,
+    _build,
+    critical_path_summary,
+    largest_square_map,
+    markdown_table,
+    parse_nextpnr_report,
+    place_and_route,
+)
+from lost.model import cycles_recursive, cycles_window
 
 
 class Counter(wiring.Component):
@@ -19,6 +36,158 @@ class Counter(wiring.Component):
         return m
 
 
+class Echo(wiring.Component):
+    """A core whose outputs are its inputs: what goes in through the scan chain must come out folded."""
+
+    def __init__(self):
+        super().__init__({
+            "a": In(6), "b": In(3), "y": Out(9), "seen": Out(8),
+            "map_read": In(memory.ReadPort.Signature(addr_width=5, shape=8)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.d.comb += [
+            self.y.eq(Cat(self.a, self.b)),
+            self.map_read.addr.eq(self.a[:5]),
+            self.map_read.en.eq(self.b[0]),
+            self.seen.eq(self.map_read.data),
+        ]
+        return m
+
+
+def _fold(bits: int, width: int, fold_bits: int) -> int:
+    out = 0
+    for k in range(width):
+        out ^= ((bits >> k) & 1) << (k % fold_bits)
+    return out
+
+
+def test_harness_scans_every_input_in_and_folds_every_output_out():
+    harness = MeasurementHarness(core=Echo(), scan_bits=2, fold_bits=4)
+    assert harness.external_memory
+    assert {name: member.flow for name, member in harness.signature.members.items()} == {
+        "scan_in": In, "fold_out": Out, "map_addr": Out, "map_en": Out, "map_data": In}
+    rng = np.random.default_rng(5)
+    scan = rng.integers(0, 4, 80).tolist()
+    data = rng.integers(0, 256, 80).tolist()
+    # 17 output bits in 4 buckets of at most 5: two 4:1 register levels, then the output register.
+    fold_latency = math.ceil(math.log(5, 4)) + 1
+    checked = []
+
+    async def bench(ctx):
+        pins = chain = data_reg = 0
+        captured = []
+        for t, (s, d) in enumerate(zip(scan, data)):
+            ctx.set(harness.scan_in, s)
+            ctx.set(harness.map_data, d)
+            await ctx.tick()
+            # The model of the harness's registers, one edge later.
+            outputs = (chain & 0x1FF) | (data_reg << 9)
+            captured.append(outputs)
+            addr, en = chain & 0x1F, (chain >> 6) & 1
+            pins, chain, data_reg = s, ((chain << 2) | pins) & 0x1FF, d
+            assert ctx.get(harness.map_addr) == addr and ctx.get(harness.map_en) == en
+            if t >= fold_latency:
+                assert ctx.get(harness.fold_out) == _fold(captured[t - fold_latency], 17, 4)
+                checked.append(t)
+
+    sim = Simulator(harness)
+    sim.add_clock(1e-6)
+    sim.add_testbench(bench)
+    sim.run()
+    assert len(checked) == len(scan) - fold_latency
+
+
+def test_harness_parameters_are_checked():
+    with pytest.raises(ValueError, match="wiring.Component"):
+        MeasurementHarness(core=object())
+    core = Echo()
+    with pytest.raises(ValueError, match="fold_bits"):
+        MeasurementHarness(core=core, fold_bits=0)
+
+
+def test_configurations_name_size_and_count_their_cycles():
+    names = [config.name for config in CONFIGURATIONS]
+    assert len(set(names)) == len(names)
+    assert names[0] == "recursive_external_501x501_10x10"
+    for config in CONFIGURATIONS:
+        assert config.map_shape == (501, 501) and config.patch_shape == (10, 10)
+    recursive, window = Configuration("recursive"), Configuration("window", lanes=4, map_shape=[40, 30])
+    assert recursive.cycles() == cycles_recursive.schedule((501, 501), (10, 10)).total
+    assert window.cycles() == cycles_window.schedule((40, 30), (10, 10), 4).total
+    assert window.name == "window_l4_external_40x30_10x10"
+    assert Configuration("window", memory="on-chip").name == "window_l1_onchip_501x501_10x10"
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"variant": "systolic"}, "variant"),
+    ({"variant": "window", "memory": "cloud"}, "memory"),
+    ({"variant": "window", "lanes": 0}, "lanes"),
+    ({"variant": "recursive", "lanes": 2}, "one lane"),
+])
+def test_bad_configurations_are_named(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        Configuration(**kwargs)
+
+
+@pytest.mark.parametrize("core_ebr, lanes", [(35, 1), (20, 1), (60, 4), (100, 2)])
+def test_largest_square_map_fits_and_one_more_does_not(core_ebr, lanes):
+    side = largest_square_map(core_ebr=core_ebr, ebr_available=208, lanes=lanes)
+    blocks_per_row = math.ceil(lanes * 16 / 18)
+
+    def blocks(n):
+        return math.ceil(n * math.ceil(n / lanes) / 1024) * blocks_per_row
+
+    assert blocks(side) <= 208 - core_ebr < blocks(side + 1)
+
+
+def test_largest_square_map_without_room_is_named():
+    with pytest.raises(ValueError, match="no map fits"):
+        largest_square_map(core_ebr=208, ebr_available=208, lanes=1)
+
+
+def _step(kind, delay, cell="c", sources=()):
+    return {"type": kind, "delay": delay, "from": {"cell": cell}, "to": {"cell": cell}, "sources": list(sources)}
+
+
+def test_critical_path_summary_takes_the_longest_path_and_its_sources():
+    short = {"path": [_step("clk-to-q", 0.5, "a"), _step("setup", 0.1, "b")]}
+    long = {"path": [
+        _step("clk-to-q", 0.5, "start"),
+        _step("routing", 2.0, sources=["/x/lost/hdl/reducer.py:135", "/x/amaranth/lib/memory.py:241"]),
+        _step("logic", 0.4),
+        _step("routing", 1.0, sources=["/x/lost/hdl/reducer.py:135"]),
+        _step("logic", 0.6),
+        _step("setup", 0.2, "end"),
+    ]}
+    summary = critical_path_summary({"critical_paths": [short, long]})
+    assert summary["from"] == "start" and summary["to"] == "end"
+    assert summary["delay_ns"] == 4.7 and summary["logic_ns"] == 1.0 and summary["routing_ns"] == 3.0
+    assert summary["logic_cells"] == 2 and summary["sources"] == ["hdl/reducer.py:135"]
+    assert summary["longest_net"] == {"net": "", "ns": 2.0}
+    with pytest.raises(FlowError, match="no critical path"):
+        critical_path_summary({"critical_paths": []})
+
+
+def test_markdown_table_says_met_or_not_reached():
+    entry = {
+        "variant": "window", "lanes": 2, "memory": "external", "map_shape": [501, 501], "routed": True,
+        "seeds": {"1": 101.0, "2": 99.5},
+        "result": {"fmax_mhz": 101.0, "lut4": 8364, "ff": 10, "ebr": 3, "dsp": 2},
+        "lut4_percent": 10.0, "cycles": 127452, "seconds": 127452 / 101e6, "map_bandwidth_gbit_s": 3.232,
+        "goal_seconds": 0.000266, "goal_met": False,
+    }
+    row = markdown_table([entry]).splitlines()[-1]
+    assert "| 101.0 |" in row and "1: 101.0, 2: 99.5" in row and "127,452" in row
+    assert "1.262 ms" in row and "3.23 Gbit/s" in row and "not reached (<= 0.266 ms)" in row
+    over = {"variant": "window", "lanes": 8, "memory": "external", "map_shape": [501, 501], "routed": False,
+            "reason": "LUT4 use over 60 %", "packed": {"lut4": 90000, "ff": 1, "ebr": 2, "dsp": 8}, "lut4_percent": 107.6, "max_lut_percent": 60.0,
+            "cycles": 33000}
+    row = markdown_table([over]).splitlines()[-1]
+    assert "not placed: LUT4 use over 60 %" in row and "90000 (108 %, packed)" in row and "33,000" in row
+
+
 @pytest.mark.fpga
 def test_a_counter_routes_on_the_85f(tmp_path):
     result = place_and_route(Counter(), "counter", tmp_path, target_mhz=100, seed=3)
@@ -29,6 +198,21 @@ def test_a_counter_routes_on_the_85f(tmp_path):
     assert (result.ebr, result.dsp) == (0, 0)
     assert result.lut4_available == 83640 and result.ebr_available == 208
     assert (tmp_path / "counter-report.json").exists()
+
+
+@pytest.mark.fpga
+def test_a_small_recursive_core_builds_with_the_report_fields(tmp_path):
+    config = Configuration("recursive", map_shape=(20, 20), patch_shape=(4, 4))
+    entry = _build(config, tmp_path, seeds=[1], target_mhz=200, log=lambda _: None)
+    assert entry["cycles"] == cycles_recursive.schedule((20, 20), (4, 4)).total
+    assert entry["seconds"] == pytest.approx(entry["cycles"] / (entry["result"]["fmax_mhz"] * 1e6))
+    assert entry["result"]["lut4"] > 0 and entry["result"]["ff"] > 0
+    # 49 pins: 4 scan, 8 fold, 9 address, 1 enable, 16 data, clock and reset.
+    assert entry["result"]["io"] == 4 + 8 + 9 + 1 + 16 + 2
+    assert entry["map_bandwidth_gbit_s"] == pytest.approx(16 * entry["result"]["fmax_mhz"] / 1e3)
+    assert entry["critical_path"]["sources"] and entry["goal_met"] is None
+    cached = json.loads((tmp_path / f"{config.name}-seed1.json").read_text())
+    assert cached["result"]["fmax_mhz"] == entry["result"]["fmax_mhz"]
 
 
 def test_report_without_a_clock_is_named():
@@ -46,5 +230,6 @@ def test_report_with_several_clocks_needs_a_name():
 
 
 def test_bad_target_is_named(tmp_path):
+    # The target is checked before the design is touched, so no design is needed.
     with pytest.raises(ValueError, match="target_mhz"):
-        place_and_route(Counter(), "counter", tmp_path, target_mhz=0)
+        place_and_route(None, "counter", tmp_path, target_mhz=0)

@@ -1,0 +1,139 @@
+"""A synthesis top-level for measuring a correlator core on an FPGA: not a host link.
+
+A correlator core has hundreds of port bits (the surface beat alone is ``lanes`` accumulator values
+wide) and a device has a few hundred pins, so :class:`MeasurementHarness` brings the core to a few pins
+in the one way that keeps the measurement honest:
+
+* every core input is driven by a register of a scan chain that shifts ``scan_bits`` new bits in per
+  clock from registered pins, so no input is constant and none can be optimised away;
+* every core output is registered, then XOR-folded into ``fold_bits`` registered pins through a tree
+  of registered 4-input XORs, so every output bit stays live and the fold never sets Fmax;
+* the core's ``map_read`` port, when it has one (the external-memory build), goes to its own pins,
+  address and enable out through one register each, data in through one register: the pins an
+  external memory would drive. Those registers add two cycles to the one-cycle latency the core
+  expects, so the harness does not run a correlation correctly; it only times the core's paths, every
+  one of which starts and ends at a register.
+
+No stimulus is meaningful here. Functional checks live in the simulations (``tests/hdl``, ``tests/sim``);
+this module only makes place-and-route see the core as it would be used, with IO out of the way.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from amaranth.hdl import Cat, Module, Signal, Value
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+__all__ = ["MeasurementHarness"]
+
+
+def _check_positive(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return value
+
+
+def _fold(m: Module, bits: Value, fold_bits: int) -> Value:
+    """XOR ``bits`` into ``fold_bits`` bits: bit ``k`` into output ``k % fold_bits``, one register per 4:1 level."""
+    buckets = [[bits[k] for k in range(index, len(bits), fold_bits)] for index in range(fold_bits)]
+    level = 0
+    while any(len(bucket) > 1 for bucket in buckets):
+        reduced = []
+        for index, bucket in enumerate(buckets):
+            next_bucket = []
+            for start in range(0, len(bucket), 4):
+                register = Signal(name=f"fold_l{level}_{index}_{start // 4}")
+                m.d.sync += register.eq(Cat(*bucket[start:start + 4]).xor())
+                next_bucket.append(register)
+            reduced.append(next_bucket)
+        buckets = reduced
+        level += 1
+    return Cat(*(bucket[0] if bucket else 0 for bucket in buckets))
+
+
+class MeasurementHarness(wiring.Component):
+    """A correlator core with registers on every pin, for place and route only.
+
+    Parameters
+    ----------
+    core : wiring.Component
+        A :class:`~lost.hdl.recursive.RecursiveCore`, :class:`~lost.hdl.window.WindowCore` (with a
+        ``map_read`` port, which goes to pins) or a whole correlator with its own map memory.
+    scan_bits : int
+        Input pins feeding the scan chain of the core's inputs.
+    fold_bits : int
+        Output pins carrying the XOR fold of the core's outputs.
+
+    Members
+    -------
+    scan_in : ``In(scan_bits)``
+        Shifted into the chain that drives every core input (``map_read.data`` excepted).
+    fold_out : ``Out(fold_bits)``
+        The registered XOR fold of every core output (``map_read`` excepted).
+    map_addr, map_en : ``Out(...)``
+        Only with a ``map_read`` port: its address and enable, registered.
+    map_data : ``In(...)``
+        Only with a ``map_read`` port: its data, registered before it reaches the core.
+    """
+
+    def __init__(self, *, core: wiring.Component, scan_bits: int = 4, fold_bits: int = 8):
+        if not isinstance(core, wiring.Component):
+            raise ValueError(f"core must be an amaranth wiring.Component, got {type(core).__name__}")
+        self._core = core
+        self._scan_bits = _check_positive("scan_bits", scan_bits)
+        self._fold_bits = _check_positive("fold_bits", fold_bits)
+        members = {"scan_in": In(scan_bits), "fold_out": Out(fold_bits)}
+        self._external = "map_read" in core.signature.members
+        if self._external:
+            port = core.map_read
+            members |= {
+                "map_addr": Out(len(port.addr)),
+                "map_en": Out(1),
+                "map_data": In(len(Value.cast(port.data))),
+            }
+        super().__init__(members)
+
+    @property
+    def external_memory(self) -> bool:
+        """The core reads its map through pins (``map_read``) rather than an on-chip memory."""
+        return self._external
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        m.submodules.core = core = self._core
+
+        inputs, outputs = [], []
+        for path, member, value in core.signature.flatten(core):
+            if path[0] == "map_read":
+                continue
+            (inputs if member.flow == In else outputs).append(Value.cast(value))
+
+        # The scan chain: registered pins shift into a register per core input bit.
+        scan_pins = Signal(self._scan_bits)
+        m.d.sync += scan_pins.eq(self.scan_in)
+        width = sum(len(value) for value in inputs)
+        chain = Signal(max(width, self._scan_bits))
+        m.d.sync += chain.eq(Cat(scan_pins, chain[:-self._scan_bits]))
+        offset = 0
+        for value in inputs:
+            m.d.comb += value.eq(chain[offset:offset + len(value)])
+            offset += len(value)
+
+        # Every output registered, then folded.
+        captured = Signal(sum(len(value) for value in outputs))
+        m.d.sync += captured.eq(Cat(*outputs))
+        fold = _fold(m, captured, self._fold_bits)
+        m.d.sync += self.fold_out.eq(fold)
+
+        if self._external:
+            port = core.map_read
+            data = Signal.like(Value.cast(port.data), name="map_data_reg")
+            m.d.sync += [
+                self.map_addr.eq(port.addr),
+                self.map_en.eq(port.en),
+                data.eq(self.map_data),
+            ]
+            m.d.comb += port.data.eq(data)
+        return m
