@@ -161,7 +161,7 @@ def write_variants(
     ]
 
 
-def _shape(text: str) -> tuple[int, int]:
+def shape_argument(text: str) -> tuple[int, int]:
     try:
         rows, cols = (int(side) for side in text.lower().split("x"))
     except ValueError:
@@ -172,8 +172,8 @@ def _shape(text: str) -> tuple[int, int]:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m lost.hdl.generate", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("build/verilog"), help="output folder")
-    parser.add_argument("--map", type=_shape, default=DEFAULT_MAP_SHAPE, help="map shape, ROWSxCOLS")
-    parser.add_argument("--patch", type=_shape, default=DEFAULT_PATCH_SHAPE, help="patch shape, ROWSxCOLS")
+    parser.add_argument("--map", type=shape_argument, default=DEFAULT_MAP_SHAPE, help="map shape, ROWSxCOLS")
+    parser.add_argument("--patch", type=shape_argument, default=DEFAULT_PATCH_SHAPE, help="patch shape, ROWSxCOLS")
     parser.add_argument("--depth-bits", type=int, default=16)
     parser.add_argument("--exclusion-radius", type=int, default=1)
     parser.add_argument("--variant", action="append", choices=list(VARIANTS), help="repeatable; default all")

@@ -24,6 +24,8 @@ from amaranth.lib.wiring import In, Out
 from lost.model.widths import CorrelatorWidths, correlator_widths, placement_widths
 
 __all__ = [
+    "best_fit_payload",
+    "comparable_best",
     "BestFitBeat",
     "CorrelatorParameters",
     "PatchWord",
@@ -241,3 +243,29 @@ def decode_payload(shape: Any, bits: int) -> Any:
     if plain.signed and bits >> (plain.width - 1):
         bits -= 1 << plain.width
     return bits
+
+
+def best_fit_payload(fit: Any) -> dict[str, int | None]:
+    """The ``BestFitBeat`` a core must emit for a :class:`lost.model.BestFit`.
+
+    Without a runner-up only ``runner_up_valid = 0`` is specified; the other runner-up fields are
+    ``None`` then, as :func:`comparable_best` makes them in a received beat.
+    """
+    runner_up = fit.runner_up
+    return {
+        "value": fit.value,
+        "i": fit.i,
+        "j": fit.j,
+        "runner_up_value": runner_up.value if runner_up else None,
+        "runner_up_i": runner_up.i if runner_up else None,
+        "runner_up_j": runner_up.j if runner_up else None,
+        "runner_up_valid": int(runner_up is not None),
+    }
+
+
+def comparable_best(beat: Mapping[str, Any]) -> dict[str, Any]:
+    """A received ``BestFitBeat`` with its unspecified fields (runner-up, when it has none) as ``None``."""
+    beat = dict(beat)
+    if not beat["runner_up_valid"]:
+        beat.update(runner_up_value=None, runner_up_i=None, runner_up_j=None)
+    return beat

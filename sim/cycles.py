@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from lost.hdl.generate import shape_argument
 from lost.model import cycles_recursive, cycles_window
 
 __all__ = ["cycle_table", "main"]
@@ -47,18 +48,12 @@ def cycle_table(
     return rows
 
 
-def _shape(text: str) -> tuple[int, int]:
-    try:
-        rows, cols = (int(side) for side in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected ROWSxCOLS such as 501x501, got {text!r}") from None
-    return rows, cols
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m lost.sim.cycles", description=__doc__.splitlines()[0])
-    parser.add_argument("--map", type=_shape, default=(501, 501), help="map shape, ROWSxCOLS")
-    parser.add_argument("--patch", type=_shape, default=(10, 10), help="patch shape, ROWSxCOLS")
+    parser.add_argument("--map", type=shape_argument, default=(501, 501), help="map shape, ROWSxCOLS")
+    parser.add_argument("--patch", type=shape_argument, default=(10, 10), help="patch shape, ROWSxCOLS")
     parser.add_argument("--exclusion-radius", type=int, default=1)
     args = parser.parse_args(argv)
     try:

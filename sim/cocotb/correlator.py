@@ -28,7 +28,7 @@ from amaranth.hdl import signed
 from cocotb.handle import HierarchyObject
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge, with_timeout
 
-from lost.hdl.interface import CorrelatorParameters, PatchWord, StartCommand
+from lost.hdl.interface import CorrelatorParameters, PatchWord, StartCommand, best_fit_payload, comparable_best
 from lost.model import best_fit, correlate
 
 from .streams import Clocking, StreamSink, StreamSource, Transfer, pattern
@@ -132,19 +132,6 @@ def expected_beats(surface: np.ndarray, lanes: int) -> list[ExpectedBeat]:
     return beats
 
 
-def best_payload(fit: Any) -> dict[str, int]:
-    """The ``BestFitBeat`` a core must emit for the model's :class:`~lost.model.BestFit`."""
-    runner_up = fit.runner_up
-    return {
-        "value": fit.value,
-        "i": fit.i,
-        "j": fit.j,
-        # Only the valid bit is specified when there is no runner-up; the rest is compared then only.
-        "runner_up_value": runner_up.value if runner_up else None,
-        "runner_up_i": runner_up.i if runner_up else None,
-        "runner_up_j": runner_up.j if runner_up else None,
-        "runner_up_valid": int(runner_up is not None),
-    }
 
 
 class InOrderChecker:
@@ -289,9 +276,7 @@ class Testbench:
 
         checker.verdict()
         assert len(self.best.transfers) == 1, f"{len(self.best.transfers)} best beats, expected one"
-        want = best_payload(fit)
-        got = {k: (v if want[k] is not None else None) for k, v in best.payload.items()}
-        assert got == want, f"best beat {best.payload}, lost.model.best_fit gives {fit}"
+        assert comparable_best(best.payload) == best_fit_payload(fit), f"best beat {best.payload}, lost.model.best_fit gives {fit}"
         assert best.time > run.surface[-1].time, "the best beat came before the surface's last beat"
         await ReadOnly()
         assert not self.dut.busy.value, "busy is still high after the best beat"

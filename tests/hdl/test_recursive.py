@@ -9,27 +9,14 @@ from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
 from lost.hdl.recursive import RecursiveCorrelator
+from lost.hdl.interface import best_fit_payload, comparable_best
 from lost.model import best_fit, correlate
 from lost.model.cycles_recursive import schedule
 from lost.sim.amaranth import drain, feed, record_transfers, stream_get, stream_put
 
 
-def expected_best(surface, radius):
-    fit = best_fit(surface, exclusion_radius=radius)
-    runner = fit.runner_up
-    return {
-        "value": fit.value, "i": fit.i, "j": fit.j,
-        "runner_up_value": runner.value if runner else 0,
-        "runner_up_i": runner.i if runner else 0,
-        "runner_up_j": runner.j if runner else 0,
-        "runner_up_valid": int(runner is not None),
-    }
 
 
-def comparable(beat):
-    if not beat["runner_up_valid"]:
-        beat = dict(beat, runner_up_value=0, runner_up_i=0, runner_up_j=0)
-    return beat
 
 
 def patch_words(patch, mask):
@@ -63,7 +50,7 @@ class Bench:
         beats = await drain(ctx, self.dut.surface, rows * cols, pattern=surface_pattern)
         if best_idle:
             await ctx.tick().repeat(best_idle)
-        best = comparable(await stream_get(ctx, self.dut.best))
+        best = comparable_best(await stream_get(ctx, self.dut.best))
         surface = np.array([beat["values"][0] for beat in beats], dtype=np.int64).reshape(rows, cols)
         placements = [(beat["i"], beat["j"], beat["count"], beat["last"]) for beat in beats]
         assert placements == [(i, j, 1, int(i == rows - 1 and j == cols - 1))
@@ -111,7 +98,7 @@ def test_random_cases_every_value_and_cycle(map_shape, patch_shape, radius):
     for run, ((terrain, patch, mask, mean), (surface, best)) in enumerate(zip(cases, results)):
         golden = correlate(terrain, patch, mask=mask, mean_compensation=mean)
         np.testing.assert_array_equal(surface, golden)
-        assert best == expected_best(golden, radius)
+        assert best == best_fit_payload(best_fit(golden, exclusion_radius=radius))
         model = schedule(map_shape, patch_shape, mask, mean, exclusion_radius=radius)
         surface_cycles, best_cycle = bench.cycles(run)
         assert surface_cycles == model.surface.tolist()
@@ -138,7 +125,7 @@ def test_extreme_depths_reach_the_widths():
     for (surface, best), mean in zip(results, (True, False)):
         golden = correlate(terrain, patch, mask=mask, mean_compensation=mean)
         np.testing.assert_array_equal(surface, golden)
-        assert best == expected_best(golden, 1)
+        assert best == best_fit_payload(best_fit(golden, exclusion_radius=1))
     assert results[1][0].max() == 9 * (2**16 - 1)
 
 
@@ -163,7 +150,7 @@ def test_output_stalls_lose_nothing(pattern):
     for (surface, best), mean in zip(results, (True, False)):
         golden = correlate(terrain, patch, mask=mask, mean_compensation=mean)
         np.testing.assert_array_equal(surface, golden)
-        assert best == expected_best(golden, 1)
+        assert best == best_fit_payload(best_fit(golden, exclusion_radius=1))
 
 
 def test_random_stalls_lose_nothing():
@@ -183,7 +170,7 @@ def test_random_stalls_lose_nothing():
     bench.sim.run()
     golden = correlate(terrain, patch, mask=mask)
     np.testing.assert_array_equal(results[0][0], golden)
-    assert results[0][1] == expected_best(golden, 1)
+    assert results[0][1] == best_fit_payload(best_fit(golden, exclusion_radius=1))
 
 
 def test_reset_mid_correlation_then_a_correct_one():
@@ -232,7 +219,7 @@ def test_reset_mid_correlation_then_a_correct_one():
     for (surface, best), (this_patch, mean) in zip(results, [(patch, False), (other_patch, True), (other_patch, True)]):
         golden = correlate(terrain, this_patch, mask=mask, mean_compensation=mean)
         np.testing.assert_array_equal(surface, golden)
-        assert best == expected_best(golden, 1)
+        assert best == best_fit_payload(best_fit(golden, exclusion_radius=1))
 
 
 def test_a_patch_without_valid_nodes_gives_a_zero_surface():
@@ -254,7 +241,7 @@ def test_a_patch_without_valid_nodes_gives_a_zero_surface():
     zeros = np.zeros((4, 4), dtype=np.int64)
     for surface, best in results:
         np.testing.assert_array_equal(surface, zeros)
-        assert best == expected_best(zeros, 1)
+        assert best == best_fit_payload(best_fit(zeros, exclusion_radius=1))
 
 
 def test_inputs_are_refused_while_busy():

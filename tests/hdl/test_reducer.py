@@ -9,6 +9,7 @@ from amaranth.sim import Simulator
 
 from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.reducer import BestFitReducer
+from lost.hdl.interface import best_fit_payload, comparable_best
 from lost.model import best_fit
 from lost.model.cycles import reducer_latency, surface_beats
 from lost.sim.amaranth import feed, record_transfers, stream_get
@@ -31,22 +32,8 @@ def beats_of(surface, lanes):
     return beats
 
 
-def expected(surface, radius):
-    fit = best_fit(surface, exclusion_radius=radius)
-    runner = fit.runner_up
-    return {
-        "value": fit.value, "i": fit.i, "j": fit.j,
-        "runner_up_value": runner.value if runner else None,
-        "runner_up_i": runner.i if runner else None,
-        "runner_up_j": runner.j if runner else None,
-        "runner_up_valid": int(runner is not None),
-    }
 
 
-def comparable(beat):
-    if not beat["runner_up_valid"]:
-        beat = dict(beat, runner_up_value=None, runner_up_i=None, runner_up_j=None)
-    return beat
 
 
 def simulate(surfaces, *, lanes, radius, source_pattern=None, sink_idle=0):
@@ -59,7 +46,7 @@ def simulate(surfaces, *, lanes, radius, source_pattern=None, sink_idle=0):
             await feed(ctx, reducer.surface, beats_of(surface, lanes), pattern=source_pattern)
             if sink_idle:
                 await ctx.tick().repeat(sink_idle)
-            results.append(comparable(await stream_get(ctx, reducer.best)))
+            results.append(comparable_best(await stream_get(ctx, reducer.best)))
 
     async def surface_monitor(ctx):
         await record_transfers(ctx, reducer.surface, beat_log)
@@ -89,7 +76,7 @@ def test_random_surfaces_with_ties(lanes, radius):
     surfaces = [random_surface(rng, shape, high=high) for high in (3, 6, 40, 2**18)]
     results, _, _ = simulate(surfaces, lanes=lanes, radius=radius,
                              source_pattern=(bool(x) for x in rng.random(10_000) < 0.8))
-    assert results == [expected(surface, radius) for surface in surfaces]
+    assert results == [best_fit_payload(best_fit(surface, exclusion_radius=radius)) for surface in surfaces]
 
 
 @pytest.mark.parametrize("lanes", [1, 4])
@@ -105,7 +92,7 @@ def test_best_at_corners_and_edges(lanes):
         surface[(i + 3) % 6, (j + 4) % 9] = 5
         surfaces.append(surface)
     results, _, _ = simulate(surfaces, lanes=lanes, radius=1)
-    assert results == [expected(surface, 1) for surface in surfaces]
+    assert results == [best_fit_payload(best_fit(surface, exclusion_radius=1)) for surface in surfaces]
 
 
 @pytest.mark.parametrize("lanes", [1, 4])
@@ -118,7 +105,7 @@ def test_later_best_moves_the_band(lanes):
     surface[10, 2], surface[9, 2], surface[11, 6], surface[9, 0] = 3, 9, 8, 8
     surfaces = [surface, surface[::-1].copy(), surface[:, ::-1].copy()]
     results, _, _ = simulate(surfaces, lanes=lanes, radius=2)
-    assert results == [expected(s, 2) for s in surfaces]
+    assert results == [best_fit_payload(best_fit(s, exclusion_radius=2)) for s in surfaces]
 
 
 @pytest.mark.parametrize(("shape", "radius"), [((3, 4), 3), ((3, 4), 5), ((1, 1), 0), ((1, 6), 1), ((5, 1), 1), ((2, 2), 1)])
@@ -127,7 +114,7 @@ def test_small_surfaces_and_covering_radii(shape, radius):
     surfaces = [random_surface(rng, shape, high=4) for _ in range(3)]
     for lanes in (1, 4):
         results, _, _ = simulate(surfaces, lanes=lanes, radius=radius)
-        assert results == [expected(surface, radius) for surface in surfaces]
+        assert results == [best_fit_payload(best_fit(surface, exclusion_radius=radius)) for surface in surfaces]
 
 
 @pytest.mark.parametrize("lanes", [1, 3])
@@ -136,7 +123,7 @@ def test_latency_matches_the_cycle_model(lanes):
     shape = (8, 11)
     surfaces = [random_surface(rng, shape, high=50) for _ in range(2)]
     results, beat_log, best_log = simulate(surfaces, lanes=lanes, radius=1)
-    assert results == [expected(surface, 1) for surface in surfaces]
+    assert results == [best_fit_payload(best_fit(surface, exclusion_radius=1)) for surface in surfaces]
     last_edges = [edge for edge, beat in beat_log if beat["last"]]
     best_edges = [edge for edge, _ in best_log]
     latency = reducer_latency(shape, lanes, 1)
@@ -147,7 +134,7 @@ def test_best_beat_waits_for_ready():
     rng = np.random.default_rng(11)
     surfaces = [random_surface(rng, (5, 6), high=9) for _ in range(3)]
     results, _, best_log = simulate(surfaces, lanes=2, radius=1, sink_idle=80)
-    assert results == [expected(surface, 1) for surface in surfaces]
+    assert results == [best_fit_payload(best_fit(surface, exclusion_radius=1)) for surface in surfaces]
     assert len(best_log) == 3
 
 
@@ -203,4 +190,4 @@ def test_runner_up_in_the_band_rows_before_a_late_best(lanes, radius):
         surface[runner_row, runner_col] = 2
         surfaces.append(surface)
     results, _, _ = simulate(surfaces, lanes=lanes, radius=radius)
-    assert results == [expected(surface, radius) for surface in surfaces]
+    assert results == [best_fit_payload(best_fit(surface, exclusion_radius=radius)) for surface in surfaces]

@@ -10,6 +10,7 @@ from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
 from lost.hdl.window import WindowCorrelator
+from lost.hdl.interface import best_fit_payload, comparable_best
 from lost.model import best_fit, correlate
 from lost.model.cycles import surface_beats
 from lost.model.cycles_window import schedule
@@ -18,23 +19,8 @@ from lost.sim.amaranth import drain, feed, record_transfers, stream_get
 DEPTH_MIN, DEPTH_MAX = -(2**15), 2**15 - 1
 
 
-def expected_best(surface, radius):
-    fit = best_fit(surface, exclusion_radius=radius)
-    runner = fit.runner_up
-    return {
-        "value": fit.value, "i": fit.i, "j": fit.j,
-        "runner_up_value": runner.value if runner else 0,
-        "runner_up_i": runner.i if runner else 0,
-        "runner_up_j": runner.j if runner else 0,
-        "runner_up_valid": int(runner is not None),
-    }
 
 
-def comparable(beat):
-    """A best beat with the runner-up fields zeroed when it has none (they carry no meaning then)."""
-    if not beat["runner_up_valid"]:
-        beat = dict(beat, runner_up_value=0, runner_up_i=0, runner_up_j=0)
-    return beat
 
 
 def random_case(rng, map_shape, patch_shape, *, extreme=False):
@@ -105,7 +91,7 @@ class Bench:
             surface[beat["i"], beat["j"]:beat["j"] + beat["count"]] = beat["values"][:beat["count"]]
             # Lanes past the row's end carry no placement; they must not leak stale values.
             assert beat["values"][beat["count"]:] == [0] * (self.parameters.lanes - beat["count"])
-        return surface, comparable(best)
+        return surface, comparable_best(best)
 
     def cycles(self, run):
         """Surface and best cycles of the ``run``-th correlation, counted from its start beat."""
@@ -160,7 +146,7 @@ def test_every_value_best_fit_and_cycle(map_shape, patch_shape, lanes):
         surface, best = results[run]
         expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
         np.testing.assert_array_equal(surface, expected)
-        assert best == expected_best(expected, 1)
+        assert best == best_fit_payload(best_fit(expected, exclusion_radius=1))
         surface_cycles, best_cycle = bench.cycles(run)
         np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
         assert best_cycle == expected_cycles.best
@@ -184,7 +170,7 @@ def test_the_papers_patch_size():
     bench.run(testbench)
     expected = correlate(terrain, patch, mask=mask)
     np.testing.assert_array_equal(results[0][0], expected)
-    assert results[0][1] == expected_best(expected, radius)
+    assert results[0][1] == best_fit_payload(best_fit(expected, exclusion_radius=radius))
     surface_cycles, best_cycle = bench.cycles(0)
     expected_cycles = schedule(map_shape, patch_shape, lanes, exclusion_radius=radius)
     np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
@@ -210,7 +196,7 @@ def test_random_configurations(seed):
     surface, best = results[0]
     expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
     np.testing.assert_array_equal(surface, expected)
-    assert best == expected_best(expected, radius)
+    assert best == best_fit_payload(best_fit(expected, exclusion_radius=radius))
     surface_cycles, best_cycle = bench.cycles(0)
     expected_cycles = schedule(map_shape, patch_shape, lanes, exclusion_radius=radius)
     np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
@@ -235,7 +221,7 @@ def test_extreme_depths_reach_the_widths(lanes):
     for (surface, best), mode in zip(results, (True, False)):
         expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
         np.testing.assert_array_equal(surface, expected)
-        assert best == expected_best(expected, 1)
+        assert best == best_fit_payload(best_fit(expected, exclusion_radius=1))
 
 
 def test_narrow_depth_words():
@@ -258,7 +244,7 @@ def test_narrow_depth_words():
     for (surface, best), mode in zip(results, (True, False)):
         expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
         np.testing.assert_array_equal(surface, expected)
-        assert best == expected_best(expected, 1)
+        assert best == best_fit_payload(best_fit(expected, exclusion_radius=1))
 
 
 @pytest.mark.parametrize("map_shape, patch_shape, lanes, radius", [
@@ -286,7 +272,7 @@ def test_stalls_on_every_stream(map_shape, patch_shape, lanes, radius):
         terrain, patch, mask = cases[k // 2]
         expected = correlate(terrain, patch, mask=mask, mean_compensation=(k % 2 == 0))
         np.testing.assert_array_equal(surface, expected)
-        assert best == expected_best(expected, radius)
+        assert best == best_fit_payload(best_fit(expected, exclusion_radius=radius))
 
 
 def test_reset_mid_correlation_keeps_the_memories():
@@ -319,7 +305,7 @@ def test_reset_mid_correlation_keeps_the_memories():
     for (surface, best), mode in zip(results, (False, True)):
         expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
         np.testing.assert_array_equal(surface, expected)
-        assert best == expected_best(expected, 1)
+        assert best == best_fit_payload(best_fit(expected, exclusion_radius=1))
 
 
 def test_new_patch_same_map_and_busy_refuses_loads():
