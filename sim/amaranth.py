@@ -13,12 +13,15 @@ import itertools
 from collections.abc import Iterable
 from typing import Any
 
-from amaranth.hdl import ShapeCastable
+import numpy as np
+from amaranth.hdl import ClockDomain, Module, ShapeCastable
+from amaranth.sim import Simulator
 from amaranth.lib import data
 
-from lost.hdl.interface import decode_payload
+from lost.hdl.interface import comparable_best, decode_payload
+from lost.model.cycles import surface_beats
 
-__all__ = ["drain", "feed", "record_transfers", "stream_get", "stream_put", "to_python"]
+__all__ = ["CorrelatorBench", "drain", "feed", "record_transfers", "stream_get", "stream_put", "to_python"]
 
 
 def to_python(shape: Any, value: Any) -> Any:
@@ -88,3 +91,65 @@ async def _enumerate(aiterable):
     async for item in aiterable:
         yield edge, item
         edge += 1
+
+
+class CorrelatorBench:
+    """A correlator core (either variant) in a module with an explicit sync domain (so tests can reset
+    it), with transfer logs of start, surface and best, and busy sampled on every edge."""
+
+    def __init__(self, dut):
+        self.dut = dut
+        self.parameters = self.dut.parameters
+        self.top = Module()
+        self.top.domains.sync = self.domain = ClockDomain("sync")
+        self.top.submodules.dut = self.dut
+        self.logs = {"start": [], "surface": [], "best": []}
+        self.sim = Simulator(self.top)
+        self.sim.add_clock(1e-8)
+        for name, log in self.logs.items():
+            self.sim.add_testbench(self._monitor(getattr(self.dut, name), log), background=True)
+        self.busy = []  # busy as sampled on every edge, edge 0 first
+        self.sim.add_testbench(self._sample_busy, background=True)
+
+    async def _sample_busy(self, ctx):
+        async for _, _, busy in ctx.tick().sample(self.dut.busy):
+            self.busy.append(busy)
+
+    @staticmethod
+    def _monitor(stream, log):
+        async def monitor(ctx):
+            await record_transfers(ctx, stream, log)
+        return monitor
+
+    async def load(self, ctx, *, terrain=None, patch=None, mask=None, pattern=None):
+        if terrain is not None:
+            await feed(ctx, self.dut.map_in, terrain.ravel().tolist(), pattern=pattern)
+        if patch is not None:
+            words = [{"depth": int(d), "valid": int(v)} for d, v in zip(patch.ravel(), mask.ravel())]
+            await feed(ctx, self.dut.patch_in, words, pattern=pattern)
+
+    async def correlate(self, ctx, *, mean_compensation, surface_pattern=None, best_pattern=None):
+        """Run one correlation; check the beats' order and flags; return the surface and best beat."""
+        beat_plan = surface_beats(self.parameters.surface_shape, self.parameters.lanes)
+        await feed(ctx, self.dut.start, [{"mean_compensation": int(mean_compensation)}])
+        beats = await drain(ctx, self.dut.surface, len(beat_plan), pattern=surface_pattern)
+        (best,) = await drain(ctx, self.dut.best, 1, pattern=best_pattern)
+        assert [(b["i"], b["j"], b["count"], b["last"]) for b in beats] == [
+            (i, j, count, int(k == len(beat_plan) - 1)) for k, (i, j, count) in enumerate(beat_plan)]
+        surface = np.zeros(self.parameters.surface_shape, dtype=np.int64)
+        for beat in beats:
+            surface[beat["i"], beat["j"]:beat["j"] + beat["count"]] = beat["values"][:beat["count"]]
+            # Lanes past the row's end carry no placement; they must not leak stale values.
+            assert beat["values"][beat["count"]:] == [0] * (self.parameters.lanes - beat["count"])
+        return surface, comparable_best(best)
+
+    def cycles(self, run):
+        """Surface and best cycles of the ``run``-th correlation, counted from its start beat."""
+        start = self.logs["start"][run][0]
+        beats = len(surface_beats(self.parameters.surface_shape, self.parameters.lanes))
+        surface = [edge - start for edge, _ in self.logs["surface"][run * beats:(run + 1) * beats]]
+        return surface, self.logs["best"][run][0] - start
+
+    def run(self, testbench):
+        self.sim.add_testbench(testbench)
+        self.sim.run()

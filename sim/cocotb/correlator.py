@@ -16,7 +16,6 @@ generator seeded by it, so a failure reproduces.
 
 from __future__ import annotations
 
-import itertools
 import json
 import os
 from dataclasses import dataclass, field

@@ -5,14 +5,12 @@ import itertools
 
 import numpy as np
 import pytest
-from amaranth.hdl import ClockDomain, Module
-from amaranth.sim import Simulator
 
 from lost.hdl.recursive import RecursiveCorrelator
-from lost.hdl.interface import best_fit_payload, comparable_best
+from lost.hdl.interface import best_fit_payload
 from lost.model import best_fit, correlate
 from lost.model.cycles_recursive import schedule
-from lost.sim.amaranth import drain, feed, record_transfers, stream_get, stream_put
+from lost.sim.amaranth import CorrelatorBench, drain, feed, stream_get, stream_put
 
 
 
@@ -23,46 +21,8 @@ def patch_words(patch, mask):
     return [{"depth": int(d), "valid": int(v)} for d, v in zip(patch.ravel(), mask.ravel())]
 
 
-class Bench:
-    """A correlator in a module with an explicit sync domain (so tests can reset it) and transfer logs."""
-
-    def __init__(self, *, map_shape, patch_shape, exclusion_radius=1, depth_bits=16):
-        self.dut = RecursiveCorrelator(map_shape=map_shape, patch_shape=patch_shape,
-                                       depth_bits=depth_bits, exclusion_radius=exclusion_radius)
-        self.top = Module()
-        self.top.domains.sync = self.domain = ClockDomain("sync")
-        self.top.submodules.dut = self.dut
-        self.logs = {"start": [], "surface": [], "best": []}
-        self.sim = Simulator(self.top)
-        self.sim.add_clock(1e-8)
-        for name, log in self.logs.items():
-            self.sim.add_testbench(self._monitor(getattr(self.dut, name), log), background=True)
-
-    @staticmethod
-    def _monitor(stream, log):
-        async def monitor(ctx):
-            await record_transfers(ctx, stream, log)
-        return monitor
-
-    async def correlate(self, ctx, *, mean_compensation, surface_pattern=None, best_idle=0):
-        rows, cols = self.dut.parameters.surface_shape
-        await stream_put(ctx, self.dut.start, {"mean_compensation": int(mean_compensation)})
-        beats = await drain(ctx, self.dut.surface, rows * cols, pattern=surface_pattern)
-        if best_idle:
-            await ctx.tick().repeat(best_idle)
-        best = comparable_best(await stream_get(ctx, self.dut.best))
-        surface = np.array([beat["values"][0] for beat in beats], dtype=np.int64).reshape(rows, cols)
-        placements = [(beat["i"], beat["j"], beat["count"], beat["last"]) for beat in beats]
-        assert placements == [(i, j, 1, int(i == rows - 1 and j == cols - 1))
-                              for i in range(rows) for j in range(cols)]
-        return surface, best
-
-    def cycles(self, run):
-        """Surface and best cycles of the ``run``-th correlation, counted from its start beat."""
-        start = self.logs["start"][run][0]
-        beats = self.dut.parameters.surface_shape[0] * self.dut.parameters.surface_shape[1]
-        surface = [edge - start for edge, _ in self.logs["surface"][run * beats:(run + 1) * beats]]
-        return surface, self.logs["best"][run][0] - start
+def recursive_bench(**parameters):
+    return CorrelatorBench(RecursiveCorrelator(**parameters))
 
 
 def random_case(rng, map_shape, patch_shape, *, sparse):
@@ -84,7 +44,7 @@ def random_case(rng, map_shape, patch_shape, *, sparse):
 def test_random_cases_every_value_and_cycle(map_shape, patch_shape, radius):
     rng = np.random.default_rng(sum(map_shape) * 10 + sum(patch_shape))
     cases = [random_case(rng, map_shape, patch_shape, sparse=k % 2 == 1) + (k % 3 != 2,) for k in range(4)]
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, exclusion_radius=radius)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape, exclusion_radius=radius)
     results = []
 
     async def testbench(ctx):
@@ -111,7 +71,7 @@ def test_extreme_depths_reach_the_widths():
     terrain = np.where(np.indices(map_shape).sum(axis=0) % 2, 2**15 - 1, -(2**15)).astype(np.int16)
     patch = np.where(np.indices(patch_shape).sum(axis=0) % 2, -(2**15), 2**15 - 1).astype(np.int16)
     mask = np.ones(patch_shape, dtype=bool)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape)
     results = []
 
     async def testbench(ctx):
@@ -134,7 +94,7 @@ def test_output_stalls_lose_nothing(pattern):
     rng = np.random.default_rng(len(pattern))
     map_shape, patch_shape = (5, 6), (2, 3)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape, sparse=True)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape)
     results = []
 
     async def testbench(ctx):
@@ -143,7 +103,7 @@ def test_output_stalls_lose_nothing(pattern):
         await feed(ctx, bench.dut.patch_in, patch_words(patch, mask), pattern=itertools.cycle([0, 1]))
         for mean in (True, False):
             results.append(await bench.correlate(ctx, mean_compensation=mean,
-                                                 surface_pattern=itertools.cycle(pattern), best_idle=7))
+                                                 surface_pattern=itertools.cycle(pattern), best_pattern=itertools.chain([0] * 7, itertools.repeat(1))))
 
     bench.sim.add_testbench(testbench)
     bench.sim.run()
@@ -157,7 +117,7 @@ def test_random_stalls_lose_nothing():
     rng = np.random.default_rng(5)
     map_shape, patch_shape = (6, 6), (3, 3)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape, sparse=False)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape)
     results = []
 
     async def testbench(ctx):
@@ -178,7 +138,7 @@ def test_reset_mid_correlation_then_a_correct_one():
     map_shape, patch_shape = (6, 7), (3, 2)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape, sparse=True)
     other_patch = rng.integers(-500, 500, patch_shape).astype(np.int16)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape)
     results, busy_before_reset, busy_after_reset = [], [], []
 
     async def reset(ctx):
@@ -227,7 +187,7 @@ def test_a_patch_without_valid_nodes_gives_a_zero_surface():
     map_shape, patch_shape = (5, 6), (2, 3)
     rng = np.random.default_rng(3)
     terrain = rng.integers(-1000, 1000, map_shape).astype(np.int16)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape)
     results = []
 
     async def testbench(ctx):
@@ -246,7 +206,7 @@ def test_a_patch_without_valid_nodes_gives_a_zero_surface():
 
 def test_inputs_are_refused_while_busy():
     map_shape, patch_shape = (4, 4), (2, 2)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape)
     seen = []
 
     async def testbench(ctx):
@@ -268,7 +228,7 @@ def test_inputs_are_refused_while_busy():
 
 def test_start_refused_on_every_cycle_until_the_best_beat():
     map_shape, patch_shape = (5, 5), (2, 2)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape)
+    bench = recursive_bench(map_shape=map_shape, patch_shape=patch_shape)
     readiness = []
 
     async def testbench(ctx):

@@ -1,7 +1,6 @@
 # amaranth: UnusedElaboratable=no
 """BestFitReducer against lost.model.best_fit: ties, runner-up ties, edges, covering radii, lanes."""
 
-import itertools
 
 import numpy as np
 import pytest

@@ -6,15 +6,13 @@ import random
 
 import numpy as np
 import pytest
-from amaranth.hdl import ClockDomain, Module
-from amaranth.sim import Simulator
 
 from lost.hdl.window import WindowCorrelator
-from lost.hdl.interface import best_fit_payload, comparable_best
+from lost.hdl.interface import best_fit_payload
 from lost.model import best_fit, correlate
 from lost.model.cycles import surface_beats
 from lost.model.cycles_window import schedule
-from lost.sim.amaranth import drain, feed, record_transfers, stream_get
+from lost.sim.amaranth import CorrelatorBench, drain, feed, stream_get
 
 DEPTH_MIN, DEPTH_MAX = -(2**15), 2**15 - 1
 
@@ -43,66 +41,8 @@ def random_pattern(seed, busy):
     return (generator.random() >= busy for _ in itertools.count())
 
 
-class Bench:
-    """A window correlator in a module with an explicit sync domain (so tests can reset it), with transfer logs."""
-
-    def __init__(self, *, map_shape, patch_shape, lanes, exclusion_radius=1, depth_bits=16):
-        self.dut = WindowCorrelator(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes,
-                                    exclusion_radius=exclusion_radius, depth_bits=depth_bits)
-        self.parameters = self.dut.parameters
-        self.top = Module()
-        self.top.domains.sync = self.domain = ClockDomain("sync")
-        self.top.submodules.dut = self.dut
-        self.logs = {"start": [], "surface": [], "best": []}
-        self.sim = Simulator(self.top)
-        self.sim.add_clock(1e-8)
-        for name, log in self.logs.items():
-            self.sim.add_testbench(self._monitor(getattr(self.dut, name), log), background=True)
-        self.busy = []  # busy as sampled on every edge, edge 0 first
-        self.sim.add_testbench(self._sample_busy, background=True)
-
-    async def _sample_busy(self, ctx):
-        async for _, _, busy in ctx.tick().sample(self.dut.busy):
-            self.busy.append(busy)
-
-    @staticmethod
-    def _monitor(stream, log):
-        async def monitor(ctx):
-            await record_transfers(ctx, stream, log)
-        return monitor
-
-    async def load(self, ctx, *, terrain=None, patch=None, mask=None, pattern=None):
-        if terrain is not None:
-            await feed(ctx, self.dut.map_in, terrain.ravel().tolist(), pattern=pattern)
-        if patch is not None:
-            words = [{"depth": int(d), "valid": int(v)} for d, v in zip(patch.ravel(), mask.ravel())]
-            await feed(ctx, self.dut.patch_in, words, pattern=pattern)
-
-    async def correlate(self, ctx, *, mean_compensation, surface_pattern=None, best_pattern=None):
-        """Run one correlation; check the beats' order and flags; return the surface and best beat."""
-        beat_plan = surface_beats(self.parameters.surface_shape, self.parameters.lanes)
-        await feed(ctx, self.dut.start, [{"mean_compensation": int(mean_compensation)}])
-        beats = await drain(ctx, self.dut.surface, len(beat_plan), pattern=surface_pattern)
-        (best,) = await drain(ctx, self.dut.best, 1, pattern=best_pattern)
-        assert [(b["i"], b["j"], b["count"], b["last"]) for b in beats] == [
-            (i, j, count, int(k == len(beat_plan) - 1)) for k, (i, j, count) in enumerate(beat_plan)]
-        surface = np.zeros(self.parameters.surface_shape, dtype=np.int64)
-        for beat in beats:
-            surface[beat["i"], beat["j"]:beat["j"] + beat["count"]] = beat["values"][:beat["count"]]
-            # Lanes past the row's end carry no placement; they must not leak stale values.
-            assert beat["values"][beat["count"]:] == [0] * (self.parameters.lanes - beat["count"])
-        return surface, comparable_best(best)
-
-    def cycles(self, run):
-        """Surface and best cycles of the ``run``-th correlation, counted from its start beat."""
-        start = self.logs["start"][run][0]
-        beats = len(surface_beats(self.parameters.surface_shape, self.parameters.lanes))
-        surface = [edge - start for edge, _ in self.logs["surface"][run * beats:(run + 1) * beats]]
-        return surface, self.logs["best"][run][0] - start
-
-    def run(self, testbench):
-        self.sim.add_testbench(testbench)
-        self.sim.run()
+def window_bench(**parameters):
+    return CorrelatorBench(WindowCorrelator(**parameters))
 
 
 # (map_shape, patch_shape, lanes): W a multiple of L and not, a row's last beat completed by the next
@@ -130,7 +70,7 @@ SHAPES = [
 @pytest.mark.parametrize("map_shape, patch_shape, lanes", SHAPES)
 def test_every_value_best_fit_and_cycle(map_shape, patch_shape, lanes):
     rng = np.random.default_rng([*map_shape, *patch_shape, lanes])
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
     cases = [random_case(rng, map_shape, patch_shape) for _ in range(2)]
     results = []
 
@@ -159,7 +99,7 @@ def test_every_value_best_fit_and_cycle(map_shape, patch_shape, lanes):
 def test_the_papers_patch_size():
     """A 10 x 10 patch (Nygren's) on a 24 x 37 map with 4 lanes and radius 3: values, best fit, cycles."""
     map_shape, patch_shape, lanes, radius = (24, 37), (10, 10), 4, 3
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
     terrain, patch, mask = random_case(np.random.default_rng(9), map_shape, patch_shape)
     results = []
 
@@ -184,7 +124,7 @@ def test_random_configurations(seed):
     map_shape = (int(rng.integers(1, 11)), int(rng.integers(1, 15)))
     patch_shape = (int(rng.integers(1, min(map_shape[0], 5) + 1)), int(rng.integers(1, min(map_shape[1], 4) + 1)))
     lanes, radius, mode = int(rng.integers(1, 5)), int(rng.integers(0, 3)), bool(rng.integers(2))
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape)
     results = []
 
@@ -208,7 +148,7 @@ def test_extreme_depths_reach_the_widths(lanes):
     """All-extreme maps and patches, full mask: the largest terms and sums the widths allow."""
     rng = np.random.default_rng(lanes)
     map_shape, patch_shape = (6, 8), (3, 3)
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape, extreme=True)
     results = []
 
@@ -228,7 +168,7 @@ def test_narrow_depth_words():
     """5-bit depth words at their extremes: every width follows depth_bits."""
     rng = np.random.default_rng(5)
     map_shape, patch_shape, lanes = (7, 9), (3, 4), 2
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, depth_bits=5)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, depth_bits=5)
     terrain = rng.choice([-16, 15, 0], size=map_shape).astype(np.int16)
     patch = rng.choice([-16, 15], size=patch_shape).astype(np.int16)
     mask = rng.random(patch_shape) < 0.8
@@ -255,7 +195,7 @@ def test_narrow_depth_words():
 def test_stalls_on_every_stream(map_shape, patch_shape, lanes, radius):
     """Random gaps on the inputs and random back-pressure on both outputs lose or repeat nothing."""
     rng = np.random.default_rng([*map_shape, *patch_shape, lanes, radius])
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=radius)
     cases = [random_case(rng, map_shape, patch_shape) for _ in range(2)]
     results = []
 
@@ -279,7 +219,7 @@ def test_reset_mid_correlation_keeps_the_memories():
     """A reset during a correlation leaves the core idle; the next one, without reloading, is exact."""
     rng = np.random.default_rng(7)
     map_shape, patch_shape, lanes = (7, 9), (3, 4), 2
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape)
     results = []
     idle_after_reset = []
@@ -312,7 +252,7 @@ def test_new_patch_same_map_and_busy_refuses_loads():
     """The map persists across correlations; while busy, neither map nor patch words are taken."""
     rng = np.random.default_rng(11)
     map_shape, patch_shape, lanes = (6, 7), (2, 3), 3
-    bench = Bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes)
     terrain, patch, mask = random_case(rng, map_shape, patch_shape)
     _, patch2, mask2 = random_case(rng, map_shape, patch_shape)
     results = []
