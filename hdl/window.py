@@ -22,9 +22,17 @@ as soon as they enter the window register; the terms are formed ``ceil(log2(h * 
 the same columns, which have moved down the register by then, so neither the sum nor the terms need a
 delay line.
 
-The pipeline is step-synchronous: every register advances when a map word (or, at the end, one of a
-fixed number of flush steps) is taken and the output queue has room, so a stall anywhere holds every
-value in place and nothing is lost or duplicated. Its cycles are modelled exactly by
+|z| is formed as ``(z XOR s) + s`` with ``s`` the sign of ``z``: the XOR (with the mask folded in) is
+one LUT per bit where a negation would be an adder, and the ``s`` of the valid nodes are counted in a
+small tree beside the value tree and added after it.
+
+Only the step-synchronous stages (the step register, the line buffers, the window register and the
+window-sum tree) hold still between steps; a step is a map word or, at the end, one of a fixed number
+of flush steps. Their one enable is a register, ``advance``, set on the edge a step is issued. The
+term stages (``f*M - C``, minus the window sum, sign-XOR, value tree) run on every clock with a valid
+bit beside them: between steps they recompute the last placement, marked stale. Steps are issued
+against credits for the output queue, one per beat it holds, so a beat always finds room and
+``surface.ready`` stalls nothing but the issue of further steps. The cycles are modelled exactly by
 :mod:`lost.model.cycles_window`, whose :func:`~lost.model.cycles_window.window_timing` gives the
 pipeline its constants.
 """
@@ -63,6 +71,8 @@ def _index(count: int) -> range:
 def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
     """Sum ``values`` with a balanced adder tree, one register level per adder level.
 
+    The registers load when ``enable`` is high, or on every clock when it is ``None``.
+
     Each register is as wide as the sums it can hold: ``k`` leaves in ``[leaf_lo, leaf_hi]`` give
     ``[k * leaf_lo, k * leaf_hi]``, never more than the bound ``cap`` of the whole sum.
     """
@@ -72,10 +82,13 @@ def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], 
         leaves *= 2
         lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
         sums = Signal(data.ArrayLayout(_union_bits((lo, hi)), (len(values) + 1) // 2), name=f"{name}_l{level}")
-        with m.If(enable):
-            for index in range(0, len(values), 2):
-                pair = values[index : index + 2]
-                m.d.sync += sums[index // 2].eq(pair[0] + pair[1] if len(pair) == 2 else pair[0])
+        loads = [sums[index // 2].eq(pair[0] + pair[1] if len(pair) == 2 else pair[0])
+                 for index in range(0, len(values), 2) for pair in [values[index : index + 2]]]
+        if enable is None:
+            m.d.sync += loads
+        else:
+            with m.If(enable):
+                m.d.sync += loads
         values = [sums[index] for index in range((len(values) + 1) // 2)]
         level += 1
     return values[0]
@@ -161,6 +174,9 @@ class WindowCore(wiring.Component):
         patch_valid = Signal(nodes, reset_less=True)
         centred_patch = Signal(data.ArrayLayout(centred, nodes))
         mean_compensation = Signal()
+        # The nodes whose depths enter the window sum: none without mean compensation (Wsum = 0).
+        sum_valid = Signal(nodes)
+        m.d.comb += sum_valid.eq(patch_valid & mean_compensation.replicate(nodes))
         valid_count = Signal(count)
         patch_sum = Signal(window_sum)
         factor = Signal(count)
@@ -182,58 +198,64 @@ class WindowCore(wiring.Component):
                 patch_valid[nodes - 1].eq(self.patch_in.payload.valid),
             ]
 
-        # ---- the steps: map words through the sequencer, then flush steps -----------------------
+        # ---- the steps: one map read or flush step issued per credit, taken on the next edge ----------
         m.submodules.sequencer = sequencer = MapSequencer(
             addr_width=ceil_log2(self.map_depth), shape=self.map_word)
         wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
 
-        request_addr = Signal(range(self.map_depth + 1))
-        requesting = Signal()
-        m.d.comb += [
-            sequencer.request.valid.eq(requesting),
-            sequencer.request.payload.addr.eq(request_addr),
-        ]
-        with m.If(sequencer.request.valid & sequencer.request.ready):
-            m.d.sync += request_addr.eq(request_addr + 1)
-            with m.If(request_addr == self.map_depth - 1):
-                m.d.sync += requesting.eq(0)
-
-        running = Signal()
-        words_taken = Signal(range(self.map_depth + 1))
-        flush_left = Signal(range(t.flush_steps + 1))
-        step_row = Signal(range(H + t.flush_steps + 2))
-        step_group = Signal(_index(G))
-
-        # The output queue: the pipeline advances only while the queue has room, a registered flag, so
-        # no combinational path runs from ``surface.ready`` to the pipeline's enables. It adds no
-        # latency: a beat written on one edge can transfer on the next.
-        m.submodules.output_queue = output_queue = SyncFIFO(width=Shape.cast(p.surface_beat).width, depth=4)
+        # The output queue holds every beat the pipeline can still write: a step is issued only against
+        # a credit, returned when its beat leaves the queue (or when it leaves the pipeline without a
+        # beat), so the lanes never wait for ``surface.ready``. The queue adds no latency: a beat
+        # written on one edge can transfer on the next.
+        m.submodules.output_queue = output_queue = SyncFIFO(
+            width=Shape.cast(p.surface_beat).width, depth=t.queue_depth)
         m.d.comb += [
             self.surface.valid.eq(output_queue.r_rdy),
             self.surface.payload.eq(output_queue.r_data),
             output_queue.r_en.eq(self.surface.ready),
         ]
-        out_free = output_queue.w_rdy
 
-        from_memory = running & (words_taken != self.map_depth)
-        flushing = running & (words_taken == self.map_depth) & (flush_left != 0)
-        m.d.comb += sequencer.response.ready.eq(from_memory & out_free)
+        running = Signal()
+        issuing = Signal()  # steps of this correlation are left to issue
+        issuing_words = Signal()  # ... and map words among them
+        request_addr = Signal(range(self.map_depth + 1))
+        flush_left = Signal(range(t.flush_steps + 1))
+        credits = Signal(range(t.queue_depth + 1))
+        issue = Signal()
+        m.d.comb += [
+            issue.eq(issuing & (credits != 0) & (sequencer.request.ready | ~issuing_words)),
+            sequencer.request.valid.eq(issuing & issuing_words & (credits != 0)),
+            sequencer.request.payload.addr.eq(request_addr),
+            # Every word is taken on the edge after its request: nothing downstream stalls.
+            sequencer.response.ready.eq(1),
+        ]
+        with m.If(issue):
+            with m.If(issuing_words):
+                m.d.sync += request_addr.eq(request_addr + 1)
+                with m.If(request_addr == self.map_depth - 1):
+                    m.d.sync += issuing_words.eq(0)
+            with m.Else():
+                m.d.sync += flush_left.eq(flush_left - 1)
+                with m.If(flush_left == 1):
+                    m.d.sync += issuing.eq(0)
+
+        # ``advance`` is a register: the only enable of the step-synchronous stages (step register,
+        # line buffers, window register, window-sum tree); the lanes' term stages run every clock.
         advance = Signal()
-        m.d.comb += advance.eq(out_free & ((from_memory & sequencer.response.valid) | flushing))
+        step_is_word = Signal()
+        m.d.sync += [advance.eq(issue), step_is_word.eq(issue & issuing_words)]
 
+        step_row = Signal(range(H + t.flush_steps + 2))
+        step_group = Signal(_index(G))
         with m.If(advance):
             with m.If(step_group == G - 1):
                 m.d.sync += [step_group.eq(0), step_row.eq(step_row + 1)]
             with m.Else():
                 m.d.sync += step_group.eq(step_group + 1)
-            with m.If(from_memory):
-                m.d.sync += words_taken.eq(words_taken + 1)
-            with m.Else():
-                m.d.sync += flush_left.eq(flush_left - 1)
 
         # ---- the beat a step completes (known when the step is taken) -------------------------------
         meta_layout = data.StructLayout({
-            "emit": 1, "i": unsigned(p.row_bits), "j": unsigned(p.col_bits),
+            "live": 1, "emit": 1, "i": unsigned(p.row_bits), "j": unsigned(p.col_bits),
             "count": p.surface_beat["count"].shape, "last": 1,
         })
         normal = (step_row >= h - 1) & (step_row <= H - 1) & (step_group >= t.lead)
@@ -242,6 +264,7 @@ class WindowCore(wiring.Component):
         beat_group = Mux(normal, step_group - t.lead, t.out_groups - 1)
         step_meta = Signal(meta_layout)
         m.d.comb += [
+            step_meta.live.eq(1),
             step_meta.emit.eq(normal | wrapped),
             step_meta.i.eq(beat_row),
             step_meta.j.eq(beat_group * L),
@@ -254,19 +277,20 @@ class WindowCore(wiring.Component):
         row_layout = data.ArrayLayout(node_layout, L)
         step_nodes = Signal(row_layout)
         step_group_reg = Signal(_index(G))
-        step_is_word = Signal()
-        meta = Signal(data.ArrayLayout(meta_layout, t.output_delay))
+        step_was_word = Signal()
+        # The beat of each step-synchronous stage: step register, window register, window-sum levels.
+        sync_meta = Signal(data.ArrayLayout(meta_layout, t.step_stages))
         with m.If(advance):
             m.d.sync += [
                 step_group_reg.eq(step_group),
-                step_is_word.eq(from_memory),
-                meta[0].eq(step_meta),
+                step_was_word.eq(step_is_word),
+                sync_meta[0].eq(step_meta),
             ]
             for q in range(L):
                 word = sequencer.response.payload.data[q]
                 m.d.sync += [step_nodes[q].depth.eq(word), step_nodes[q].scaled.eq(factor * word)]
-            for x in range(1, t.output_delay):
-                m.d.sync += meta[x].eq(meta[x - 1])
+            for x in range(1, t.step_stages):
+                m.d.sync += sync_meta[x].eq(sync_meta[x - 1])
 
         # ---- line buffers: rows r-1 .. r-h+1 of the group being taken ------------------------------
         buffer_rows = []
@@ -280,7 +304,7 @@ class WindowCore(wiring.Component):
                 read.addr.eq(step_group),
                 read.en.eq(advance),
                 write.addr.eq(step_group_reg),
-                write.en.eq(advance & step_is_word),
+                write.en.eq(advance & step_was_word),
                 write.data.eq(step_nodes if x == 0 else buffer_rows[x - 1]),
             ]
             buffer_rows.append(read.data)
@@ -299,38 +323,61 @@ class WindowCore(wiring.Component):
                 for k in range(h):
                     m.d.sync += window[span - L + q][k].eq(column[k])
 
+        # ---- the term stages run every clock; a valid bit says which state is a new step -------------
+        # ``fresh``: the last edge was a step, so the window's bottom and the window sums hold a new
+        # placement; otherwise the lanes recompute the previous one and their result is dropped.
+        fresh = Signal()
+        m.d.sync += fresh.eq(advance)
+        free_meta = Signal(data.ArrayLayout(meta_layout, t.term_stages))
+        free_valid = Signal(t.term_stages)
+        m.d.sync += [free_meta[0].eq(sync_meta[t.step_stages - 1]), free_valid[0].eq(fresh)]
+        for x in range(1, t.term_stages):
+            m.d.sync += [free_meta[x].eq(free_meta[x - 1]), free_valid[x].eq(free_valid[x - 1])]
+
         # ---- the lanes ------------------------------------------------------------------------------
         top = t.sum_levels * L
+        count_max = nodes
         lane_values = []
         for q in range(L):
-            # Window sum of the valid nodes, on the columns as they arrive.
+            # Window sum of the valid nodes, on the columns as they arrive (step-synchronous).
             masked = []
             for k in range(h):
                 for l in range(w):
                     x = k * w + l
-                    masked.append(Mux(patch_valid[x] & mean_compensation, window[top + q + l][k].depth, 0))
+                    masked.append(Mux(sum_valid[x], window[top + q + l][k].depth, 0))
             wsum = _pipelined_sum(m, advance, masked, (widths.depth.lo, widths.depth.hi),
                                   (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
 
-            # The same columns, sum_levels steps later, at the bottom of the register.
+            # The same columns, sum_levels steps later, at the bottom of the register. |z| is formed
+            # as (z XOR s) + s with s the sign of z: the XOR is one LUT per bit with the mask folded
+            # in, and the signs of the valid nodes are counted once beside the value tree.
             y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y")
             wsum_y = Signal(window_sum, name=f"lane{q}_wsum_y")
             z = Signal(data.ArrayLayout(term, nodes), name=f"lane{q}_z")
-            a = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_abs")
-            with m.If(advance):
-                m.d.sync += wsum_y.eq(wsum)
-                for k in range(h):
-                    for l in range(w):
-                        x = k * w + l
-                        m.d.sync += [
-                            y[x].eq(window[q + l][k].scaled - centred_patch[x]),
-                            z[x].eq(y[x] - wsum_y),
-                            a[x].eq(Mux(patch_valid[x], Mux(z[x] < 0, -z[x], z[x]), 0)),
-                        ]
-            lane_values.append(_pipelined_sum(m, advance, [a[x] for x in range(nodes)], (0, term_max), (0, widths.accumulator.hi), f"lane{q}_sum"))
+            a = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_xor")
+            negative = Signal(nodes, name=f"lane{q}_negative")
+            m.d.sync += wsum_y.eq(wsum)
+            for k in range(h):
+                for l in range(w):
+                    x = k * w + l
+                    sign = z[x].as_unsigned()[-1]
+                    m.d.sync += [
+                        y[x].eq(window[q + l][k].scaled - centred_patch[x]),
+                        z[x].eq(y[x] - wsum_y),
+                        a[x].eq(Mux(patch_valid[x], z[x].as_unsigned() ^ sign.replicate(Shape.cast(term).width), 0)),
+                        negative[x].eq(patch_valid[x] & sign),
+                    ]
+            magnitudes = _pipelined_sum(m, None, [a[x] for x in range(nodes)], (0, term_max),
+                                        (0, widths.accumulator.hi), f"lane{q}_sum")
+            signs = _pipelined_sum(m, None, [negative[x] for x in range(nodes)], (0, 1), (0, count_max),
+                                   f"lane{q}_signs")
+            value = Signal(unsigned(widths.accumulator.bits), name=f"lane{q}_value")
+            m.d.sync += value.eq(magnitudes + signs)
+            lane_values.append(value)
 
         # ---- into the output queue ---------------------------------------------------------------------
-        last_meta = meta[t.output_delay - 1]
+        last_meta = free_meta[t.term_stages - 1]
+        last_valid = free_valid[t.term_stages - 1] & last_meta.live
         beat = Signal(p.surface_beat)
         m.d.comb += [
             beat.i.eq(last_meta.i),
@@ -338,9 +385,12 @@ class WindowCore(wiring.Component):
             beat.count.eq(last_meta.count),
             beat.last.eq(last_meta.last),
             output_queue.w_data.eq(beat),
-            output_queue.w_en.eq(advance & last_meta.emit),
+            output_queue.w_en.eq(last_valid & last_meta.emit),
         ]
         m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(L)]
+        # A credit comes back with each beat leaving the queue and each step leaving without a beat.
+        returned = (last_valid & ~last_meta.emit) + (output_queue.r_rdy & output_queue.r_en)
+        m.d.sync += credits.eq(credits - issue + returned)
 
         # The reducer watches the surface's transfers and answers on ``best``.
         m.d.comb += [
@@ -376,12 +426,13 @@ class WindowCore(wiring.Component):
                         patch_sum.eq(0),
                         prepare_step.eq(0),
                         request_addr.eq(0),
-                        words_taken.eq(0),
                         flush_left.eq(t.flush_steps),
+                        credits.eq(t.queue_depth),
                         step_row.eq(0),
                         step_group.eq(0),
                     ]
-                    m.d.sync += [meta[x].emit.eq(0) for x in range(t.output_delay)]
+                    # The step-synchronous stages still hold the last correlation's flush steps.
+                    m.d.sync += [sync_meta[x].live.eq(0) for x in range(t.step_stages)]
                     m.next = "COUNT"
             with m.State("COUNT"):
                 # First pass: n and sum_valid S, from node k - 1 on cycle k = 1 .. hw.
@@ -402,7 +453,7 @@ class WindowCore(wiring.Component):
                     m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
                     m.d.sync += centred_patch[nodes - 1].eq(product - Mux(mean_compensation, patch_sum, 0))
                 with m.If(prepare_step == 2 * nodes + 1):
-                    m.d.sync += [running.eq(1), requesting.eq(1)]
+                    m.d.sync += [running.eq(1), issuing.eq(1), issuing_words.eq(1)]
                     m.next = "RUN"
             with m.State("RUN"):
                 with m.If(self.surface.valid & self.surface.ready & self.surface.payload.last):
@@ -420,7 +471,7 @@ class WindowCorrelator(wiring.Component):
     words) and one beat of ``L`` placements per clock once the pipeline is full; a correlation takes
     ``2hw + 4 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
     row's last beat wraps to the next row's first step), then the reducer's scan. Every beat's cycle is
-    :func:`lost.model.cycles_window.schedule`; ``output_delay = 2 * ceil(log2(h * w)) + 5``.
+    :func:`lost.model.cycles_window.schedule`; ``output_delay = 2 * ceil(log2(h * w)) + 6``.
 
     Parameters
     ----------

@@ -1,28 +1,33 @@
 """Cycle model of the window correlator (:mod:`lost.hdl.window`).
 
-The window core is step-synchronous: each *step* takes one memory row of ``L`` map words (or, after
-the last one, a flush step without a word), and every pipeline register advances with it. With
-``surface.ready`` and ``best.ready`` held high and the patch and map loaded, counting from the edge on
-which the ``start`` beat transfers (cycle 0):
+The window core works in *steps*: each takes one memory row of ``L`` map words (or, after the last
+one, a flush step without a word). A step is issued (a map read request, or a flush step) when the
+core holds a credit for it, and taken on the next edge; the step-synchronous stages (step register,
+line buffers, window register, window-sum levels) load only when a step is taken, while the term
+stages after them run on every clock. With ``surface.ready`` and ``best.ready`` held high and the
+patch and map loaded, counting from the edge on which the ``start`` beat transfers (cycle 0):
 
 * cycles ``1 .. 2hw + 2`` read the patch twice, once for ``n`` and ``sum_valid S``, once for
   ``C = f * S - Ssum`` (each pass ``hw`` nodes plus one register stage, the second plus the
   multiplier's); the first map read request transfers on edge ``2hw + 3``;
-* one request per clock, in raster order of the ``H * ceil(W / L)`` memory rows; the sequencer hands a
-  word on one edge after its request, so step ``t`` (counting map words first, flush steps after) is
-  taken on edge ``2hw + 4 + t``;
+* one step is issued per clock (the output queue's ``queue_depth`` credits never run out with
+  ``surface.ready`` high), in raster order of the ``H * ceil(W / L)`` memory rows, then the flush
+  steps; step ``t`` (counting map words first, flush steps after) is taken on edge ``2hw + 4 + t``;
 * the beat ``(i, g)`` (surface row ``i``, its ``g``-th group of ``L`` placements) is completed by step
   ``(i + h - 1) * G + g + D`` with ``G = ceil(W / L)`` and ``D = ceil((w - 1) / L)``, the step whose
   memory row holds the rightmost column of the beat's ``L`` windows (the lanes run in lockstep, also
   past a row's end), unless ``g + D`` runs past the row
   (possible only for a row's last beat), when the next map row's first step (or a flush step, after
   the last row) completes it: step ``(i + h) * G``;
-* a step's beat is written into the output queue ``output_delay`` steps after the step is taken and
+* a step's beat is written into the output queue ``output_delay`` edges after the step is taken (the
+  ``step_stages - 1`` steps after it follow one per clock, then ``term_stages`` clocked stages) and
   transfers on the next edge;
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 
-The schedule does not depend on the data, the mask or the mode. Numpy only; :mod:`lost.hdl.window`
-sizes its pipeline from :func:`window_timing`, so the gateware and this model share every constant.
+So beat ``(i, g)`` transfers on edge ``2hw + 4 + step(i, g) + output_delay + 1`` with
+``output_delay = 2 * ceil(log2(h * w)) + 6``. The schedule does not depend on the data, the mask or
+the mode. Numpy only; :mod:`lost.hdl.window` sizes its pipeline from :func:`window_timing`, so the
+gateware and this model share every constant.
 """
 
 from __future__ import annotations
@@ -57,12 +62,22 @@ class WindowTiming:
         ``ceil(log2(h * w))``: register levels of the window-sum tree and of the value tree.
     prepare_cycles : int
         ``2 * h * w + 2``: cycles after the start beat spent on the two passes over the patch.
+    step_stages : int
+        ``sum_levels + 2``: the step-synchronous stages, which load only when a step is taken: the
+        step register, the window register and the window-sum levels.
+    term_stages : int
+        ``sum_levels + 4``: the stages that run on every clock: ``f*M - C``, minus the window sum,
+        the sign-XOR, the value-tree levels (beside them the count of negative terms) and their sum.
     output_delay : int
-        Steps from taking a step to writing its beat into the output queue: the window register,
-        the window-sum levels, the three term stages (``f*M - C``, minus the window sum, absolute
-        value), the value-tree levels and the write itself.
+        ``step_stages + term_stages``: cycles from taking a step to writing its beat into the output
+        queue once the ``step_stages - 1`` steps after it have followed one per clock.
     flush_steps : int
-        Steps without a map word after the last one, enough to move the last beat to the output.
+        Steps without a map word after the last one, enough to move the last beat out of the
+        step-synchronous stages.
+    queue_depth : int
+        ``output_delay + 3``: beats the output queue holds, and the credits for issuing steps. A step
+        holds its credit from its issue to its beat's transfer, ``output_delay + 2`` edges later with
+        ``surface.ready`` high, so one step per clock is issued without waiting for a credit.
     """
 
     groups: int
@@ -71,8 +86,11 @@ class WindowTiming:
     wraps: bool
     sum_levels: int
     prepare_cycles: int
+    step_stages: int
+    term_stages: int
     output_delay: int
     flush_steps: int
+    queue_depth: int
 
 
 def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lanes: int) -> WindowTiming:
@@ -93,7 +111,9 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
     # ceil(a/L) + ceil(b/L) <= ceil((a+b)/L) + 1, so a row's last beat is late by at most one step.
     wraps = out_groups - 1 + lead == groups
     sum_levels = (h * w - 1).bit_length()
-    output_delay = 1 + sum_levels + 3 + sum_levels + 1
+    step_stages = sum_levels + 2
+    term_stages = sum_levels + 4
+    output_delay = step_stages + term_stages
     return WindowTiming(
         groups=groups,
         out_groups=out_groups,
@@ -101,8 +121,11 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
         wraps=wraps,
         sum_levels=sum_levels,
         prepare_cycles=2 * h * w + 2,
+        step_stages=step_stages,
+        term_stages=term_stages,
         output_delay=output_delay,
-        flush_steps=int(wraps) + output_delay,
+        flush_steps=int(wraps) + step_stages - 1,
+        queue_depth=output_delay + 3,
     )
 
 

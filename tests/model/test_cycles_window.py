@@ -77,6 +77,20 @@ def test_full_size_nygren_figures():
         assert plan.surface[-1] - plan.surface[0] < 501 * groups
 
 
+@pytest.mark.parametrize("patch_shape, levels", [((1, 1), 0), ((1, 2), 1), ((3, 3), 4), ((10, 10), 7), ((16, 16), 8)])
+def test_stage_counts(patch_shape, levels):
+    """Step stages: step register, window register, window-sum levels; term stages: f*M - C, minus the
+    window sum, sign-XOR, value-tree levels, the sign count's addition. The queue covers a credit's
+    round trip, issue to transfer, so that steps issue one per clock."""
+    timing = window_timing((20, 20), patch_shape, 2)
+    assert timing.sum_levels == levels
+    assert (timing.step_stages, timing.term_stages) == (levels + 2, levels + 4)
+    assert timing.output_delay == 2 * levels + 6
+    assert timing.queue_depth == timing.output_delay + 3
+    # Enough flush steps to carry the last completing step through the step-synchronous stages.
+    assert timing.flush_steps == int(timing.wraps) + timing.step_stages - 1
+
+
 def test_wrap_case_is_one_step_late():
     """W=4, w=2, L=2: beats of columns (0, 1) and (2,); the second needs columns 2-3, read with group 1,
     but lockstep lanes put it one step later, at the next row's first step."""
