@@ -71,7 +71,8 @@ def _index(count: int) -> range:
 def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
     """Sum ``values`` with a balanced adder tree, one register level per adder level.
 
-    The registers load when ``enable`` is high, or on every clock when it is ``None``.
+    The registers load when ``enable`` is high, or on every clock when it is ``None``. They are
+    reset-less, like every datapath register here: a reset would only add a net to thousands of them.
 
     Each register is as wide as the sums it can hold: ``k`` leaves in ``[leaf_lo, leaf_hi]`` give
     ``[k * leaf_lo, k * leaf_hi]``, never more than the bound ``cap`` of the whole sum.
@@ -81,7 +82,8 @@ def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], 
         # One array register per level (fewer, wider signals keep the generated Verilog small).
         leaves *= 2
         lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
-        sums = Signal(data.ArrayLayout(_union_bits((lo, hi)), (len(values) + 1) // 2), name=f"{name}_l{level}")
+        sums = Signal(data.ArrayLayout(_union_bits((lo, hi)), (len(values) + 1) // 2), name=f"{name}_l{level}",
+                      reset_less=True)
         loads = [sums[index // 2].eq(pair[0] + pair[1] if len(pair) == 2 else pair[0])
                  for index in range(0, len(values), 2) for pair in [values[index : index + 2]]]
         if enable is None:
@@ -169,10 +171,14 @@ class WindowCore(wiring.Component):
         abs_term = unsigned(term_max.bit_length())
 
         # ---- the patch, its count and sum, and C = f * S - Ssum (formed at start) ----------------
-        # Reset-less: like the map memory, the patch persists through a reset until reloaded.
-        patch_depth = Signal(data.ArrayLayout(depth, nodes), reset_less=True)
+        # Like the map memory, the patch persists through a reset until reloaded. Its depths, read one
+        # node per clock by the two passes, live in a small memory; its valid bits, which every lane
+        # needs at once, in a reset-less register.
+        m.submodules.patch_memory = patch_memory = memory.Memory(shape=depth, depth=nodes, init=[])
+        patch_write = patch_memory.write_port()
+        patch_read = patch_memory.read_port()
         patch_valid = Signal(nodes, reset_less=True)
-        centred_patch = Signal(data.ArrayLayout(centred, nodes))
+        centred_patch = Signal(data.ArrayLayout(centred, nodes), reset_less=True)
         mean_compensation = Signal()
         # The nodes whose depths enter the window sum: none without mean compensation (Wsum = 0).
         sum_valid = Signal(nodes)
@@ -183,20 +189,27 @@ class WindowCore(wiring.Component):
 
         idle = Signal()
         m.submodules.reducer = reducer = BestFitReducer(parameters=p)
-        ready_for_more = idle & ~reducer.busy
+        # The last surface beat reaches the reducer a clock after its transfer (see below).
+        watched_valid = Signal()
+        ready_for_more = idle & ~reducer.busy & ~watched_valid
         m.d.comb += [
             self.patch_in.ready.eq(ready_for_more),
             self.start.ready.eq(ready_for_more),
             self.busy.eq(~ready_for_more),
         ]
 
-        with m.If(self.patch_in.valid & self.patch_in.ready):
-            for x in range(nodes - 1):
-                m.d.sync += [patch_depth[x].eq(patch_depth[x + 1]), patch_valid[x].eq(patch_valid[x + 1])]
-            m.d.sync += [
-                patch_depth[nodes - 1].eq(self.patch_in.payload.depth),
-                patch_valid[nodes - 1].eq(self.patch_in.payload.valid),
-            ]
+        # Patch words since the last start (or reset) fill nodes 0, 1, ...; the valid bits shift in.
+        patch_pointer = Signal(_index(nodes))
+        loading = self.patch_in.valid & self.patch_in.ready
+        m.d.comb += [
+            patch_write.addr.eq(patch_pointer),
+            patch_write.data.eq(self.patch_in.payload.depth),
+            patch_write.en.eq(loading),
+        ]
+        with m.If(loading):
+            m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
+            m.d.sync += [patch_valid[x].eq(patch_valid[x + 1]) for x in range(nodes - 1)]
+            m.d.sync += patch_valid[nodes - 1].eq(self.patch_in.payload.valid)
 
         # ---- the steps: one map read or flush step issued per credit, taken on the next edge ----------
         m.submodules.sequencer = sequencer = MapSequencer(
@@ -275,11 +288,11 @@ class WindowCore(wiring.Component):
         # ---- step register: the word, f * word, and its beat ------------------------------------
         node_layout = data.StructLayout({"depth": depth, "scaled": scaled})
         row_layout = data.ArrayLayout(node_layout, L)
-        step_nodes = Signal(row_layout)
+        step_nodes = Signal(row_layout, reset_less=True)
         step_group_reg = Signal(_index(G))
         step_was_word = Signal()
         # The beat of each step-synchronous stage: step register, window register, window-sum levels.
-        sync_meta = Signal(data.ArrayLayout(meta_layout, t.step_stages))
+        sync_meta = Signal(data.ArrayLayout(meta_layout, t.step_stages), reset_less=True)
         with m.If(advance):
             m.d.sync += [
                 step_group_reg.eq(step_group),
@@ -313,7 +326,7 @@ class WindowCore(wiring.Component):
         span = t.sum_levels * L + (t.lead + 1) * L
         # One signal per column: fewer signals than one per node, while the Python simulator (whose
         # generated code spells masks as decimal literals) still handles their width.
-        window = [Signal(data.ArrayLayout(node_layout, h), name=f"window_{c}") for c in range(span)]
+        window = [Signal(data.ArrayLayout(node_layout, h), name=f"window_{c}", reset_less=True) for c in range(span)]
         with m.If(advance):
             for c in range(span - L):
                 for k in range(h):
@@ -328,7 +341,8 @@ class WindowCore(wiring.Component):
         # placement; otherwise the lanes recompute the previous one and their result is dropped.
         fresh = Signal()
         m.d.sync += fresh.eq(advance)
-        free_meta = Signal(data.ArrayLayout(meta_layout, t.term_stages))
+        # Only the valid bits need a reset: after one, no stale step may reach the queue.
+        free_meta = Signal(data.ArrayLayout(meta_layout, t.term_stages), reset_less=True)
         free_valid = Signal(t.term_stages)
         m.d.sync += [free_meta[0].eq(sync_meta[t.step_stages - 1]), free_valid[0].eq(fresh)]
         for x in range(1, t.term_stages):
@@ -351,11 +365,11 @@ class WindowCore(wiring.Component):
             # The same columns, sum_levels steps later, at the bottom of the register. |z| is formed
             # as (z XOR s) + s with s the sign of z: the XOR is one LUT per bit with the mask folded
             # in, and the signs of the valid nodes are counted once beside the value tree.
-            y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y")
-            wsum_y = Signal(window_sum, name=f"lane{q}_wsum_y")
-            z = Signal(data.ArrayLayout(term, nodes), name=f"lane{q}_z")
-            a = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_xor")
-            negative = Signal(nodes, name=f"lane{q}_negative")
+            y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y", reset_less=True)
+            wsum_y = Signal(window_sum, name=f"lane{q}_wsum_y", reset_less=True)
+            z = Signal(data.ArrayLayout(term, nodes), name=f"lane{q}_z", reset_less=True)
+            a = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_xor", reset_less=True)
+            negative = Signal(nodes, name=f"lane{q}_negative", reset_less=True)
             m.d.sync += wsum_y.eq(wsum)
             for k in range(h):
                 for l in range(w):
@@ -371,7 +385,7 @@ class WindowCore(wiring.Component):
                                         (0, widths.accumulator.hi), f"lane{q}_sum")
             signs = _pipelined_sum(m, None, [negative[x] for x in range(nodes)], (0, 1), (0, count_max),
                                    f"lane{q}_signs")
-            value = Signal(unsigned(widths.accumulator.bits), name=f"lane{q}_value")
+            value = Signal(unsigned(widths.accumulator.bits), name=f"lane{q}_value", reset_less=True)
             m.d.sync += value.eq(magnitudes + signs)
             lane_values.append(value)
 
@@ -392,17 +406,20 @@ class WindowCore(wiring.Component):
         returned = (last_valid & ~last_meta.emit) + (output_queue.r_rdy & output_queue.r_en)
         m.d.sync += credits.eq(credits - issue + returned)
 
-        # The reducer watches the surface's transfers and answers on ``best``.
+        # The reducer watches the surface's transfers, one clock later (a register keeps the queue's
+        # read out of its paths), and answers on ``best``.
+        watched = Signal(p.surface_beat, reset_less=True)
+        m.d.sync += [watched.eq(self.surface.payload), watched_valid.eq(self.surface.valid & self.surface.ready)]
         m.d.comb += [
-            reducer.surface.valid.eq(self.surface.valid & self.surface.ready),
-            reducer.surface.payload.eq(self.surface.payload),
+            reducer.surface.valid.eq(watched_valid),
+            reducer.surface.payload.eq(watched),
         ]
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
         # ---- control ----------------------------------------------------------------------------------
         prepare_step = Signal(range(2 * nodes + 2))
-        # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; one register
-        # after the node multiplexer and one after the multiplier keep the passes' paths short.
+        # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; the memory's
+        # read register and one after the multiplier keep the passes' paths short.
         node = Signal(_index(nodes))
         with m.If(idle | (node == nodes - 1)):
             m.d.sync += node.eq(0)
@@ -411,8 +428,8 @@ class WindowCore(wiring.Component):
         head_depth = Signal(depth)
         head_valid = Signal()
         product = Signal(scaled)
+        m.d.comb += [patch_read.addr.eq(node), head_depth.eq(patch_read.data)]
         m.d.sync += [
-            head_depth.eq(patch_depth[node]),
             head_valid.eq(patch_valid.bit_select(node, 1)),
             product.eq(factor * head_depth),
         ]
@@ -425,6 +442,7 @@ class WindowCore(wiring.Component):
                         valid_count.eq(0),
                         patch_sum.eq(0),
                         prepare_step.eq(0),
+                        patch_pointer.eq(0),
                         request_addr.eq(0),
                         flush_left.eq(t.flush_steps),
                         credits.eq(t.queue_depth),
@@ -470,8 +488,9 @@ class WindowCorrelator(wiring.Component):
     Throughput and latency, with ``surface.ready`` and ``best.ready`` high: one memory row (``L``
     words) and one beat of ``L`` placements per clock once the pipeline is full; a correlation takes
     ``2hw + 4 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
-    row's last beat wraps to the next row's first step), then the reducer's scan. Every beat's cycle is
-    :func:`lost.model.cycles_window.schedule`; ``output_delay = 2 * ceil(log2(h * w)) + 6``.
+    row's last beat wraps to the next row's first step), then one clock and the reducer's scan.
+    Every beat's cycle is :func:`lost.model.cycles_window.schedule`;
+    ``output_delay = 2 * ceil(log2(h * w)) + 6``.
 
     Parameters
     ----------
