@@ -3,8 +3,8 @@
 Nygren's shift-register principle (FOI-R--0764--SE, section 8.2) made exact and streaming: the map is
 read once per correlation, one memory row of ``L`` words per clock in raster order; ``h - 1`` line
 buffers turn that stream into columns of ``h`` words; a window register of columns holds every
-``h x w`` window that the ``L`` lanes need; each lane then forms its ``h * w`` terms, their absolute
-values and their sum, with a register after every adder level.
+``h x w`` window that the ``L`` lanes need; each lane then forms its ``h * w`` terms and the sum of
+their absolute values, with a register after every adder level.
 
 The arithmetic follows :mod:`lost.model.correlator` rearranged so that nothing is computed per term
 that can be computed once::
