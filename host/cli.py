@@ -16,6 +16,7 @@ import argparse
 import json
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -71,10 +72,29 @@ def _print_summary(summary: dict, out: Path) -> None:
     print(f"wrote {out}/track.csv, summary.json, map.png" + (", error.png" if summary["truth_known"] else ""))
 
 
+def _setting(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` of ``--set``: VALUE as a TOML value (``0.05``, ``true``, ``[0, 200]``, ``"cable"``), ``none`` for None."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    if value.strip().lower() == "none":
+        return name.strip(), None
+    try:
+        return name.strip(), tomllib.loads(f"value = {value}")["value"]
+    except tomllib.TOMLDecodeError:
+        # A bare word (cable, software) is a string.
+        return name.strip(), value.strip()
+
+
 def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
     overrides = {key: value for key, value in (("backend", args.backend), ("matching", args.matching)) if value is not None}
+    settings = dict(args.settings or ())
+    fields = set(NavParameters.__dataclass_fields__)
+    unknown = sorted(set(settings) - fields)
+    if unknown:
+        raise ValueError(f"--set names no navigation parameter: {', '.join(unknown)} (known: {', '.join(sorted(fields))})")
     try:
-        return NavParameters(**{**base, **overrides})
+        return NavParameters(**{**base, **settings, **overrides})
     except TypeError as error:
         raise ValueError(f"[navigation] has a field NavParameters does not know: {error}") from None
 
@@ -196,6 +216,9 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME)")
         sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
+        sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
+                         help="a navigation parameter (NavParameters), over the scenario's [navigation]; repeatable; "
+                              "VALUE is TOML, or none for the patent's default (e.g. --set u=0.005 --set cross_damping_per_s=none)")
 
     run = commands.add_parser("run", help="navigate a simulated or recorded tow")
     run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")

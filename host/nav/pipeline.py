@@ -67,6 +67,11 @@ class NavParameters:
     max_cross_accel_mps2, max_cross_speed_mps : float
         Thresholds of f_a and f_v in eqs. 5-6, from the vehicle's dynamics (the patent gives no
         number): 0.05 m/s**2 and 1.0 m/s, about a tow body's turn response at 2-4 kn.
+    cross_damping_per_s : float or None
+        Decay rate of the CAT's cross-track velocity w, 1/s, in place of eq. 6's ``(1 - u)`` per
+        update: a documented departure from the patent, whose tracker rings (damping ratio 0.035 at
+        u = 0.01; see :class:`~lost.host.nav.stages.CrossTrackTracker`). Default None, the patent's;
+        the shipped scenarios use 0.05.
     search_half_width_m : float
         Half side of the square MLE search area centred on the prediction (the patent leaves the
         size to the convergence/cost trade-off). Default 300 m, enough for a 200 m start error.
@@ -105,6 +110,7 @@ class NavParameters:
     u: float = 0.01
     max_cross_accel_mps2: float = 0.05
     max_cross_speed_mps: float = 1.0
+    cross_damping_per_s: float | None = None
     search_half_width_m: float = 300.0
     min_valid_fraction: float = 0.5
     min_distinctness: float = 1.0
@@ -135,8 +141,13 @@ class NavParameters:
         if len(self.initial_offset_m) != 2 or not all(math.isfinite(float(x)) for x in self.initial_offset_m):
             raise ValueError(f"initial_offset_m must be two finite numbers (east, north), got {self.initial_offset_m!r}.")
         object.__setattr__(self, "initial_offset_m", tuple(float(x) for x in self.initial_offset_m))
-        # The tracker validates u and its thresholds with its own messages.
-        CrossTrackTracker(u=self.u, max_accel_mps2=self.max_cross_accel_mps2, max_speed_mps=self.max_cross_speed_mps)
+        # The tracker validates u, its thresholds and damping with its own messages.
+        self.tracker()
+
+    def tracker(self) -> CrossTrackTracker:
+        """A fresh constrained adaptive tracker with these settings."""
+        return CrossTrackTracker(u=self.u, max_accel_mps2=self.max_cross_accel_mps2, max_speed_mps=self.max_cross_speed_mps,
+                                 damping_per_s=self.cross_damping_per_s)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -310,7 +321,7 @@ def _run(
     slant_corrected = np.zeros(n_records, dtype=bool)
     off_map = np.zeros(n_records, dtype=bool)
     matcher = _Matcher(prepared, params, counts)
-    tracker = CrossTrackTracker(u=params.u, max_accel_mps2=params.max_cross_accel_mps2, max_speed_mps=params.max_cross_speed_mps)
+    tracker = params.tracker()
     sonar = records.sonar if records.sonar else (None,) * n_records
 
     velocity = np.zeros(2)

@@ -32,6 +32,20 @@ def test_run_by_builtin_name_with_backend_and_matching(tmp_path):
     assert summary["parameters"]["backend"] == "model" and summary["parameters"]["matching"] == "point"
 
 
+def test_set_overrides_the_scenarios_navigation_parameters(tmp_path, capsys):
+    out = tmp_path / "patent"
+    args = ["run", "short", "--out", str(out), "--set", "cross_damping_per_s=none", "--set", "initial_offset_m=[10, -20]",
+            "--set", "layback_model=cable"]
+    assert main(args) == 0
+    parameters = json.loads((out / "summary.json").read_text())["parameters"]
+    # The shipped scenario damps the tracker; `none` restores the patent's (1 - u).
+    assert parameters["cross_damping_per_s"] is None
+    assert list(parameters["initial_offset_m"]) == [10.0, -20.0] and parameters["layback_model"] == "cable"
+    capsys.readouterr()
+    assert main(["run", "short", "--out", str(out), "--set", "kay=3"]) == 2
+    assert "--set names no navigation parameter: kay" in capsys.readouterr().err
+
+
 def test_run_needs_a_scenario_or_log_and_bathy(capsys):
     assert main(["run", "--log", "nav.csv"]) == 2
     assert "needs a scenario file, or both --log" in capsys.readouterr().err

@@ -153,6 +153,7 @@ def test_a_patch_on_other_nodes_is_an_error():
         ({"k": -1.0}, "k must be"),
         ({"backend": "fpga-over-smoke"}, "backend"),
         ({"u": 2.0}, "adaptive constant"),
+        ({"cross_damping_per_s": -0.05}, "cross-track damping"),
         ({"initial_offset_m": (1.0,)}, "initial_offset_m"),
         ({"min_distinctness": -1.0}, "min_distinctness"),
         ({"layback_model": "guess"}, "layback_model"),
