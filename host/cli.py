@@ -21,9 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lost.model.shapes import shape_argument
+
 from . import BACKENDS, correlate
 from .grid import Grid
 from .nav import NavParameters, PreparedMap, run_lost
+from .navlog import PATCH_CENTRES
 from .records import NavRecords
 
 __all__ = ["main"]
@@ -130,7 +133,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
     grid = read_grid(args.bathy)
-    records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m)
+    records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
+                                  patch_shape=args.patch_shape, patch_centre=args.patch_centre)
     print(report.summary())
     out = args.out or Path("runs") / Path(args.log).stem
     summary = _navigate(records, grid, _parameters(args, {}), name=Path(args.log).stem, out=out)
@@ -225,6 +229,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
     run.add_argument("--sonar", help="sonar soundings side file of the log")
+    run.add_argument("--patch-shape", type=shape_argument, default=(10, 10), metavar="ROWSxCOLS",
+                     help="nodes of the sonar patch the soundings are gridded into (default 10x10)")
+    run.add_argument("--patch-centre", choices=PATCH_CENTRES, default="vehicle",
+                     help="centre of a record's patch when the log has no patch_east_m/patch_north_m: the vehicle "
+                          "(default) or the middle of its soundings (a swath gathered in real time, behind the vehicle)")
     navigation_options(run)
     run.set_defaults(handler=_cmd_run)
 

@@ -194,6 +194,10 @@ class CrossTrackTracker:
         self._max_speed = float(max_speed_mps)
         self.velocity_mps = 0.0  # w(t-1)
 
+    def restart(self) -> None:
+        """Forget w: after a gap in the MLEs its cross-track velocity is stale."""
+        self.velocity_mps = 0.0
+
     def decay(self, dt_s: float) -> float:
         """The factor on w(t-1) in eq. 6: the patent's ``1 - u``, or ``exp(-damping_per_s * dt)``."""
         return 1.0 - self._u if self._damping is None else math.exp(-self._damping * dt_s)
