@@ -277,7 +277,7 @@ class Configuration:
         """The core inside its :class:`~lost.hdl.harness.MeasurementHarness`."""
         from .harness import MeasurementHarness
 
-        return MeasurementHarness(core=self.core())
+        return MeasurementHarness(core=self.core(), global_reset=True)
 
     def cycles(self) -> int:
         """Cycles from the start beat to the best beat of one full-patch correlation at the built sizes."""

@@ -99,6 +99,20 @@ def test_harness_scans_every_input_in_and_folds_every_output_out():
     assert len(checked) == len(scan) - fold_latency
 
 
+def test_synthesis_harness_resets_the_core_through_a_registered_global_buffer():
+    from amaranth.back import rtlil
+
+    text = rtlil.convert(MeasurementHarness(core=Echo(), global_reset=True), name="top")
+    top = text[text.index("module \\top"):]
+    top = top[: top.index("\nend\n")]
+    ports = {line.split()[-1].lstrip("\\") for line in top.splitlines() if " input " in line or " output " in line}
+    # The clock and the reset pin are the harness's own; no core port reaches a pin unregistered.
+    assert {"clk", "reset"} <= ports and "rst" not in ports
+    assert "cell \\DCCA" in top
+    # The simulation harness keeps the caller's domain and has no DCCA.
+    assert "DCCA" not in rtlil.convert(MeasurementHarness(core=Echo()), name="top")
+
+
 def test_harness_parameters_are_checked():
     with pytest.raises(ValueError, match="wiring.Component"):
         MeasurementHarness(core=object())
