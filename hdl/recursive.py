@@ -99,6 +99,7 @@ class RecursiveCore(wiring.Component):
         # A node's map offset and its centred depth C (n * S - Ssum with mean compensation, S without);
         # a plain depth is wider than the centred bound when n = 1.
         centred_shape = signed(max(widths.centred_depth.bits, widths.depth.bits))
+        scaled_shape = signed(max(widths.scaled_depth.bits, widths.depth.bits))  # f * S or f * M
         node_layout = data.StructLayout({
             "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
             "centred": centred_shape,
@@ -130,9 +131,10 @@ class RecursiveCore(wiring.Component):
         # f = n with mean compensation, 1 without; it scales map words and patch depths alike.
         factor = Mux(mean, count, 1)
 
-        # Preparation, two passes over the patch memory: read word k, then (one cycle later) count it
-        # and add it to Ssum (first pass), or append it to the node list with its centred depth
-        # (second pass, when n and Ssum are known).
+        # Preparation, two passes over the patch memory: read word k; one cycle later register it
+        # (``staged``); then count it and add it to Ssum (first pass), or register f * S (second pass,
+        # when n is known) and append the node with its centred depth f * S - Ssum a cycle after.
+        # The registers keep the memory's output, the multiplier and the subtraction on separate clocks.
         prepare_index = Signal(range(nodes_total))
         prepare_second = Signal()
         prepare_offset = Signal(node_layout["offset"].shape)
@@ -142,17 +144,32 @@ class RecursiveCore(wiring.Component):
         append_index = Signal(range(nodes_total))
         m.d.comb += patch_read.addr.eq(prepare_index)
         word = patch_read.data
+        staged, staged_second = Signal(), Signal()
+        staged_depth = Signal.like(word.depth)
+        staged_offset = Signal(node_layout["offset"].shape)
+        m.d.sync += [
+            staged.eq(seen & word.valid),
+            staged_second.eq(seen_second),
+            staged_depth.eq(word.depth),
+            staged_offset.eq(seen_offset),
+        ]
+        with m.If(staged & ~staged_second):
+            m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + staged_depth)]
+        scaled, scaled_offset = Signal(), Signal(node_layout["offset"].shape)
+        scaled_depth = Signal(scaled_shape)
+        m.d.sync += [
+            scaled.eq(staged & staged_second),
+            scaled_depth.eq(factor * staged_depth),
+            scaled_offset.eq(staged_offset),
+        ]
         m.d.comb += [
             nodes_write.addr.eq(append_index),
-            nodes_write.data.offset.eq(seen_offset),
-            nodes_write.data.centred.eq(factor * word.depth - Mux(mean, patch_sum, 0)),
-            nodes_write.en.eq(seen & seen_second & word.valid),
+            nodes_write.data.offset.eq(scaled_offset),
+            nodes_write.data.centred.eq(scaled_depth - Mux(mean, patch_sum, 0)),
+            nodes_write.en.eq(scaled),
         ]
-        with m.If(seen & word.valid):
-            with m.If(seen_second):
-                m.d.sync += append_index.eq(append_index + 1)
-            with m.Else():
-                m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + word.depth)]
+        with m.If(scaled):
+            m.d.sync += append_index.eq(append_index + 1)
 
         # --- the address generator: one map read per valid node and placement -------------------
         # After the last placement, one more round of n reads (``flush``) pushes its terms out.
@@ -208,7 +225,6 @@ class RecursiveCore(wiring.Component):
 
         # --- step: sum the window of placement q, keep its words, fetch placement q-1's ------------
         # The window memory keeps f * M: the one multiplication per map word, off the term's path.
-        scaled_shape = signed(max(widths.scaled_depth.bits, widths.depth.bits))
         m.submodules.window = window = memory.Memory(shape=scaled_shape, depth=nodes_total, init=[])
         window_write = window.write_port()
         window_read = window.read_port()  # not transparent: it reads the word being overwritten
@@ -326,9 +342,14 @@ class RecursiveCore(wiring.Component):
                     with m.Else():
                         m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
             with m.State("PREPARE_LAST"):
+                # The last patch word is seen on this cycle; staged on the next, scaled on the one after.
+                m.d.sync += seen.eq(0)
+                m.next = "PREPARE_STAGED"
+            with m.State("PREPARE_STAGED"):
+                m.next = "PREPARE_SCALED"
+            with m.State("PREPARE_SCALED"):
                 # The last patch word is appended on this cycle's edge.
                 m.d.sync += [
-                    seen.eq(0),
                     generating.eq(1),
                     flushing.eq(0),
                     has_previous.eq(0),
