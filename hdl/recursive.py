@@ -251,36 +251,52 @@ class RecursiveCore(wiring.Component):
         with m.If(step & tag.previous & tag.first):
             m.d.sync += previous_window_sum.eq(next_window_sum)
 
-        # --- term: one absolute difference and one accumulator, a cycle after the step -------------
+        # --- term: one absolute difference and one accumulator, in three clocked stages ------------
+        # ``term`` (the window word, one cycle after its step) forms the difference, ``magnitude`` its
+        # absolute value, ``accumulate`` the sum: one carry chain per clock. What the term subtracts
+        # besides the window word, C + Msum of placement q-1, is summed on the step itself.
+        window_sum_shape = signed(widths.window_sum.bits)
+        offset_shape = signed(max(centred_shape.width, window_sum_shape.width) + 1)
         term_valid, term_first, term_last = Signal(), Signal(), Signal()
-        term_centred = Signal(centred_shape)
+        term_offset = Signal(offset_shape)
+        # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
+        term_shape = signed(max(widths.term.bits, widths.difference.bits))
+        magnitude_valid, magnitude_first, magnitude_last = Signal(), Signal(), Signal()
+        magnitude_term = Signal(term_shape)
+        accumulate_valid, accumulate_first, accumulate_last = Signal(), Signal(), Signal()
+        abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
         accumulator = Signal(unsigned(widths.accumulator.bits))
         out_value = Signal(unsigned(widths.accumulator.bits))
         out_full = Signal()
         out_i, out_j = Signal(range(rows)), Signal(range(cols))
 
-        # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
-        term = Signal(signed(max(widths.term.bits, widths.difference.bits)))
-        abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
-        m.d.comb += [
-            # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
-            term.eq(window_read.data - term_centred - Mux(mean, previous_window_sum, 0)),
-            abs_term.eq(Mux(empty, 0, abs(term))),
-        ]
-        accumulator_new = Mux(term_first, 0, accumulator) + abs_term
+        accumulator_new = Mux(accumulate_first, 0, accumulator) + abs_term
         surface_taken = self.surface.valid & self.surface.ready
-        # Only a placement's last term needs the output register; it waits while that is still full.
-        term_fire = term_valid & ~(term_last & out_full & ~self.surface.ready)
-        m.d.comb += response.ready.eq(~term_valid | term_fire)
-        with m.If(term_fire):
-            m.d.sync += [term_valid.eq(0), accumulator.eq(accumulator_new)]
-        with m.If(step):
+        # Only a placement's last term needs the output register; while that is still full, every
+        # stage holds (the model's schedule, with ``surface.ready`` high, never holds).
+        hold = accumulate_valid & accumulate_last & out_full & ~self.surface.ready
+        m.d.comb += response.ready.eq(~hold)
+        with m.If(~hold):
+            # On the step of a placement's first node, Msum of the previous placement moves from
+            # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
+            previous_sum = Mux(tag.first, next_window_sum, previous_window_sum)
             m.d.sync += [
-                term_valid.eq(tag.previous),
+                term_valid.eq(step & tag.previous),
                 term_first.eq(tag.first),
                 term_last.eq(tag.last),
-                term_centred.eq(tag.centred),
+                term_offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
+                # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
+                magnitude_valid.eq(term_valid),
+                magnitude_first.eq(term_first),
+                magnitude_last.eq(term_last),
+                magnitude_term.eq(window_read.data - term_offset),
+                accumulate_valid.eq(magnitude_valid),
+                accumulate_first.eq(magnitude_first),
+                accumulate_last.eq(magnitude_last),
+                abs_term.eq(Mux(empty, 0, abs(magnitude_term))),
             ]
+            with m.If(accumulate_valid):
+                m.d.sync += accumulator.eq(accumulator_new)
 
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
         m.d.comb += [
@@ -299,7 +315,7 @@ class RecursiveCore(wiring.Component):
                 m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
             with m.Else():
                 m.d.sync += out_j.eq(out_j + 1)
-        with m.If(term_fire & term_last):
+        with m.If(~hold & accumulate_valid & accumulate_last):
             m.d.sync += [out_value.eq(accumulator_new), out_full.eq(1)]
 
         # The reducer watches the surface's transfers and answers on ``best``.
