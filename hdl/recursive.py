@@ -196,8 +196,10 @@ class RecursiveCore(wiring.Component):
         request = sequencer.request
         advance = request.valid & request.ready
         # Without a valid node each placement still takes one step, whose term is zero.
-        empty = count == 0
-        last_node = (node_index == count - 1) | empty
+        # Registered once n is known, off the generator's path to the node memory's address.
+        empty = Signal()
+        count_last = Signal(range(nodes_total))  # n - 1
+        last_node = (node_index == count_last) | empty
         m.d.comb += [
             request.valid.eq(generating),
             request.payload.addr.eq(base + Mux(empty, 0, node.offset)),
@@ -362,6 +364,8 @@ class RecursiveCore(wiring.Component):
                 m.d.sync += seen.eq(0)
                 m.next = "PREPARE_STAGED"
             with m.State("PREPARE_STAGED"):
+                # n is final from this cycle on (the last first-pass word was counted on the edge before).
+                m.d.sync += [empty.eq(count == 0), count_last.eq(count - 1)]
                 m.next = "PREPARE_SCALED"
             with m.State("PREPARE_SCALED"):
                 # The last patch word is appended on this cycle's edge.
