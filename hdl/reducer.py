@@ -246,11 +246,19 @@ class BestFitReducer(wiring.Component):
         seen, seen_final = Signal(), Signal()
         seen_row_minimum = Signal()
         seen_slot = Signal(range(slots))
-        seen_col = Signal.like(slot_col)
+        seen_cols = [Signal.like(slot_col, name=f"seen_col{lane}") for lane in range(lanes)]
         seen_row = Signal(row_shape)
 
-        def outside(index, centre):
-            return (index + r < centre) | (index > centre + r)
+        # The band's bounds, registered: the best fit is final before the scan starts.
+        band_rows = Signal(range(-r, rows)), Signal(range(rows + r))
+        band_cols = Signal(range(-r, cols)), Signal(range(cols + r))
+        m.d.sync += [
+            band_rows[0].eq(best_i - r), band_rows[1].eq(best_i + r),
+            band_cols[0].eq(best_j - r), band_cols[1].eq(best_j + r),
+        ]
+
+        def outside(index, band):
+            return (index < band[0]) | (index > band[1])
 
         # Candidates, one per lane, keyed (value, i, j): the smallest key is the smallest value, then the
         # first in raster order. A row minimum is a candidate when its row lies outside the band; a slot
@@ -265,11 +273,11 @@ class BestFitReducer(wiring.Component):
                     m.d.comb += [slot_row.eq(tag[s]), slot_in_band.eq(in_band[s])]
         candidates = []
         for lane in range(lanes):
-            col = seen_col + lane
-            slot_ok = ~seen_row_minimum & slot_in_band & (col < cols) & outside(col, best_j)
+            col = seen_cols[lane]
+            slot_ok = ~seen_row_minimum & slot_in_band & (col < cols) & outside(col, band_cols)
             key = Cat(col[:p.col_bits], slot_row, slots_read.data[lane])
             if lane == 0:
-                row_ok = seen_row_minimum & outside(seen_row, best_i)
+                row_ok = seen_row_minimum & outside(seen_row, band_rows)
                 key = Mux(seen_row_minimum, Cat(minimum.col, seen_row, minimum.value), key)
                 candidates.append((seen & (row_ok | slot_ok), key))
             else:
@@ -318,7 +326,7 @@ class BestFitReducer(wiring.Component):
                 seen_row_minimum.eq(step < scan_rows_end),
                 seen_row.eq(step),
                 seen_slot.eq(slot_index),
-                seen_col.eq(slot_col),
+                *(seen_col.eq(slot_col + lane) for lane, seen_col in enumerate(seen_cols)),
                 step.eq(step + 1),
             ]
             with m.If(step >= scan_rows_end):
