@@ -260,35 +260,46 @@ class BestFitReducer(wiring.Component):
         def outside(index, band):
             return (index < band[0]) | (index > band[1])
 
+        # The memories' outputs are registered before any logic (``fetched``): a block RAM's clock-to-output
+        # alone is half a 100 MHz period on the ECP5.
+        fetched, fetched_final = delayed(seen, 1, 1, "fetched"), delayed(seen_final, 1, 1, "fetched_final")
+        fetched_row_minimum = delayed(seen_row_minimum, 1, 1, "fetched_row_minimum")
+        fetched_slot = delayed(seen_slot, seen_slot.shape(), 1, "fetched_slot")
+        fetched_cols = [delayed(seen_col, seen_col.shape(), 1, f"fetched_col{lane}")
+                        for lane, seen_col in enumerate(seen_cols)]
+        fetched_row = delayed(seen_row, row_shape, 1, "fetched_row")
+        fetched_minimum = delayed(minima_read.data, row_minimum_layout, 1, "fetched_minimum")
+        fetched_words = delayed(slots_read.data, values_layout, 1, "fetched_words")
+
         # Candidates, one per lane, keyed (value, i, j): the smallest key is the smallest value, then the
         # first in raster order. A row minimum is a candidate when its row lies outside the band; a slot
         # word's lane when the slot holds a row of the band and its column lies outside [bj - r, bj + r].
         key_shape = unsigned(p.value_bits + p.row_bits + p.col_bits)
-        minimum = minima_read.data
+        minimum = fetched_minimum
         slot_row = Signal(row_shape)
         slot_in_band = Signal()
-        with m.Switch(seen_slot):
+        with m.Switch(fetched_slot):
             for s in range(slots):
                 with m.Case(s):
                     m.d.comb += [slot_row.eq(tag[s]), slot_in_band.eq(in_band[s])]
         candidates = []
         for lane in range(lanes):
-            col = seen_cols[lane]
-            slot_ok = ~seen_row_minimum & slot_in_band & (col < cols) & outside(col, band_cols)
-            key = Cat(col[:p.col_bits], slot_row, slots_read.data[lane])
+            col = fetched_cols[lane]
+            slot_ok = ~fetched_row_minimum & slot_in_band & (col < cols) & outside(col, band_cols)
+            key = Cat(col[:p.col_bits], slot_row, fetched_words[lane])
             if lane == 0:
-                row_ok = seen_row_minimum & outside(seen_row, band_rows)
-                key = Mux(seen_row_minimum, Cat(minimum.col, seen_row, minimum.value), key)
-                candidates.append((seen & (row_ok | slot_ok), key))
+                row_ok = fetched_row_minimum & outside(fetched_row, band_rows)
+                key = Mux(fetched_row_minimum, Cat(minimum.col, fetched_row, minimum.value), key)
+                candidates.append((fetched & (row_ok | slot_ok), key))
             else:
-                candidates.append((seen & slot_ok, key))
+                candidates.append((fetched & slot_ok, key))
         leaves = []
         for lane, (ok, key) in enumerate(candidates):
             leaf_ok, leaf_key = Signal(name=f"leaf{lane}_ok"), Signal(key_shape, name=f"leaf{lane}_key")
             m.d.sync += [leaf_ok.eq(ok), leaf_key.eq(key)]
             leaves.append((leaf_ok, leaf_key))
         candidate_ok, candidate_key = _tree(m, leaves, _smaller_key, "candidate", (1, key_shape))
-        candidate_final = delayed(seen & seen_final, 1, levels + 1, "candidate_final")
+        candidate_final = delayed(fetched & fetched_final, 1, levels + 1, "candidate_final")
 
         runner_key = Signal(key_shape)
         runner_valid = Signal()
@@ -296,14 +307,13 @@ class BestFitReducer(wiring.Component):
             m.d.sync += [runner_key.eq(candidate_key), runner_valid.eq(1)]
 
         done = Signal()
-        # The last beat on its way through the collecting pipeline, one flag per stage.
-        last_stages = [in_last]
-        for stage in range(levels + 3):
-            last_stages.append(delayed(last_stages[-1], 1, 1, f"last_stage{stage + 1}"))
-        collecting_last = Cat(*last_stages).any()
-        scan_pipeline = Signal()  # a word is on its way from the memories to the runner-up
-        m.d.comb += scan_pipeline.eq(seen | Cat(*[delayed(seen, 1, k + 1, f"scan_busy{k}")
-                                                   for k in range(levels + 1)]).any())
+        # One register from the last beat's arrival to the best beat's transfer: the core's start and load
+        # handshakes depend on it.
+        busy = Signal()
+        with m.If(self.surface.valid & beat.last):
+            m.d.sync += busy.eq(1)
+        with m.If(self.best.valid & self.best.ready):
+            m.d.sync += busy.eq(0)
         m.d.comb += [
             self.best.valid.eq(done),
             self.best.payload.value.eq(best_value),
@@ -313,7 +323,7 @@ class BestFitReducer(wiring.Component):
             self.best.payload.runner_up_i.eq(runner_key[p.col_bits:p.row_bits + p.col_bits]),
             self.best.payload.runner_up_j.eq(runner_key[:p.col_bits]),
             self.best.payload.runner_up_valid.eq(runner_valid),
-            self.busy.eq(collecting_last | scanning | scan_pipeline | done),
+            self.busy.eq(busy),
         ]
 
         # --- state -------------------------------------------------------------------------------

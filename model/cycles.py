@@ -79,11 +79,11 @@ def reducer_latency(surface_shape: tuple[int, int], lanes: int, exclusion_radius
     lanes)`` being the levels of its lane-minimum tree: the beat's register, the tree, the row minimum,
     the best fit, the slot choice; the row-store write is the last of them. The scan then starts: it
     reads each of the ``Ho`` row minima and each of the ``slots * beats_per_row`` row-store words once,
-    one per cycle; a word's lane candidates are registered one cycle after it is read, reduced by a
-    ``K``-level tree and compared with the runner-up on the next edge, after which the best beat is
-    offered and transfers on the edge after (with ``best.ready`` high).
+    one per cycle; a word is registered on the edge after it is read and its lane candidates on the
+    next, which a ``K``-level tree reduces to one compared with the runner-up on the next edge, after
+    which the best beat is offered and transfers on the edge after (with ``best.ready`` high).
     """
     rows, _ = _check_surface_shape(surface_shape)
     slots, beats_per_row = reducer_geometry(surface_shape, lanes, exclusion_radius)
     levels = (int(lanes) - 1).bit_length()  # ceil(log2 lanes)
-    return rows + slots * beats_per_row + 2 * levels + 7
+    return rows + slots * beats_per_row + 2 * levels + 8

@@ -16,7 +16,7 @@ def test_full_size_figures():
     assert mean.surface[0] == 2 * 100 + 8 + 2 * 100
     assert plain.surface[-1] == 2 * 100 + 8 + (492 * 492 + 1) * 100
     np.testing.assert_array_equal(mean.surface, plain.surface)
-    assert mean.best == mean.surface[-1] + 492 + 4 * 492 + 7
+    assert mean.best == mean.surface[-1] + 492 + 4 * 492 + 8
     assert mean.total == mean.best
 
 
@@ -31,8 +31,8 @@ def test_beats_are_one_placement_apart():
 def test_reducer_geometry_and_latency():
     assert reducer_geometry((10, 10), 4, 1) == (4, 3)
     assert reducer_geometry((3, 10), 1, 2) == (3, 10)  # no more slots than rows
-    assert reducer_latency((10, 10), 4, 1) == 10 + 4 * 3 + 2 * 2 + 7  # 2 tree levels for 4 lanes
-    assert reducer_latency((10, 10), 5, 1) == 10 + 4 * 2 + 2 * 3 + 7
+    assert reducer_latency((10, 10), 4, 1) == 10 + 4 * 3 + 2 * 2 + 8  # 2 tree levels for 4 lanes
+    assert reducer_latency((10, 10), 5, 1) == 10 + 4 * 2 + 2 * 3 + 8
     assert surface_beats((2, 5), 2) == [(0, 0, 2), (0, 2, 2), (0, 4, 1), (1, 0, 2), (1, 2, 2), (1, 4, 1)]
 
 
