@@ -253,16 +253,20 @@ class RecursiveCore(wiring.Component):
         with m.If(step & tag.previous & tag.first):
             m.d.sync += previous_window_sum.eq(next_window_sum)
 
-        # --- term: one absolute difference and one accumulator, in three clocked stages ------------
-        # ``term`` (the window word, one cycle after its step) forms the difference, ``magnitude`` its
-        # absolute value, ``accumulate`` the sum: one carry chain per clock. What the term subtracts
-        # besides the window word, C + Msum of placement q-1, is summed on the step itself.
+        # --- term: one absolute difference and one accumulator, in clocked stages ------------------
+        # ``term`` (the window memory's output, one cycle after the step) is registered as it is
+        # (``fetched``: a block RAM's clock-to-output is half a 100 MHz period on the ECP5), then
+        # forms the difference, ``magnitude`` its absolute value, ``accumulate`` the sum: one carry
+        # chain per clock. What the term subtracts besides the window word, C + Msum of placement
+        # q-1, is summed on the step itself.
         window_sum_shape = signed(widths.window_sum.bits)
         offset_shape = signed(max(centred_shape.width, window_sum_shape.width) + 1)
         term_valid, term_first, term_last = Signal(), Signal(), Signal()
         term_offset = Signal(offset_shape)
         # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
         term_shape = signed(max(widths.term.bits, widths.difference.bits))
+        fetched_valid, fetched_first, fetched_last = Signal(), Signal(), Signal()
+        fetched_word, fetched_offset = Signal(scaled_shape), Signal(offset_shape)
         magnitude_valid, magnitude_first, magnitude_last = Signal(), Signal(), Signal()
         magnitude_term = Signal(term_shape)
         accumulate_valid, accumulate_first, accumulate_last = Signal(), Signal(), Signal()
@@ -287,11 +291,16 @@ class RecursiveCore(wiring.Component):
                 term_first.eq(tag.first),
                 term_last.eq(tag.last),
                 term_offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
+                fetched_valid.eq(term_valid),
+                fetched_first.eq(term_first),
+                fetched_last.eq(term_last),
+                fetched_word.eq(window_read.data),
+                fetched_offset.eq(term_offset),
                 # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
-                magnitude_valid.eq(term_valid),
-                magnitude_first.eq(term_first),
-                magnitude_last.eq(term_last),
-                magnitude_term.eq(window_read.data - term_offset),
+                magnitude_valid.eq(fetched_valid),
+                magnitude_first.eq(fetched_first),
+                magnitude_last.eq(fetched_last),
+                magnitude_term.eq(fetched_word - fetched_offset),
                 accumulate_valid.eq(magnitude_valid),
                 accumulate_first.eq(magnitude_first),
                 accumulate_last.eq(magnitude_last),
