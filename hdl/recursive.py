@@ -193,25 +193,39 @@ class RecursiveCore(wiring.Component):
         base = Signal(range(H * W))
         gen_i, gen_j = Signal(range(rows)), Signal(range(cols))
         node = nodes_read.data
+        # Each request is registered (``queued``) before the sequencer takes it: the node memory's
+        # clock-to-output and the address sum are on separate clocks.
         request = sequencer.request
-        advance = request.valid & request.ready
+        queued = Signal()
+        queued_base = Signal.like(base)
+        queued_offset = Signal(node_layout["offset"].shape)
+        queued_tag = Signal(tag_layout)
+        take = ~queued | request.ready
+        advance = generating & take
         # Without a valid node each placement still takes one step, whose term is zero.
         # Registered once n is known, off the generator's path to the node memory's address.
         empty = Signal()
         count_last = Signal(range(nodes_total))  # n - 1
         last_node = (node_index == count_last) | empty
         m.d.comb += [
-            request.valid.eq(generating),
-            request.payload.addr.eq(base + Mux(empty, 0, node.offset)),
-            request.payload.tag.index.eq(node_index),
-            request.payload.tag.first.eq(node_index == 0),
-            request.payload.tag.last.eq(last_node),
-            request.payload.tag.centred.eq(node.centred),
-            request.payload.tag.current.eq(~flushing),
-            request.payload.tag.previous.eq(has_previous),
+            request.valid.eq(queued),
+            request.payload.addr.eq(queued_base + queued_offset),
+            request.payload.tag.eq(queued_tag),
             # The read port always holds the node the generator is at.
             nodes_read.addr.eq(Mux(advance, Mux(last_node, 0, node_index + 1), node_index)),
         ]
+        with m.If(take):
+            m.d.sync += [
+                queued.eq(generating),
+                queued_base.eq(base),
+                queued_offset.eq(Mux(empty, 0, node.offset)),
+                queued_tag.index.eq(node_index),
+                queued_tag.first.eq(node_index == 0),
+                queued_tag.last.eq(last_node),
+                queued_tag.centred.eq(node.centred),
+                queued_tag.current.eq(~flushing),
+                queued_tag.previous.eq(has_previous),
+            ]
         with m.If(advance):
             m.d.sync += node_index.eq(Mux(last_node, 0, node_index + 1))
             with m.If(last_node):
