@@ -130,8 +130,7 @@ class BestFitReducer(wiring.Component):
 
         # The beat's minimum by a compare tree with a register per level (lowest lane first on ties).
         leaves = [(lane < in_count, in_values[lane], in_j + lane) for lane in range(lanes)]
-        beat_ok, beat_value, beat_col = _tree(m, leaves, _earlier_smaller, "beat",
-                                              (1, value_shape, col_shape))
+        _, beat_value, beat_col = _tree(m, leaves, _earlier_smaller, "beat", (1, value_shape, col_shape))
         levels = ceil_log2(lanes)
         meta_layout = data.StructLayout({
             "valid": 1, "last": 1, "i": row_shape, "first_in_row": 1, "row_end": 1,
@@ -231,7 +230,7 @@ class BestFitReducer(wiring.Component):
         with m.If(write_valid):
             m.d.sync += next_address.eq(address + 1)
 
-        # --- scanning: one memory word per cycle after the last beat is stored --------------------------
+        # --- scanning: one memory word per cycle after the last beat is stored ----------------------
         scan_rows_end = rows
         scan_end = rows + slots * beats_per_row
         scanning = Signal()
