@@ -15,15 +15,15 @@ that can be computed once, and one datapath serves both modes::
 
 At start, two passes over the patch memory form ``n`` and ``Ssum``, then a compact list of the valid
 nodes (map offset, ``C``); only valid nodes are visited afterwards, so a sparse mask costs fewer
-cycles. ``f * M`` is formed once per map word as it is read, so the term unit itself has no multiplier:
-two subtractions, an absolute value and the accumulator.
+cycles. The term unit forms ``f * M`` (one multiplication per term), one subtraction (``C + f_sum``
+is summed beforehand), an absolute value and the accumulator, each on its own clock.
 
 The window sum must be known before a placement's first term. Rather than reading the map twice, the
 core reads each map word once and uses it twice, one placement apart: on each step it adds the word of
-node ``k`` of placement ``q`` to the window sum and writes ``f * M`` into a small window memory
+node ``k`` of placement ``q`` to the window sum and writes ``M`` into a small window memory
 (``h * w`` words) at ``k``, whose read port returns, on the same edge, the word it overwrote: node ``k``
-of placement ``q - 1``, whose window sum is complete by then. The term unit forms that term on the next
-clock. So a placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the
+of placement ``q - 1``, whose window sum is complete by then. The term unit takes that word on the
+next clock. So a placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the
 last placement empties the pipeline. The schedule is modelled exactly by
 :func:`lost.model.cycles_recursive.schedule`.
 
@@ -240,8 +240,7 @@ class RecursiveCore(wiring.Component):
                     m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
 
         # --- step: sum the window of placement q, keep its words, fetch placement q-1's ------------
-        # The window memory keeps f * M: the one multiplication per map word, off the term's path.
-        m.submodules.window = window = memory.Memory(shape=scaled_shape, depth=nodes_total, init=[])
+        m.submodules.window = window = memory.Memory(shape=signed(p.depth_bits), depth=nodes_total, init=[])
         window_write = window.write_port()
         window_read = window.read_port()  # not transparent: it reads the word being overwritten
         response = sequencer.response
@@ -255,7 +254,7 @@ class RecursiveCore(wiring.Component):
         window_sum_new = Mux(tag.first, 0, window_sum) + map_word
         m.d.comb += [
             window_write.addr.eq(tag.index),
-            window_write.data.eq(factor * map_word),
+            window_write.data.eq(map_word),
             window_write.en.eq(step & tag.current),
             window_read.addr.eq(tag.index),
             window_read.en.eq(step),  # held while the term stage waits
@@ -270,8 +269,8 @@ class RecursiveCore(wiring.Component):
         # --- term: one absolute difference and one accumulator, in clocked stages ------------------
         # ``term`` (the window memory's output, one cycle after the step) is registered as it is
         # (``fetched``: a block RAM's clock-to-output is half a 100 MHz period on the ECP5), then
-        # forms the difference, ``magnitude`` its absolute value, ``accumulate`` the sum: one carry
-        # chain per clock. What the term subtracts besides the window word, C + Msum of placement
+        # scaled by f (``product``, the multiplier between registers), then forms the difference,
+        # ``magnitude`` its absolute value, ``accumulate`` the sum: one carry chain per clock. What the term subtracts besides the window word, C + Msum of placement
         # q-1, is summed on the step itself.
         window_sum_shape = signed(widths.window_sum.bits)
         offset_shape = signed(max(centred_shape.width, window_sum_shape.width) + 1)
@@ -280,7 +279,9 @@ class RecursiveCore(wiring.Component):
         # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
         term_shape = signed(max(widths.term.bits, widths.difference.bits))
         fetched_valid, fetched_first, fetched_last = Signal(), Signal(), Signal()
-        fetched_word, fetched_offset = Signal(scaled_shape), Signal(offset_shape)
+        fetched_word, fetched_offset = Signal(signed(p.depth_bits)), Signal(offset_shape)
+        product_valid, product_first, product_last = Signal(), Signal(), Signal()
+        product_word, product_offset = Signal(scaled_shape), Signal(offset_shape)
         magnitude_valid, magnitude_first, magnitude_last = Signal(), Signal(), Signal()
         magnitude_term = Signal(term_shape)
         accumulate_valid, accumulate_first, accumulate_last = Signal(), Signal(), Signal()
@@ -310,11 +311,16 @@ class RecursiveCore(wiring.Component):
                 fetched_last.eq(term_last),
                 fetched_word.eq(window_read.data),
                 fetched_offset.eq(term_offset),
+                product_valid.eq(fetched_valid),
+                product_first.eq(fetched_first),
+                product_last.eq(fetched_last),
+                product_word.eq(factor * fetched_word),
+                product_offset.eq(fetched_offset),
                 # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
-                magnitude_valid.eq(fetched_valid),
-                magnitude_first.eq(fetched_first),
-                magnitude_last.eq(fetched_last),
-                magnitude_term.eq(fetched_word - fetched_offset),
+                magnitude_valid.eq(product_valid),
+                magnitude_first.eq(product_first),
+                magnitude_last.eq(product_last),
+                magnitude_term.eq(product_word - product_offset),
                 accumulate_valid.eq(magnitude_valid),
                 accumulate_first.eq(magnitude_first),
                 accumulate_last.eq(magnitude_last),

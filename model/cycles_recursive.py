@@ -13,11 +13,11 @@ edge on which the ``start`` beat transfers (cycle 0):
   ``T0 + q``;
 * its word reaches the step stage on the next edge (``T0 + q + 1``), which sums it into placement
   ``q // n``'s window and fetches the word of the same node of the previous placement; the term unit
-  takes that on the edge after (``T0 + q + 2``) and passes it through its fetched-word, difference,
-  magnitude and accumulator stages on the next four. The last term of placement ``p`` comes with
-  request ``(p + 2) * n - 1`` and fills the output register (``T0 + q + 5``), which transfers one edge
-  later: cycle
-  ``2*h*w + 10 + (p + 2) * n``;
+  takes that on the edge after (``T0 + q + 2``) and passes it through its fetched-word, product,
+  difference, magnitude and accumulator stages on the next five. The last term of placement ``p``
+  comes with request ``(p + 2) * n - 1`` and fills the output register (``T0 + q + 6``), which
+  transfers one edge later: cycle
+  ``2*h*w + 11 + (p + 2) * n``;
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 """
 
@@ -67,6 +67,6 @@ def schedule(map_shape, patch_shape, mask=None, mean_compensation=True, *, exclu
     rows, cols = H - h + 1, W - w + 1
     n = requests_per_placement(mask, mean_compensation)
     placements = np.arange(rows * cols, dtype=np.int64)
-    surface = 2 * h * w + 10 + (placements + 2) * n
+    surface = 2 * h * w + 11 + (placements + 2) * n
     best = int(surface[-1]) + reducer_latency((rows, cols), 1, exclusion_radius)
     return Schedule(surface=surface, best=best)

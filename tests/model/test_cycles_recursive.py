@@ -13,8 +13,8 @@ def test_full_size_figures():
     mean = schedule((501, 501), (10, 10))
     plain = schedule((501, 501), (10, 10), mean_compensation=False)
     assert mean.surface.shape == (492 * 492,)
-    assert mean.surface[0] == 2 * 100 + 10 + 2 * 100
-    assert plain.surface[-1] == 2 * 100 + 10 + (492 * 492 + 1) * 100
+    assert mean.surface[0] == 2 * 100 + 11 + 2 * 100
+    assert plain.surface[-1] == 2 * 100 + 11 + (492 * 492 + 1) * 100
     np.testing.assert_array_equal(mean.surface, plain.surface)
     assert mean.best == mean.surface[-1] + 492 + 4 * 492 + 8
     assert mean.total == mean.best
@@ -24,7 +24,7 @@ def test_beats_are_one_placement_apart():
     mask = np.array([[True, False, True], [False, True, True]])
     result = schedule((6, 8), (2, 3), mask, True)
     assert set(np.diff(result.surface).tolist()) == {4}
-    assert result.surface[0] == 2 * 6 + 10 + 2 * 4
+    assert result.surface[0] == 2 * 6 + 11 + 2 * 4
     assert requests_per_placement(mask, False) == requests_per_placement(mask, True) == 4
 
 
