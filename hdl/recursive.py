@@ -129,7 +129,9 @@ class RecursiveCore(wiring.Component):
         patch_sum = Signal(signed(widths.window_sum.bits))
 
         # f = n with mean compensation, 1 without; it scales map words and patch depths alike.
-        factor = Mux(mean, count, 1)
+        # A register of its own, kept equal to Mux(mean, count, 1), so that the multipliers' inputs are
+        # registers.
+        factor = Signal(range(nodes_total + 1))
 
         # Preparation, two passes over the patch memory: read word k; one cycle later register it
         # (``staged``); then count it and add it to Ssum (first pass), or register f * S (second pass,
@@ -154,7 +156,11 @@ class RecursiveCore(wiring.Component):
             staged_offset.eq(seen_offset),
         ]
         with m.If(staged & ~staged_second):
-            m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + staged_depth)]
+            m.d.sync += [
+                count.eq(count + 1),
+                factor.eq(Mux(mean, count + 1, 1)),
+                patch_sum.eq(patch_sum + staged_depth),
+            ]
         scaled, scaled_offset = Signal(), Signal(node_layout["offset"].shape)
         scaled_depth = Signal(scaled_shape)
         m.d.sync += [
@@ -365,6 +371,7 @@ class RecursiveCore(wiring.Component):
                         running.eq(1),
                         mean.eq(self.start.payload.mean_compensation),
                         count.eq(0),
+                        factor.eq(~self.start.payload.mean_compensation),
                         patch_sum.eq(0),
                         append_index.eq(0),
                         prepare_index.eq(0),
