@@ -389,52 +389,76 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
     lut4, lut4_available = util["TRELLIS_COMB"]["used"], util["TRELLIS_COMB"]["available"]
     lut4_percent = round(100 * lut4 / lut4_available, 1)
     log(f"{name}: packed into {lut4} LUT4 ({lut4_percent} %)")
+    # What an entry that was not placed (or whose every seed failed) reports instead of post-route figures.
+    unplaced = {
+        "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
+                   "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
+        "lut4_percent": lut4_percent,
+        "max_lut_percent": max_lut_percent,
+    }
     if lut4_percent > max_lut_percent or not place:
         return entry | {
             "routed": False,
             "reason": (f"LUT4 use over {max_lut_percent:g} %" if lut4_percent > max_lut_percent
                        else "no time in this run"),
-            "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
-                       "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
-            "lut4_percent": lut4_percent,
-            "max_lut_percent": max_lut_percent,
+            **unplaced,
         }
+
+    def current(tried: dict) -> bool:
+        """A cached try of this netlist, router and target (a failed one keeps its seed and target at the top)."""
+        target = tried.get("target_mhz", tried.get("result", {}).get("target_mhz"))
+        return tried["il_sha256"] == fingerprint and tried.get("router") == router and target == target_mhz
 
     tries = []
     for seed in seeds:
         cached = out_dir / f"{name}-seed{seed}.json"
         tried = json.loads(cached.read_text()) if cached.exists() else None
-        if (tried is None or tried["il_sha256"] != fingerprint or tried["result"]["target_mhz"] != target_mhz
-                or tried.get("router") != router):
+        if tried is None or not current(tried):
             log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz ({router})")
-            result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed, router=router)
-            tried = {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
-                     "critical_path": critical_path_summary(report)}
+            try:
+                result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed, router=router)
+            except FlowError as error:
+                # One seed's router failure (seen: the clock pin's route to its global buffer) is a
+                # result of that seed, not of the configuration: report it and try the others.
+                tried = {"il_sha256": fingerprint, "router": router, "target_mhz": target_mhz, "seed": seed,
+                         "failed": str(error).splitlines()[0]}
+            else:
+                tried = {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
+                         "critical_path": critical_path_summary(report)}
             cached.write_text(json.dumps(tried, indent=1))
         report_path = out_dir / f"{name}-seed{seed}-report.json"
-        if report_path.exists():  # summaries of cached runs follow this module's reading of the report
+        if "failed" not in tried and report_path.exists():  # summaries of cached runs follow this module's reading
             tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
-        log(f"{name}: seed {seed}: {tried['result']['fmax_mhz']:.1f} MHz")
+        log(f"{name}: seed {seed}: " + (f"failed: {tried['failed']}" if "failed" in tried else f"{tried['result']['fmax_mhz']:.1f} MHz"))
         tries.append(tried)
     # Seeds routed by earlier runs of the same netlist, router and target count too: every seed tried is reported.
     for cached in sorted(out_dir.glob(f"{name}-seed*.json")):
         if cached.name.endswith("-report.json"):
             continue
         tried = json.loads(cached.read_text())
-        if (tried["result"]["seed"] not in seeds and tried["il_sha256"] == fingerprint
-                and tried.get("router") == router and tried["result"]["target_mhz"] == target_mhz):
-            report_path = out_dir / f"{name}-seed{tried['result']['seed']}-report.json"
-            if report_path.exists():
+        if _seed_of(tried) not in seeds and current(tried):
+            report_path = out_dir / f"{name}-seed{_seed_of(tried)}-report.json"
+            if "failed" not in tried and report_path.exists():
                 tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
             tries.append(tried)
-    tries.sort(key=lambda tried: tried["result"]["seed"])
+    tries.sort(key=_seed_of)
+    seed_figures = {str(_seed_of(t)): (None if "failed" in t else round(t["result"]["fmax_mhz"], 2)) for t in tries}
+    routed = [t for t in tries if "failed" not in t]
+    if not routed:
+        return entry | {
+            "routed": False,
+            "reason": "nextpnr failed on every seed (" + ", ".join(seed_figures) + "; see the -nextpnr.log files)",
+            "seeds": seed_figures,
+            **unplaced,
+        }
+    tries = routed
     best = max(tries, key=lambda tried: tried["result"]["fmax_mhz"])
     result = best["result"]
     seconds = cycles / (result["fmax_mhz"] * 1e6)
     return entry | {
         "routed": True,
         "router": router,
-        "seeds": {str(tried["result"]["seed"]): round(tried["result"]["fmax_mhz"], 2) for tried in tries},
+        "seeds": seed_figures,
         "result": result,
         "lut4_percent": round(100 * result["lut4"] / result["lut4_available"], 1),
         "ebr_percent": round(100 * result["ebr"] / result["ebr_available"], 1),
@@ -445,6 +469,10 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         "goal_met": (seconds <= goal) if tuple(config.map_shape) == PAPER_MAP_SHAPE else None,
         "critical_path": best["critical_path"],
     }
+
+
+def _seed_of(tried: dict) -> int:
+    return tried["seed"] if "failed" in tried else tried["result"]["seed"]
 
 
 def _time(seconds: float) -> str:
@@ -472,7 +500,7 @@ def markdown_table(entries: Sequence[dict]) -> str:
             goal = f"- ({H}x{W} map)"
         else:
             goal = ("met" if entry["goal_met"] else "not reached") + f" (<= {_time(entry['goal_seconds'])})"
-        seeds = ", ".join(f"{seed}: {fmax:.1f}" for seed, fmax in entry["seeds"].items())
+        seeds = ", ".join(f"{seed}: " + ("failed" if fmax is None else f"{fmax:.1f}") for seed, fmax in entry["seeds"].items())
         lines.append(
             f"| {entry['variant']} | {entry['lanes']} | {H}x{W} | {entry['memory']} | {r['fmax_mhz']:.1f} | {seeds} "
             f"| {r['lut4']} ({entry['lut4_percent']:.0f} %) | {r['ff']} | {r['ebr']} | {r['dsp']} "
