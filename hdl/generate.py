@@ -24,6 +24,8 @@ from pathlib import Path
 from amaranth.back import verilog
 from amaranth.lib import wiring
 
+from lost.model.shapes import shape_argument
+
 __all__ = ["VARIANTS", "Variant", "compact_zero_initializers", "to_verilog", "variant", "write_verilog", "write_variants"]
 
 DEFAULT_MAP_SHAPE = (501, 501)
@@ -159,14 +161,6 @@ def write_variants(
         )
         for v in chosen
     ]
-
-
-def shape_argument(text: str) -> tuple[int, int]:
-    try:
-        rows, cols = (int(side) for side in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected ROWSxCOLS such as 501x501, got {text!r}") from None
-    return rows, cols
 
 
 def main(argv: Sequence[str] | None = None) -> int:

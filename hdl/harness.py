@@ -8,6 +8,10 @@ in the one way that keeps the measurement honest:
   clock from registered pins, so no input is constant and none can be optimised away;
 * every core output is registered, then XOR-folded into ``fold_bits`` registered pins through a tree
   of registered 4-input XORs, so every output bit stays live and the fold never sets Fmax;
+* with ``global_reset`` (the synthesis builds), the reset pin is registered and that register drives
+  the core's reset through a ``DCCA`` clock buffer onto a global net, as an ECP5 design with a
+  reset fanning out to thousands of flip-flops does (nextpnr promotes only clocks to globals): else
+  the reset pin itself is the start of the longest path;
 * the core's ``map_read`` port, when it has one (the external-memory build), goes to its own pins,
   address and enable out through one register each, data in through one register: the pins an
   external memory would drive. Those registers add two cycles to the one-cycle latency the core
@@ -22,7 +26,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Cat, Module, Signal, Value
+from amaranth.hdl import Cat, ClockDomain, Instance, Module, Signal, Value
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -65,6 +69,10 @@ class MeasurementHarness(wiring.Component):
         Input pins feeding the scan chain of the core's inputs.
     fold_bits : int
         Output pins carrying the XOR fold of the core's outputs.
+    global_reset : bool
+        Define the ``sync`` domain here, clocked by the ``clk`` pin and reset from the registered
+        ``reset`` pin through an ECP5 ``DCCA`` global buffer (synthesis only: the simulator knows no
+        ``DCCA``). Without it the domain is the caller's, with its ``rst`` port.
 
     Members
     -------
@@ -76,15 +84,20 @@ class MeasurementHarness(wiring.Component):
         Only with a ``map_read`` port: its address and enable, registered.
     map_data : ``In(...)``
         Only with a ``map_read`` port: its data, registered before it reaches the core.
+    clk, reset : ``In(1)``
+        Only with ``global_reset``: the clock and the reset pin.
     """
 
-    def __init__(self, *, core: wiring.Component, scan_bits: int = 4, fold_bits: int = 8):
+    def __init__(self, *, core: wiring.Component, scan_bits: int = 4, fold_bits: int = 8, global_reset: bool = False):
         if not isinstance(core, wiring.Component):
             raise ValueError(f"core must be an amaranth wiring.Component, got {type(core).__name__}")
         self._core = core
         self._scan_bits = _check_positive("scan_bits", scan_bits)
         self._fold_bits = _check_positive("fold_bits", fold_bits)
+        self._global_reset = bool(global_reset)
         members = {"scan_in": In(scan_bits), "fold_out": Out(fold_bits)}
+        if self._global_reset:
+            members |= {"clk": In(1), "reset": In(1)}
         self._external = "map_read" in core.signature.members
         if self._external:
             port = core.map_read
@@ -103,6 +116,13 @@ class MeasurementHarness(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         m.submodules.core = core = self._core
+
+        if self._global_reset:
+            m.domains.sync = sync = ClockDomain("sync")
+            reset_pin = Signal(reset_less=True)
+            m.d.sync += reset_pin.eq(self.reset)
+            m.submodules.reset_buffer = Instance("DCCA", i_CLKI=reset_pin, i_CE=1, o_CLKO=sync.rst)
+            m.d.comb += sync.clk.eq(self.clk)
 
         inputs, outputs = [], []
         for path, member, value in core.signature.flatten(core):

@@ -15,15 +15,15 @@ that can be computed once, and one datapath serves both modes::
 
 At start, two passes over the patch memory form ``n`` and ``Ssum``, then a compact list of the valid
 nodes (map offset, ``C``); only valid nodes are visited afterwards, so a sparse mask costs fewer
-cycles. ``f * M`` is formed once per map word as it is read, so the term unit itself has no multiplier:
-two subtractions, an absolute value and the accumulator.
+cycles. The term unit forms ``f * M`` (one multiplication per term), one subtraction (``C + f_sum``
+is summed beforehand), an absolute value and the accumulator, each on its own clock.
 
 The window sum must be known before a placement's first term. Rather than reading the map twice, the
 core reads each map word once and uses it twice, one placement apart: on each step it adds the word of
-node ``k`` of placement ``q`` to the window sum and writes ``f * M`` into a small window memory
+node ``k`` of placement ``q`` to the window sum and writes ``M`` into a small window memory
 (``h * w`` words) at ``k``, whose read port returns, on the same edge, the word it overwrote: node ``k``
-of placement ``q - 1``, whose window sum is complete by then. The term unit forms that term on the next
-clock. So a placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the
+of placement ``q - 1``, whose window sum is complete by then. The term unit takes that word on the
+next clock. So a placement costs ``n`` clocks in either mode, and one extra round of ``n`` steps after the
 last placement empties the pipeline. The schedule is modelled exactly by
 :func:`lost.model.cycles_recursive.schedule`.
 
@@ -99,6 +99,7 @@ class RecursiveCore(wiring.Component):
         # A node's map offset and its centred depth C (n * S - Ssum with mean compensation, S without);
         # a plain depth is wider than the centred bound when n = 1.
         centred_shape = signed(max(widths.centred_depth.bits, widths.depth.bits))
+        scaled_shape = signed(max(widths.scaled_depth.bits, widths.depth.bits))  # f * S or f * M
         node_layout = data.StructLayout({
             "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
             "centred": centred_shape,
@@ -128,11 +129,14 @@ class RecursiveCore(wiring.Component):
         patch_sum = Signal(signed(widths.window_sum.bits))
 
         # f = n with mean compensation, 1 without; it scales map words and patch depths alike.
-        factor = Mux(mean, count, 1)
+        # A register of its own, kept equal to Mux(mean, count, 1), so that the multipliers' inputs are
+        # registers.
+        factor = Signal(range(nodes_total + 1))
 
-        # Preparation, two passes over the patch memory: read word k, then (one cycle later) count it
-        # and add it to Ssum (first pass), or append it to the node list with its centred depth
-        # (second pass, when n and Ssum are known).
+        # Preparation, two passes over the patch memory: read word k; one cycle later register it
+        # (``staged``); then count it and add it to Ssum (first pass), or register f * S (second pass,
+        # when n is known) and append the node with its centred depth f * S - Ssum a cycle after.
+        # The registers keep the memory's output, the multiplier and the subtraction on separate clocks.
         prepare_index = Signal(range(nodes_total))
         prepare_second = Signal()
         prepare_offset = Signal(node_layout["offset"].shape)
@@ -142,17 +146,36 @@ class RecursiveCore(wiring.Component):
         append_index = Signal(range(nodes_total))
         m.d.comb += patch_read.addr.eq(prepare_index)
         word = patch_read.data
+        staged, staged_second = Signal(), Signal()
+        staged_depth = Signal.like(word.depth)
+        staged_offset = Signal(node_layout["offset"].shape)
+        m.d.sync += [
+            staged.eq(seen & word.valid),
+            staged_second.eq(seen_second),
+            staged_depth.eq(word.depth),
+            staged_offset.eq(seen_offset),
+        ]
+        with m.If(staged & ~staged_second):
+            m.d.sync += [
+                count.eq(count + 1),
+                factor.eq(Mux(mean, count + 1, 1)),
+                patch_sum.eq(patch_sum + staged_depth),
+            ]
+        scaled, scaled_offset = Signal(), Signal(node_layout["offset"].shape)
+        scaled_depth = Signal(scaled_shape)
+        m.d.sync += [
+            scaled.eq(staged & staged_second),
+            scaled_depth.eq(factor * staged_depth),
+            scaled_offset.eq(staged_offset),
+        ]
         m.d.comb += [
             nodes_write.addr.eq(append_index),
-            nodes_write.data.offset.eq(seen_offset),
-            nodes_write.data.centred.eq(factor * word.depth - Mux(mean, patch_sum, 0)),
-            nodes_write.en.eq(seen & seen_second & word.valid),
+            nodes_write.data.offset.eq(scaled_offset),
+            nodes_write.data.centred.eq(scaled_depth - Mux(mean, patch_sum, 0)),
+            nodes_write.en.eq(scaled),
         ]
-        with m.If(seen & word.valid):
-            with m.If(seen_second):
-                m.d.sync += append_index.eq(append_index + 1)
-            with m.Else():
-                m.d.sync += [count.eq(count + 1), patch_sum.eq(patch_sum + word.depth)]
+        with m.If(scaled):
+            m.d.sync += append_index.eq(append_index + 1)
 
         # --- the address generator: one map read per valid node and placement -------------------
         # After the last placement, one more round of n reads (``flush``) pushes its terms out.
@@ -176,23 +199,39 @@ class RecursiveCore(wiring.Component):
         base = Signal(range(H * W))
         gen_i, gen_j = Signal(range(rows)), Signal(range(cols))
         node = nodes_read.data
+        # Each request is registered (``queued``) before the sequencer takes it: the node memory's
+        # clock-to-output and the address sum are on separate clocks.
         request = sequencer.request
-        advance = request.valid & request.ready
+        queued = Signal()
+        queued_base = Signal.like(base)
+        queued_offset = Signal(node_layout["offset"].shape)
+        queued_tag = Signal(tag_layout)
+        take = ~queued | request.ready
+        advance = generating & take
         # Without a valid node each placement still takes one step, whose term is zero.
-        empty = count == 0
-        last_node = (node_index == count - 1) | empty
+        # Registered once n is known, off the generator's path to the node memory's address.
+        empty = Signal()
+        count_last = Signal(range(nodes_total))  # n - 1
+        last_node = (node_index == count_last) | empty
         m.d.comb += [
-            request.valid.eq(generating),
-            request.payload.addr.eq(base + Mux(empty, 0, node.offset)),
-            request.payload.tag.index.eq(node_index),
-            request.payload.tag.first.eq(node_index == 0),
-            request.payload.tag.last.eq(last_node),
-            request.payload.tag.centred.eq(node.centred),
-            request.payload.tag.current.eq(~flushing),
-            request.payload.tag.previous.eq(has_previous),
+            request.valid.eq(queued),
+            request.payload.addr.eq(queued_base + queued_offset),
+            request.payload.tag.eq(queued_tag),
             # The read port always holds the node the generator is at.
             nodes_read.addr.eq(Mux(advance, Mux(last_node, 0, node_index + 1), node_index)),
         ]
+        with m.If(take):
+            m.d.sync += [
+                queued.eq(generating),
+                queued_base.eq(base),
+                queued_offset.eq(Mux(empty, 0, node.offset)),
+                queued_tag.index.eq(node_index),
+                queued_tag.first.eq(node_index == 0),
+                queued_tag.last.eq(last_node),
+                queued_tag.centred.eq(node.centred),
+                queued_tag.current.eq(~flushing),
+                queued_tag.previous.eq(has_previous),
+            ]
         with m.If(advance):
             m.d.sync += node_index.eq(Mux(last_node, 0, node_index + 1))
             with m.If(last_node):
@@ -207,9 +246,7 @@ class RecursiveCore(wiring.Component):
                     m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
 
         # --- step: sum the window of placement q, keep its words, fetch placement q-1's ------------
-        # The window memory keeps f * M: the one multiplication per map word, off the term's path.
-        scaled_shape = signed(max(widths.scaled_depth.bits, widths.depth.bits))
-        m.submodules.window = window = memory.Memory(shape=scaled_shape, depth=nodes_total, init=[])
+        m.submodules.window = window = memory.Memory(shape=signed(p.depth_bits), depth=nodes_total, init=[])
         window_write = window.write_port()
         window_read = window.read_port()  # not transparent: it reads the word being overwritten
         response = sequencer.response
@@ -223,7 +260,7 @@ class RecursiveCore(wiring.Component):
         window_sum_new = Mux(tag.first, 0, window_sum) + map_word
         m.d.comb += [
             window_write.addr.eq(tag.index),
-            window_write.data.eq(factor * map_word),
+            window_write.data.eq(map_word),
             window_write.en.eq(step & tag.current),
             window_read.addr.eq(tag.index),
             window_read.en.eq(step),  # held while the term stage waits
@@ -235,36 +272,68 @@ class RecursiveCore(wiring.Component):
         with m.If(step & tag.previous & tag.first):
             m.d.sync += previous_window_sum.eq(next_window_sum)
 
-        # --- term: one absolute difference and one accumulator, a cycle after the step -------------
+        # --- term: one absolute difference and one accumulator, in clocked stages ------------------
+        # ``term`` (the window memory's output, one cycle after the step) is registered as it is
+        # (``fetched``: a block RAM's clock-to-output is half a 100 MHz period on the ECP5), then
+        # scaled by f (``product``, the multiplier between registers), then forms the difference,
+        # ``magnitude`` its absolute value, ``accumulate`` the sum: one carry chain per clock. What the term subtracts besides the window word, C + Msum of placement
+        # q-1, is summed on the step itself.
+        window_sum_shape = signed(widths.window_sum.bits)
+        offset_shape = signed(max(centred_shape.width, window_sum_shape.width) + 1)
         term_valid, term_first, term_last = Signal(), Signal(), Signal()
-        term_centred = Signal(centred_shape)
+        term_offset = Signal(offset_shape)
+        # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
+        term_shape = signed(max(widths.term.bits, widths.difference.bits))
+        fetched_valid, fetched_first, fetched_last = Signal(), Signal(), Signal()
+        fetched_word, fetched_offset = Signal(signed(p.depth_bits)), Signal(offset_shape)
+        product_valid, product_first, product_last = Signal(), Signal(), Signal()
+        product_word, product_offset = Signal(scaled_shape), Signal(offset_shape)
+        magnitude_valid, magnitude_first, magnitude_last = Signal(), Signal(), Signal()
+        magnitude_term = Signal(term_shape)
+        accumulate_valid, accumulate_first, accumulate_last = Signal(), Signal(), Signal()
+        abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
         accumulator = Signal(unsigned(widths.accumulator.bits))
         out_value = Signal(unsigned(widths.accumulator.bits))
         out_full = Signal()
         out_i, out_j = Signal(range(rows)), Signal(range(cols))
 
-        # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
-        term = Signal(signed(max(widths.term.bits, widths.difference.bits)))
-        abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
-        m.d.comb += [
-            # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
-            term.eq(window_read.data - term_centred - Mux(mean, previous_window_sum, 0)),
-            abs_term.eq(Mux(empty, 0, abs(term))),
-        ]
-        accumulator_new = Mux(term_first, 0, accumulator) + abs_term
+        accumulator_new = Mux(accumulate_first, 0, accumulator) + abs_term
         surface_taken = self.surface.valid & self.surface.ready
-        # Only a placement's last term needs the output register; it waits while that is still full.
-        term_fire = term_valid & ~(term_last & out_full & ~self.surface.ready)
-        m.d.comb += response.ready.eq(~term_valid | term_fire)
-        with m.If(term_fire):
-            m.d.sync += [term_valid.eq(0), accumulator.eq(accumulator_new)]
-        with m.If(step):
+        # Only a placement's last term needs the output register; while that is still full, every
+        # stage holds (the model's schedule, with ``surface.ready`` high, never holds).
+        hold = accumulate_valid & accumulate_last & out_full & ~self.surface.ready
+        m.d.comb += response.ready.eq(~hold)
+        with m.If(~hold):
+            # On the step of a placement's first node, Msum of the previous placement moves from
+            # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
+            previous_sum = Mux(tag.first, next_window_sum, previous_window_sum)
             m.d.sync += [
-                term_valid.eq(tag.previous),
+                term_valid.eq(step & tag.previous),
                 term_first.eq(tag.first),
                 term_last.eq(tag.last),
-                term_centred.eq(tag.centred),
+                term_offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
+                fetched_valid.eq(term_valid),
+                fetched_first.eq(term_first),
+                fetched_last.eq(term_last),
+                fetched_word.eq(window_read.data),
+                fetched_offset.eq(term_offset),
+                product_valid.eq(fetched_valid),
+                product_first.eq(fetched_first),
+                product_last.eq(fetched_last),
+                product_word.eq(factor * fetched_word),
+                product_offset.eq(fetched_offset),
+                # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
+                magnitude_valid.eq(product_valid),
+                magnitude_first.eq(product_first),
+                magnitude_last.eq(product_last),
+                magnitude_term.eq(product_word - product_offset),
+                accumulate_valid.eq(magnitude_valid),
+                accumulate_first.eq(magnitude_first),
+                accumulate_last.eq(magnitude_last),
+                abs_term.eq(Mux(empty, 0, abs(magnitude_term))),
             ]
+            with m.If(accumulate_valid):
+                m.d.sync += accumulator.eq(accumulator_new)
 
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
         m.d.comb += [
@@ -283,7 +352,7 @@ class RecursiveCore(wiring.Component):
                 m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
             with m.Else():
                 m.d.sync += out_j.eq(out_j + 1)
-        with m.If(term_fire & term_last):
+        with m.If(~hold & accumulate_valid & accumulate_last):
             m.d.sync += [out_value.eq(accumulator_new), out_full.eq(1)]
 
         # The reducer watches the surface's transfers and answers on ``best``.
@@ -302,6 +371,7 @@ class RecursiveCore(wiring.Component):
                         running.eq(1),
                         mean.eq(self.start.payload.mean_compensation),
                         count.eq(0),
+                        factor.eq(~self.start.payload.mean_compensation),
                         patch_sum.eq(0),
                         append_index.eq(0),
                         prepare_index.eq(0),
@@ -326,9 +396,16 @@ class RecursiveCore(wiring.Component):
                     with m.Else():
                         m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
             with m.State("PREPARE_LAST"):
+                # The last patch word is seen on this cycle; staged on the next, scaled on the one after.
+                m.d.sync += seen.eq(0)
+                m.next = "PREPARE_STAGED"
+            with m.State("PREPARE_STAGED"):
+                # n is final from this cycle on (the last first-pass word was counted on the edge before).
+                m.d.sync += [empty.eq(count == 0), count_last.eq(count - 1)]
+                m.next = "PREPARE_SCALED"
+            with m.State("PREPARE_SCALED"):
                 # The last patch word is appended on this cycle's edge.
                 m.d.sync += [
-                    seen.eq(0),
                     generating.eq(1),
                     flushing.eq(0),
                     has_previous.eq(0),

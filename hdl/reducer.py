@@ -21,9 +21,16 @@ then ``bi - r <= y < x < bi`` and every later best row ``z`` (``y < z <= bi``) k
 ``r`` rows, so ``x`` was held from its arrival on. (This needs ``r + 1`` slots fewer than the contract's
 rolling design of ``3r + 2``.)
 
-After the last beat the reducer scans the row minima (rows outside the band), then every slot (columns
-outside ``[bj - r, bj + r]`` of held rows inside the band), one memory word per cycle, keeping the
-candidate that is smallest, then first in raster order. The scan takes a fixed number of cycles
+Every beat passes a fixed pipeline, so that no path is longer than one comparison or one small choice
+whatever the lanes: a register for the incoming beat, a compare tree for its minimum (a register per
+level), the row minimum, the best fit (and the row minimum's store), the slot choice, the row-store
+write. The slot choice compares no row numbers: each slot keeps whether it is needed as a flag, updated
+from two counters that saturate at ``r + 1`` (see ``elaborate``).
+
+After the last beat is stored the reducer scans the row minima (rows outside the band), then every
+slot (columns outside ``[bj - r, bj + r]`` of held rows inside the band), one memory word per cycle,
+keeping the candidate that is smallest, then first in raster order (one comparison of the key
+``(value, i, j)``), through the same kind of lane tree. The scan takes a fixed number of cycles
 whatever the data, so the cycle models stay exact (:func:`lost.model.cycles.reducer_latency`).
 """
 
@@ -31,9 +38,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Const, Module, Mux, Signal, unsigned
+from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
+from amaranth.utils import ceil_log2
 
 from lost.model.cycles import reducer_geometry
 
@@ -87,182 +95,296 @@ class BestFitReducer(wiring.Component):
         slots, beats_per_row = reducer_geometry(p.surface_shape, lanes, r)
         value_shape = unsigned(p.value_bits)
         row_shape, col_shape = unsigned(p.row_bits), unsigned(p.col_bits)
+        values_layout = data.ArrayLayout(value_shape, lanes)
 
         row_minimum_layout = data.StructLayout({"value": value_shape, "col": col_shape})
         m.submodules.row_minima = row_minima = memory.Memory(shape=row_minimum_layout, depth=rows, init=[])
         m.submodules.row_slots = row_slots = memory.Memory(
-            shape=data.ArrayLayout(value_shape, lanes), depth=slots * beats_per_row, init=[])
+            shape=values_layout, depth=slots * beats_per_row, init=[])
         minima_write, minima_read = row_minima.write_port(), row_minima.read_port()
         slots_write, slots_read = row_slots.write_port(), row_slots.read_port()
 
-        # --- collecting: one beat per cycle --------------------------------------------------------
+        def delayed(value, shape, cycles, name):
+            """``value`` through ``cycles`` registers."""
+            for stage in range(cycles):
+                register = Signal(shape, name=f"{name}_d{stage + 1}")
+                m.d.sync += register.eq(value)
+                value = register
+            return value
+
+        # --- collecting: one beat per cycle, through a fixed pipeline --------------------------------
+        # Stage "in": the transferred beat, registered before any logic.
         beat = self.surface.payload
-        arrive = self.surface.valid
-
-        # The beat's minimum, lowest lane first on ties.
-        beat_value = Signal(value_shape)
-        beat_col = Signal(col_shape)
-        chosen_value, chosen_lane = beat.values[0], Const(0, range(lanes))
-        for lane in range(1, lanes):
-            take = (lane < beat.count) & (beat.values[lane] < chosen_value)
-            chosen_value = Mux(take, beat.values[lane], chosen_value)
-            chosen_lane = Mux(take, lane, chosen_lane)
-        m.d.comb += [beat_value.eq(chosen_value), beat_col.eq(beat.j + chosen_lane)]
-
-        first_in_row = beat.j == 0
-        row_end = beat.j + beat.count >= cols
-        row_value, row_col = Signal(value_shape), Signal(col_shape)  # this row's minimum so far
-        row_value_new, row_col_new = Signal(value_shape), Signal(col_shape)
-        with m.If(first_in_row | (beat_value < row_value)):
-            m.d.comb += [row_value_new.eq(beat_value), row_col_new.eq(beat_col)]
-        with m.Else():
-            m.d.comb += [row_value_new.eq(row_value), row_col_new.eq(row_col)]
-
-        best_value, best_i, best_j = Signal(value_shape), Signal(row_shape), Signal(col_shape)
-
-        # Slot bookkeeping: which row each slot holds.
-        tag = [Signal(row_shape, name=f"slot{s}_row") for s in range(slots)]
-        held = [Signal(name=f"slot{s}_held") for s in range(slots)]
-        needed = [held[s] & (tag[s] + r >= best_i) & (tag[s] <= best_i + r)
-                  for s in range(slots)]
-        free_slot = Signal(range(slots))
-        for s in reversed(range(slots)):
-            with m.If(~needed[s]):
-                m.d.comb += free_slot.eq(s)
-        first_beat = first_in_row & (beat.i == 0)
-        slot = Signal(range(slots))
-        m.d.comb += slot.eq(Mux(first_beat, 0, free_slot))
-        row_base = Signal(range(slots * beats_per_row + 1))
-        m.d.comb += row_base.eq(slot * beats_per_row)
-        next_address = Signal(range(slots * beats_per_row + 1))  # the next beat of the current row
-        address = Mux(first_in_row, row_base, next_address)
-
-        m.d.comb += [
-            slots_write.addr.eq(address),
-            slots_write.data.eq(beat.values),
-            slots_write.en.eq(arrive),
-            minima_write.addr.eq(beat.i),
-            minima_write.data.value.eq(row_value_new),
-            minima_write.data.col.eq(row_col_new),
-            minima_write.en.eq(arrive & row_end),
+        in_valid, in_last = Signal(), Signal()
+        in_values = Signal(values_layout)
+        in_count = Signal.like(beat.count)
+        in_i, in_j = Signal(row_shape), Signal(col_shape)
+        m.d.sync += [
+            in_valid.eq(self.surface.valid),
+            in_last.eq(self.surface.valid & beat.last),
+            in_values.eq(beat.values),
+            in_count.eq(beat.count),
+            in_i.eq(beat.i),
+            in_j.eq(beat.j),
         ]
 
-        # --- scanning: one memory word per cycle after the last beat ------------------------------
+        # The beat's minimum by a compare tree with a register per level (lowest lane first on ties).
+        leaves = [(lane < in_count, in_values[lane], in_j + lane) for lane in range(lanes)]
+        _, beat_value, beat_col = _tree(m, leaves, _earlier_smaller, "beat", (1, value_shape, col_shape))
+        levels = ceil_log2(lanes)
+        meta_layout = data.StructLayout({
+            "valid": 1, "last": 1, "i": row_shape, "first_in_row": 1, "row_end": 1,
+        })
+        in_meta = Signal(meta_layout)
+        m.d.comb += [
+            in_meta.valid.eq(in_valid),
+            in_meta.last.eq(in_last),
+            in_meta.i.eq(in_i),
+            in_meta.first_in_row.eq(in_j == 0),
+            in_meta.row_end.eq(in_j + in_count >= cols),
+        ]
+        tree_meta = delayed(in_meta, meta_layout, levels, "tree_meta")
+
+        # Stage "row": this row's minimum so far (an earlier column wins ties).
+        row_value, row_col = Signal(value_shape), Signal(col_shape)
+        take_beat = tree_meta.first_in_row | (beat_value < row_value)
+        row_value_new = Mux(take_beat, beat_value, row_value)
+        row_col_new = Mux(take_beat, beat_col, row_col)
+        with m.If(tree_meta.valid):
+            m.d.sync += [row_value.eq(row_value_new), row_col.eq(row_col_new)]
+        row_meta = delayed(tree_meta, meta_layout, 1, "row_meta")
+
+        # Stage "best": at a row's end, store its minimum and compare it with the best so far.
+        best_value, best_i, best_j = Signal(value_shape), Signal(row_shape), Signal(col_shape)
+        row_ends = row_meta.valid & row_meta.row_end
+        becomes_best = row_ends & ((row_meta.i == 0) | (row_value < best_value))
+        m.d.comb += [
+            minima_write.addr.eq(row_meta.i),
+            minima_write.data.value.eq(row_value),
+            minima_write.data.col.eq(row_col),
+            minima_write.en.eq(row_ends),
+        ]
+        with m.If(becomes_best):
+            m.d.sync += [best_value.eq(row_value), best_i.eq(row_meta.i), best_j.eq(row_col)]
+        slot_meta = delayed(row_meta, meta_layout, 1, "slot_meta")
+        slot_becomes_best = delayed(becomes_best, 1, 1, "slot_becomes_best")
+
+        # Stage "slot": choose the slot of a row that begins. A slot is needed while its row lies within
+        # r rows of the best row so far; rather than comparing row numbers on every choice, each slot
+        # keeps that as a flag (``in_band``), kept exact from two small counters: the age of the slot's
+        # row (rows begun since, saturating at r + 1) and the rows begun since the best row.
+        tag = [Signal(row_shape, name=f"slot{s}_row") for s in range(slots)]
+        held = [Signal(name=f"slot{s}_held") for s in range(slots)]
+        age = [Signal(range(r + 2), name=f"slot{s}_age") for s in range(slots)]
+        in_band = [Signal(name=f"slot{s}_in_band") for s in range(slots)]
+        since_best = Signal(range(r + 2))
+        free_slot = Signal(range(slots))
+        for s in reversed(range(slots)):
+            with m.If(~in_band[s]):
+                m.d.comb += free_slot.eq(s)
+        first_beat = slot_meta.first_in_row & (slot_meta.i == 0)
+        slot = Mux(first_beat, 0, free_slot)
+        begins = slot_meta.valid & slot_meta.first_in_row
+        held_next = [Signal(name=f"slot{s}_held_next") for s in range(slots)]
+        age_next = [Signal(range(r + 2), name=f"slot{s}_age_next") for s in range(slots)]
+        band_next = [Signal(name=f"slot{s}_in_band_next") for s in range(slots)]
+        for s in range(slots):
+            chosen = begins & (slot == s)
+            m.d.comb += [
+                held_next[s].eq(Mux(chosen, 1, held[s] & ~(begins & first_beat))),
+                age_next[s].eq(Mux(chosen, 0, Mux(begins & (age[s] <= r), age[s] + 1, age[s]))),
+                # A row that begins lies within r rows of the best so far when fewer than r rows began
+                # since; a new best row keeps exactly the rows of the last r + 1.
+                band_next[s].eq(Mux(slot_becomes_best, held_next[s] & (age_next[s] <= r),
+                                    Mux(chosen, first_beat | (since_best < r),
+                                        in_band[s] & ~(begins & first_beat)))),
+            ]
+            m.d.sync += [held[s].eq(held_next[s]), age[s].eq(age_next[s]), in_band[s].eq(band_next[s])]
+            with m.If(chosen):
+                m.d.sync += tag[s].eq(slot_meta.i)
+        with m.If(slot_becomes_best | (begins & first_beat)):
+            m.d.sync += since_best.eq(0)
+        with m.Elif(begins & (since_best <= r)):
+            m.d.sync += since_best.eq(since_best + 1)
+
+        # Stage "write": the beat's words into its row's slot.
+        write_valid, write_first, write_last = Signal(), Signal(), Signal()
+        write_base = Signal(range(slots * beats_per_row))
+        with m.Switch(slot):
+            for s in range(slots):
+                with m.Case(s):
+                    m.d.sync += write_base.eq(s * beats_per_row)
+        m.d.sync += [
+            write_valid.eq(slot_meta.valid),
+            write_first.eq(slot_meta.first_in_row),
+            write_last.eq(slot_meta.valid & slot_meta.last),
+        ]
+        write_values = delayed(in_values, values_layout, levels + 3, "write_values")
+        next_address = Signal(range(slots * beats_per_row + 1))  # the next word of the current row
+        address = Mux(write_first, write_base, next_address)
+        m.d.comb += [
+            slots_write.addr.eq(address),
+            slots_write.data.eq(write_values),
+            slots_write.en.eq(write_valid),
+        ]
+        with m.If(write_valid):
+            m.d.sync += next_address.eq(address + 1)
+
+        # --- scanning: one memory word per cycle after the last beat is stored ----------------------
         scan_rows_end = rows
         scan_end = rows + slots * beats_per_row
-        scanning, done = Signal(), Signal()
+        scanning = Signal()
         step = Signal(range(scan_end + 1))
         slot_index = Signal(range(slots))
-        slot_beat = Signal(range(beats_per_row))
-        # What the memories' data registers hold this cycle: the word read for the previous step.
-        seen = Signal()
-        seen_row_minimum = Signal()
-        seen_slot = Signal(range(slots))
-        seen_beat = Signal(range(beats_per_row))
-        seen_row = Signal(row_shape)
-
+        slot_col = Signal(range(beats_per_row * lanes + 1))  # the first column of the word read
         m.d.comb += [
             minima_read.addr.eq(step),
             slots_read.addr.eq(step - scan_rows_end),
         ]
+        # What the memories' data registers hold this cycle: the word read for the previous step.
+        seen, seen_final = Signal(), Signal()
+        seen_row_minimum = Signal()
+        seen_slot = Signal(range(slots))
+        seen_cols = [Signal.like(slot_col, name=f"seen_col{lane}") for lane in range(lanes)]
+        seen_row = Signal(row_shape)
 
-        runner_value, runner_i, runner_j = Signal(value_shape), Signal(row_shape), Signal(col_shape)
-        runner_valid = Signal()
+        # The band's bounds, registered: the best fit is final before the scan starts.
+        band_rows = Signal(range(-r, rows)), Signal(range(rows + r))
+        band_cols = Signal(range(-r, cols)), Signal(range(cols + r))
+        m.d.sync += [
+            band_rows[0].eq(best_i - r), band_rows[1].eq(best_i + r),
+            band_cols[0].eq(best_j - r), band_cols[1].eq(best_j + r),
+        ]
 
-        def better(value, i, j):
-            """Whether (value, i, j) beats the runner-up so far: smaller, then first in raster order."""
-            return (~runner_valid | (value < runner_value)
-                    | ((value == runner_value) & ((i < runner_i) | ((i == runner_i) & (j < runner_j)))))
+        def outside(index, band):
+            return (index < band[0]) | (index > band[1])
 
-        def outside(index, centre):
-            return (index + r < centre) | (index > centre + r)
+        # The memories' outputs are registered before any logic (``fetched``): a block RAM's clock-to-output
+        # alone is half a 100 MHz period on the ECP5.
+        fetched, fetched_final = delayed(seen, 1, 1, "fetched"), delayed(seen_final, 1, 1, "fetched_final")
+        fetched_row_minimum = delayed(seen_row_minimum, 1, 1, "fetched_row_minimum")
+        fetched_slot = delayed(seen_slot, seen_slot.shape(), 1, "fetched_slot")
+        fetched_cols = [delayed(seen_col, seen_col.shape(), 1, f"fetched_col{lane}")
+                        for lane, seen_col in enumerate(seen_cols)]
+        fetched_row = delayed(seen_row, row_shape, 1, "fetched_row")
+        fetched_minimum = delayed(minima_read.data, row_minimum_layout, 1, "fetched_minimum")
+        fetched_words = delayed(slots_read.data, values_layout, 1, "fetched_words")
 
-        # Candidate from a row minimum: the row lies outside the band.
-        minimum = minima_read.data
-        row_candidate = seen_row_minimum & outside(seen_row, best_i)
-        # Candidate from a slot word: the slot holds a row of the band; columns outside [bj-r, bj+r].
+        # Candidates, one per lane, keyed (value, i, j): the smallest key is the smallest value, then the
+        # first in raster order. A row minimum is a candidate when its row lies outside the band; a slot
+        # word's lane when the slot holds a row of the band and its column lies outside [bj - r, bj + r].
+        key_shape = unsigned(p.value_bits + p.row_bits + p.col_bits)
+        minimum = fetched_minimum
         slot_row = Signal(row_shape)
         slot_in_band = Signal()
-        for s in range(slots):
-            with m.If(seen_slot == s):
-                m.d.comb += [
-                    slot_row.eq(tag[s]),
-                    slot_in_band.eq(held[s] & ~outside(tag[s], best_i)),
-                ]
-        lane_value, lane_col, lane_found = Const(0, value_shape), Const(0, col_shape), Const(0, 1)
+        with m.Switch(fetched_slot):
+            for s in range(slots):
+                with m.Case(s):
+                    m.d.comb += [slot_row.eq(tag[s]), slot_in_band.eq(in_band[s])]
+        candidates = []
         for lane in range(lanes):
-            col = seen_beat * lanes + lane
-            ok = (col < cols) & outside(col, best_j)
-            take = ok & (~lane_found | (slots_read.data[lane] < lane_value))
-            lane_value = Mux(take, slots_read.data[lane], lane_value)
-            lane_col = Mux(take, col, lane_col)
-            lane_found = lane_found | ok
-        slot_candidate = ~seen_row_minimum & slot_in_band & lane_found
+            col = fetched_cols[lane]
+            slot_ok = ~fetched_row_minimum & slot_in_band & (col < cols) & outside(col, band_cols)
+            key = Cat(col[:p.col_bits], slot_row, fetched_words[lane])
+            if lane == 0:
+                row_ok = fetched_row_minimum & outside(fetched_row, band_rows)
+                key = Mux(fetched_row_minimum, Cat(minimum.col, fetched_row, minimum.value), key)
+                candidates.append((fetched & (row_ok | slot_ok), key))
+            else:
+                candidates.append((fetched & slot_ok, key))
+        leaves = []
+        for lane, (ok, key) in enumerate(candidates):
+            leaf_ok, leaf_key = Signal(name=f"leaf{lane}_ok"), Signal(key_shape, name=f"leaf{lane}_key")
+            m.d.sync += [leaf_ok.eq(ok), leaf_key.eq(key)]
+            leaves.append((leaf_ok, leaf_key))
+        candidate_ok, candidate_key = _tree(m, leaves, _smaller_key, "candidate", (1, key_shape))
+        candidate_final = delayed(fetched & fetched_final, 1, levels + 1, "candidate_final")
 
-        candidate_value = Mux(seen_row_minimum, minimum.value, lane_value)
-        candidate_i = Mux(seen_row_minimum, seen_row, slot_row)
-        candidate_j = Mux(seen_row_minimum, minimum.col, lane_col)
-        with m.If(seen & (row_candidate | slot_candidate) & better(candidate_value, candidate_i, candidate_j)):
-            m.d.sync += [
-                runner_value.eq(candidate_value),
-                runner_i.eq(candidate_i),
-                runner_j.eq(candidate_j),
-                runner_valid.eq(1),
-            ]
+        runner_key = Signal(key_shape)
+        runner_valid = Signal()
+        with m.If(candidate_ok & (~runner_valid | (candidate_key < runner_key))):
+            m.d.sync += [runner_key.eq(candidate_key), runner_valid.eq(1)]
 
+        done = Signal()
+        # One register from the last beat's arrival to the best beat's transfer: the core's start and load
+        # handshakes depend on it.
+        busy = Signal()
+        with m.If(self.surface.valid & beat.last):
+            m.d.sync += busy.eq(1)
+        with m.If(self.best.valid & self.best.ready):
+            m.d.sync += busy.eq(0)
         m.d.comb += [
             self.best.valid.eq(done),
             self.best.payload.value.eq(best_value),
             self.best.payload.i.eq(best_i),
             self.best.payload.j.eq(best_j),
-            self.best.payload.runner_up_value.eq(runner_value),
-            self.best.payload.runner_up_i.eq(runner_i),
-            self.best.payload.runner_up_j.eq(runner_j),
+            self.best.payload.runner_up_value.eq(runner_key[p.row_bits + p.col_bits:]),
+            self.best.payload.runner_up_i.eq(runner_key[p.col_bits:p.row_bits + p.col_bits]),
+            self.best.payload.runner_up_j.eq(runner_key[:p.col_bits]),
             self.best.payload.runner_up_valid.eq(runner_valid),
-            self.busy.eq(scanning | seen | done),
+            self.busy.eq(busy),
         ]
 
         # --- state -------------------------------------------------------------------------------
-        with m.If(arrive):
-            m.d.sync += [
-                row_value.eq(row_value_new),
-                row_col.eq(row_col_new),
-                next_address.eq(address + 1),
-            ]
-            with m.If(first_in_row):
-                for s in range(slots):
-                    with m.If(slot == s):
-                        m.d.sync += [tag[s].eq(beat.i), held[s].eq(1)]
-                    with m.Elif(first_beat):
-                        m.d.sync += held[s].eq(0)
-            with m.If(row_end & ((beat.i == 0) | (row_value_new < best_value))):
-                m.d.sync += [best_value.eq(row_value_new), best_i.eq(beat.i), best_j.eq(row_col_new)]
-            with m.If(beat.last):
-                m.d.sync += [scanning.eq(1), step.eq(0), runner_valid.eq(0), seen.eq(0)]
-
+        with m.If(write_last):
+            m.d.sync += [scanning.eq(1), step.eq(0), runner_valid.eq(0), slot_index.eq(0), slot_col.eq(0)]
+        m.d.sync += seen.eq(scanning)
         with m.If(scanning):
             m.d.sync += [
-                seen.eq(1),
+                seen_final.eq(step == scan_end - 1),
                 seen_row_minimum.eq(step < scan_rows_end),
                 seen_row.eq(step),
                 seen_slot.eq(slot_index),
-                seen_beat.eq(slot_beat),
+                *(seen_col.eq(slot_col + lane) for lane, seen_col in enumerate(seen_cols)),
                 step.eq(step + 1),
             ]
             with m.If(step >= scan_rows_end):
-                with m.If(slot_beat == beats_per_row - 1):
-                    m.d.sync += [slot_beat.eq(0), slot_index.eq(slot_index + 1)]
+                with m.If(slot_col == (beats_per_row - 1) * lanes):
+                    m.d.sync += [slot_col.eq(0), slot_index.eq(slot_index + 1)]
                 with m.Else():
-                    m.d.sync += slot_beat.eq(slot_beat + 1)
+                    m.d.sync += slot_col.eq(slot_col + lanes)
             with m.If(step == scan_end - 1):
                 m.d.sync += scanning.eq(0)
-        with m.Elif(seen):
-            # The last word was evaluated this cycle; the runner-up is final on the next.
-            m.d.sync += [seen.eq(0), done.eq(1)]
+        with m.If(candidate_final):
+            # The last word reaches the runner-up on this edge; it is final on the next.
+            m.d.sync += done.eq(1)
         with m.If(self.best.valid & self.best.ready):
             m.d.sync += done.eq(0)
-        with m.If(arrive & beat.last):
-            m.d.sync += [slot_index.eq(0), slot_beat.eq(0)]
 
         return m
 
+
+def _earlier_smaller(first, second):
+    """Whether the later lane ``second`` (ok, value, col) replaces ``first``: smaller, ties to the first."""
+    return second[0] & (~first[0] | (second[1] < first[1]))
+
+
+def _smaller_key(first, second):
+    """Whether candidate ``second`` (ok, key) replaces ``first``: a smaller key (keys are distinct)."""
+    return second[0] & (~first[0] | (second[1] < first[1]))
+
+
+def _tree(m, leaves, replaces, name, shapes):
+    """Reduce ``leaves`` (tuples of values) pairwise, lower index first, one register per level.
+
+    ``replaces(first, second)`` says whether the pair's later item wins. The root comes
+    ``ceil_log2(len(leaves))`` cycles after the leaves; with one leaf it is the leaf itself.
+    """
+    level, depth = list(leaves), 0
+    while len(level) > 1:
+        depth += 1
+        merged = []
+        for k in range(0, len(level), 2):
+            pair = level[k:k + 2]
+            if len(pair) == 2:
+                take = replaces(pair[0], pair[1])
+                item = tuple(Mux(take, b, a) for a, b in zip(*pair))
+                item = (pair[0][0] | pair[1][0],) + item[1:]
+            else:
+                item = pair[0]
+            registers = tuple(Signal(shape, name=f"{name}_l{depth}_{k // 2}_{field}")
+                              for field, shape in enumerate(shapes))
+            m.d.sync += [register.eq(value) for register, value in zip(registers, item)]
+            merged.append(registers)
+        level = merged
+    return level[0]

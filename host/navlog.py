@@ -26,6 +26,10 @@ The navigation log
     ``truth_x_m``, ``truth_y_m`` no          the vehicle's true position (trials with a
                                              reference, simulations); ``truth_lat``/``truth_lon``
                                              in degrees are projected like the ship's
+    ``patch_east_m``,           no           the sonar patch centre's offset from the vehicle,
+    ``patch_north_m``                        metres, like the sonar offsets (a patch gathered in
+                                             real time lies behind the vehicle); empty: see
+                                             ``patch_centre``
     ==========================  ===========  ===================================================
 
     North: with ``x_m``/``y_m`` positions, headings, courses and velocities are in grid axes (grid
@@ -42,14 +46,18 @@ The sonar side file
     ``east_m`` and ``north_m`` (offset from the vehicle, metres; grid axes, or true east/north in a
     lat/lon log, see North) and ``depth_m`` (sea-floor
     depth, positive down). Each record's soundings are gridded by :func:`lost.host.sonar.grid_soundings`
-    into a ``patch_shape`` patch of ``node_m`` nodes; a record without soundings gets ``None``.
+    into a ``patch_shape`` patch of ``node_m`` nodes around the record's ``patch_east_m``/``patch_north_m``
+    or, without them, around the vehicle (``patch_centre="vehicle"``) or the middle of the record's
+    soundings (``"soundings"``, for a swath gathered behind the vehicle); a record without soundings
+    gets ``None``.
     Soundings matching no record, belonging to a skipped record, lacking a value, or falling beyond
     the patch are counted in the report, never dropped silently.
 
 Writing
     :func:`write_navlog` writes records (a simulated tow, say) in this layout, positions as ``x_m``/``y_m``
-    and sonar patches as one sounding per seen node keyed by ``record``, so :func:`read_navlog` reads
-    them back value for value: an example survey to run the command line on.
+    and sonar patches as one sounding per seen node keyed by ``record`` (with ``patch_east_m``/``patch_north_m``
+    when a patch is not centred on the vehicle), so :func:`read_navlog` reads them back value for
+    value: an example survey to run the command line on.
 
 Errors
     A missing file, a missing required column, a non-numeric cell, latitude/longitude out of range or
@@ -67,19 +75,23 @@ from pathlib import Path
 import numpy as np
 
 from .records import NavRecords, SonarPatch
-from .sonar import _check_shape, grid_soundings
+from .sonar import _check_shape, grid_soundings, soundings_centre
 
-__all__ = ["LoadReport", "read_navlog", "write_navlog", "NAVLOG_COLUMNS", "SONAR_COLUMNS"]
+__all__ = ["LoadReport", "read_navlog", "write_navlog", "NAVLOG_COLUMNS", "PATCH_CENTRES", "SONAR_COLUMNS"]
 
 _TIME_COLUMNS = ("t_s", "time_utc")
 _SINGLE_REQUIRED = ("ship_heading_deg", "vehicle_depth_m", "altitude_m", "cable_out_m")
 _POSITION_FORMS = (("x_m", "y_m"), ("lat", "lon"))
 _VELOCITY_FORMS = (("vel_x_mps", "vel_y_mps"), ("speed_mps", "course_deg"))
 _TRUTH_FORMS = (("truth_x_m", "truth_y_m"), ("truth_lat", "truth_lon"))
+_PATCH_CENTRE_FORMS = (("patch_east_m", "patch_north_m"),)
 _OPTIONAL = ("slant_range_m",)
 NAVLOG_COLUMNS = (
     _TIME_COLUMNS + _SINGLE_REQUIRED + sum(_POSITION_FORMS, ()) + sum(_VELOCITY_FORMS, ()) + _OPTIONAL + sum(_TRUTH_FORMS, ())
+    + sum(_PATCH_CENTRE_FORMS, ())
 )
+#: Where a record's sonar patch is centred when the log has no patch_east_m/patch_north_m for it.
+PATCH_CENTRES = ("vehicle", "soundings")
 SONAR_COLUMNS = ("t_s", "time_utc", "record", "east_m", "north_m", "depth_m")
 
 
@@ -177,6 +189,7 @@ def read_navlog(
     patch_shape: tuple[int, int] = (10, 10),
     node_m: float | None = None,
     time_tolerance_s: float = 1e-3,
+    patch_centre: str = "vehicle",
 ) -> tuple[NavRecords, LoadReport]:
     """Read a navigation log (and optionally its sonar side file) into records and a report.
 
@@ -194,6 +207,9 @@ def read_navlog(
         Sonar patch node spacing, metres (the map's); needed with ``sonar``.
     time_tolerance_s : float
         How far a sounding's ``t_s`` may be from its record's time.
+    patch_centre : {"vehicle", "soundings"}
+        Where a record's patch is centred when the log gives no ``patch_east_m``/``patch_north_m``
+        for it: on the vehicle, or on the middle of the record's soundings.
 
     Returns
     -------
@@ -211,6 +227,8 @@ def read_navlog(
     h_w = _check_shape(patch_shape)
     if sonar is not None and (node_m is None or not (np.isfinite(node_m) and node_m > 0)):
         raise ValueError(f"gridding sonar soundings needs node_m, the map's node spacing in metres (got {node_m!r})")
+    if patch_centre not in PATCH_CENTRES:
+        raise ValueError(f"patch_centre must be one of {PATCH_CENTRES}, got {patch_centre!r}")
     if not (np.isfinite(time_tolerance_s) and time_tolerance_s >= 0):
         raise ValueError(f"time_tolerance_s must be a non-negative number of seconds, got {time_tolerance_s!r}")
 
@@ -220,13 +238,15 @@ def read_navlog(
     position = _pick_pair(columns, _POSITION_FORMS, "ship position", notes, required=True)
     velocity = _pick_pair(columns, _VELOCITY_FORMS, "velocity", notes, required=True)
     truth = _pick_pair(columns, _TRUTH_FORMS, "truth position", notes, required=False)
+    patch_centre_columns = _pick_pair(columns, _PATCH_CENTRE_FORMS, "sonar patch centre", notes, required=False)
     time_column = next((c for c in _TIME_COLUMNS if c in columns), None)
     missing = ([] if time_column else ["t_s (or time_utc)"]) + [c for c in _SINGLE_REQUIRED if c not in columns]
     if time_column == "t_s" and "time_utc" in columns:
         notes.append("t_s used for the time; time_utc not read")
     if missing:
         raise ValueError(f"{path.name} lacks the required column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
-    used = set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | {c for c in _OPTIONAL if c in columns}
+    used = (set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | set(patch_centre_columns or ())
+            | {c for c in _OPTIONAL if c in columns})
     unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
     lines = _Lines(path, len(table))
     values = {c: _numeric(table[columns[c]], c, path, lines) for c in used}
@@ -248,7 +268,8 @@ def read_navlog(
     kept_rows = np.flatnonzero(keep)
     values = {c: v[keep] for c, v in values.items()}
     _check_time(values["t_s"], kept_rows, lines, path)
-    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns if c in used}
+    # An empty patch centre is no missing reading: the record's patch (if any) is centred by patch_centre.
+    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns if c in used and c not in sum(_PATCH_CENTRE_FORMS, ())}
 
     if "slant_range_m" not in columns:
         values["slant_range_m"] = np.full(keep.sum(), np.nan)
@@ -293,7 +314,8 @@ def read_navlog(
     if sonar is not None:
         sonar_patches, sonar_stats = _read_sonar(
             Path(sonar), record_times=values["t_s"], epoch=epoch, convergence_deg=convergence, kept_rows=kept_rows, rows=len(table),
-            patch_shape=h_w, node_m=float(node_m), time_tolerance_s=time_tolerance_s,
+            patch_shape=h_w, node_m=float(node_m), time_tolerance_s=time_tolerance_s, patch_centre=patch_centre,
+            centre_east=values.get("patch_east_m"), centre_north=values.get("patch_north_m"),
         )
 
     records = NavRecords(
@@ -349,10 +371,12 @@ def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | o
     }
     if records.has_truth:
         names |= {"truth_x_m": "truth_x_m", "truth_y_m": "truth_y_m"}
+    table = pd.DataFrame({column: getattr(records, attribute) for column, attribute in names.items()})
+    if any(patch is not None and patch.centre_offset_m != (0.0, 0.0) for patch in records.sonar):
+        centres = np.array([patch.centre_offset_m if patch is not None else (np.nan, np.nan) for patch in records.sonar])
+        table["patch_east_m"], table["patch_north_m"] = centres[:, 0], centres[:, 1]
     # pandas writes float64 with repr precision, so the text reads back to the same numbers.
-    pd.DataFrame({column: getattr(records, attribute) for column, attribute in names.items()}).to_csv(
-        path, index=False, na_rep=""
-    )
+    table.to_csv(path, index=False, na_rep="")
     if sonar is not None:
         parts = []
         for index, patch in enumerate(records.sonar):
@@ -360,10 +384,11 @@ def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | o
                 continue
             h, w = patch.depth_m.shape
             k, l = np.nonzero(np.isfinite(patch.depth_m))
+            east, north = patch.centre_offset_m
             parts.append(pd.DataFrame({
                 "record": index,
-                "east_m": (l - (w - 1) / 2) * patch.node_m,
-                "north_m": (k - (h - 1) / 2) * patch.node_m,
+                "east_m": east + (l - (w - 1) / 2) * patch.node_m,
+                "north_m": north + (k - (h - 1) / 2) * patch.node_m,
                 "depth_m": patch.depth_m[k, l],
             }))
         pd.concat(parts, ignore_index=True).to_csv(sonar, index=False)
@@ -520,7 +545,8 @@ def _wrap(angle_deg: np.ndarray) -> np.ndarray:
     return np.mod(angle_deg, 360.0)
 
 
-def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, rows, patch_shape, node_m, time_tolerance_s):
+def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, rows, patch_shape, node_m, time_tolerance_s,
+                patch_centre, centre_east, centre_north):
     table = _read_table(path)
     columns = {c.strip().lower(): c for c in table.columns}
     # Soundings are keyed the way the log keeps time (or by record index, which works with either).
@@ -571,15 +597,26 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
     bounds = np.flatnonzero(np.diff(owners)) + 1
     for group in np.split(idx, bounds) if idx.size else []:
         # Offsets logged beside lat/lon are true east/north: turn them to grid axes like the velocities.
-        gamma = np.radians(convergence_deg[owner[group[0]]])
-        east, north = v["east_m"][group], v["north_m"][group]
-        if gamma:
-            east, north = east * np.cos(gamma) + north * np.sin(gamma), -east * np.sin(gamma) + north * np.cos(gamma)
-        gridded = grid_soundings(east, north, v["depth_m"][group], patch_shape=patch_shape, node_m=node_m)
+        record = int(owner[group[0]])
+        gamma = np.radians(convergence_deg[record])
+
+        def to_grid(east, north):
+            if not gamma:
+                return east, north
+            return east * np.cos(gamma) + north * np.sin(gamma), -east * np.sin(gamma) + north * np.cos(gamma)
+
+        east, north = to_grid(v["east_m"][group], v["north_m"][group])
+        if centre_east is not None and np.isfinite(centre_east[record]) and np.isfinite(centre_north[record]):
+            centre = to_grid(centre_east[record], centre_north[record])
+        elif patch_centre == "soundings":
+            centre = soundings_centre(east, north)
+        else:
+            centre = (0.0, 0.0)
+        gridded = grid_soundings(east, north, v["depth_m"][group], patch_shape=patch_shape, node_m=node_m, centre_m=centre)
         used += gridded.used
         outside += gridded.outside
         if gridded.used:
-            patches[int(owner[group[0]])] = gridded.patch
+            patches[record] = gridded.patch
     stats = dict(
         sonar_path=str(path),
         soundings=len(table),

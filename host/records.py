@@ -17,16 +17,25 @@ __all__ = ["NavRecords", "SonarPatch"]
 
 @dataclass(frozen=True)
 class SonarPatch:
-    """Gridded sonar soundings around the vehicle at one record.
+    """Gridded sonar soundings near the vehicle at one record.
 
     ``depth_m[k, l]`` is the sea-floor depth (metres, positive down, NaN where no beam landed) at
     northing offset ``(k - (h - 1) / 2) * node_m`` and easting offset ``(l - (w - 1) / 2) * node_m``
-    from the vehicle's position, in the grid's axes (row grows north, column east), so it can be
-    correlated directly against the map.
+    from the patch centre, in the grid's axes (row grows north, column east), so it can be
+    correlated directly against the map. The centre lies ``centre_offset_m`` (east, north) from the
+    vehicle's position at the record: (0, 0) for a patch around the vehicle; behind it for a patch
+    built in real time from the pings already received.
     """
 
     depth_m: np.ndarray
     node_m: float
+    centre_offset_m: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        offset = tuple(float(v) for v in np.asarray(self.centre_offset_m, dtype=np.float64).ravel())
+        if len(offset) != 2 or not all(np.isfinite(offset)):
+            raise ValueError(f"centre_offset_m must be two finite numbers (east, north) in metres, got {self.centre_offset_m!r}")
+        object.__setattr__(self, "centre_offset_m", offset)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,8 @@ The physics, kept simple and stated
 - Vehicle depth: follows the sea floor at the target altitude through a first-order lag.
 - Sensors: each with Gaussian noise, a bias, dropouts (NaN) and outliers at its own rate. The sonar
   swath is delivered gridded on the map's nodes as an h x w patch centred on the vehicle (what
-  ``lost.host.sonar`` produces from real soundings) every ``interval_s``, with missing beams.
+  ``lost.host.sonar`` produces from real soundings) every ``interval_s``, with missing beams; a
+  real-time swath patch is centred behind the vehicle, on the pings already received.
 """
 
 from __future__ import annotations
@@ -149,7 +150,11 @@ class SonarSpec(SensorSpec):
       ``max_window_s`` before and after n) whose position lies within half a patch diagonal of the
       vehicle's, all placed relative to the vehicle by dead reckoning on the measured velocity (so
       its errors distort the patch, as on a real tow). Using later pings makes this a
-      post-processing patch: in real time it would arrive that much later.
+      post-processing patch. With ``realtime = true`` the patch of record n uses only the pings
+      up to n: it is centred on the reckoned position of the latest earlier record at least half a
+      patch diagonal behind the vehicle (``SonarPatch.centre_offset_m`` says where), so that the
+      pings already received fill it (or, when the vehicle has not gone that far within
+      ``max_window_s``, on the earliest record in that window: a partly filled patch).
     """
 
     enabled: bool = True
@@ -160,6 +165,7 @@ class SonarSpec(SensorSpec):
     beams: int = 64
     swath_width_m: float | None = None
     max_window_s: float = 300.0
+    realtime: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -209,6 +215,8 @@ class Scenario:
         sonar = sensors["sonar"]
         if sonar.mode not in ("gridded", "swath"):
             raise ValueError(f"sensors.sonar.mode must be 'gridded' or 'swath', got {sonar.mode!r}.")
+        if sonar.realtime and sonar.mode != "swath":
+            raise ValueError("sensors.sonar.realtime applies to mode = 'swath' (a patch gathered ping by ping); the gridded patch has no pings.")
         if sonar.beams < 2 or not (sonar.swath_width_m is None or sonar.swath_width_m > 0):
             raise ValueError(f"sensors.sonar needs at least 2 beams and a positive swath width, got {sonar.beams!r} and {sonar.swath_width_m!r}.")
         if not sonar.interval_s > 0:
@@ -450,7 +458,7 @@ def _sound(rng: np.random.Generator, true_depth: np.ndarray, spec: SonarSpec) ->
 
 def _swath_patches(
     rng: np.random.Generator, grid: Grid, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float, at: np.ndarray
-) -> list[SonarPatch]:
+) -> list[SonarPatch | None]:
     from .sonar import grid_soundings
 
     h, w = spec.shape
@@ -477,13 +485,20 @@ def _swath_patches(
     # for at most max_window_s away: a slow vehicle gathers pings for longer.
     half_diagonal = math.hypot(h, w) * grid.node_m / 2
     window = int(np.ceil(spec.max_window_s * rate_hz))
-    patches = []
+    patches: list[SonarPatch | None] = []
     for n in at:
-        nearby = np.arange(max(n - window, 0), min(n + window + 1, truth.shape[0]))
-        pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[n]).T) <= half_diagonal]
+        centre = n
+        if spec.realtime:
+            earlier = np.arange(max(n - window, 0), n + 1)
+            behind = earlier[np.hypot(*(reckoned[earlier] - reckoned[n]).T) >= half_diagonal]
+            # A vehicle too slow to have gone that far in max_window_s gets a patch as full as it can be.
+            centre = int(behind.max()) if behind.size else int(earlier[0])
+        nearby = np.arange(max(centre - window, 0), min(centre + window, n if spec.realtime else truth.shape[0] - 1) + 1)
+        pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[centre]).T) <= half_diagonal]
         offsets = beam_offsets[pings] + (reckoned[pings] - reckoned[n])[:, None, :]
         sounded = np.isfinite(depth[pings])
-        patches.append(
-            grid_soundings(offsets[..., 0][sounded], offsets[..., 1][sounded], depth[pings][sounded], patch_shape=(h, w), node_m=grid.node_m).patch
-        )
+        patches.append(grid_soundings(
+            offsets[..., 0][sounded], offsets[..., 1][sounded], depth[pings][sounded],
+            patch_shape=(h, w), node_m=grid.node_m, centre_m=tuple(reckoned[centre] - reckoned[n]),
+        ).patch)
     return patches

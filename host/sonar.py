@@ -2,10 +2,12 @@
 
 A swath or multibeam sonar returns soundings scattered around the vehicle: for each, its east and
 north offset from the vehicle (metres, grid axes) and the sea-floor depth there. :func:`grid_soundings`
-bins them onto the ``h x w`` nodes of a :class:`~lost.host.records.SonarPatch` centred on the vehicle:
+bins them onto the ``h x w`` nodes of a :class:`~lost.host.records.SonarPatch` centred on the vehicle,
+or on any other point given by its offset from the vehicle (``centre_m``): a swath gathered in real
+time lies behind the vehicle, and :func:`soundings_centre` centres the patch on what was sounded.
 
 - node ``(k, l)`` sits at north offset ``(k - (h - 1) / 2) * node_m`` and east offset
-  ``(l - (w - 1) / 2) * node_m`` (row grows north, column east, like the map);
+  ``(l - (w - 1) / 2) * node_m`` from the centre (row grows north, column east, like the map);
 - a sounding belongs to the node nearest to it (a half-node tie goes to the higher index);
 - a node's depth is the mean of its soundings; a node no beam reached is NaN (never interpolated,
   so the correlator's valid mask says exactly where the sonar saw the floor);
@@ -20,7 +22,7 @@ import numpy as np
 
 from .records import SonarPatch
 
-__all__ = ["GriddedSoundings", "grid_soundings"]
+__all__ = ["GriddedSoundings", "grid_soundings", "soundings_centre"]
 
 
 @dataclass(frozen=True)
@@ -49,8 +51,9 @@ def grid_soundings(
     *,
     patch_shape: tuple[int, int],
     node_m: float,
+    centre_m: tuple[float, float] = (0.0, 0.0),
 ) -> GriddedSoundings:
-    """Bin soundings (offsets from the vehicle) into a vehicle-centred patch, mean per node.
+    """Bin soundings (offsets from the vehicle) into a patch around ``centre_m``, mean per node.
 
     Parameters
     ----------
@@ -62,6 +65,8 @@ def grid_soundings(
         Nodes of the patch, north by east.
     node_m : float
         Node spacing, metres; the map's, so the patch can be correlated against it.
+    centre_m : (east, north)
+        The patch centre's offset from the vehicle, metres; the patch's ``centre_offset_m``.
 
     Returns
     -------
@@ -71,7 +76,8 @@ def grid_soundings(
     ------
     ValueError
         The arrays differ in length or hold NaN/infinite values (the caller filters and counts
-        those), the shape is not two positive integers, or ``node_m`` is not a positive number.
+        those), the shape is not two positive integers, ``node_m`` is not a positive number, or
+        ``centre_m`` is not two finite numbers.
     """
     h, w = _check_shape(patch_shape)
     if not (np.isfinite(node_m) and node_m > 0):
@@ -81,8 +87,11 @@ def grid_soundings(
         raise ValueError(f"east_m, north_m and depth_m have {east.size}, {north.size} and {depth.size} soundings")
     if not (np.all(np.isfinite(east)) and np.all(np.isfinite(north)) and np.all(np.isfinite(depth))):
         raise ValueError("soundings must be finite; filter NaN readings (and count them) before gridding")
-    k = np.floor(north / node_m + (h - 1) / 2 + 0.5).astype(np.int64)
-    l = np.floor(east / node_m + (w - 1) / 2 + 0.5).astype(np.int64)
+    centre = np.asarray(centre_m, dtype=np.float64).ravel()
+    if centre.size != 2 or not np.all(np.isfinite(centre)):
+        raise ValueError(f"centre_m must be two finite numbers (east, north) in metres, got {centre_m!r}")
+    k = np.floor((north - centre[1]) / node_m + (h - 1) / 2 + 0.5).astype(np.int64)
+    l = np.floor((east - centre[0]) / node_m + (w - 1) / 2 + 0.5).astype(np.int64)
     inside = (k >= 0) & (k < h) & (l >= 0) & (l < w)
     node = k[inside] * w + l[inside]
     counts = np.bincount(node, minlength=h * w)
@@ -90,10 +99,26 @@ def grid_soundings(
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
     return GriddedSoundings(
-        patch=SonarPatch(depth_m=mean.reshape(h, w), node_m=float(node_m)),
+        patch=SonarPatch(depth_m=mean.reshape(h, w), node_m=float(node_m), centre_offset_m=(float(centre[0]), float(centre[1]))),
         used=int(inside.sum()),
         outside=int((~inside).sum()),
     )
+
+
+def soundings_centre(east_m: np.ndarray, north_m: np.ndarray) -> tuple[float, float]:
+    """The middle of the soundings' extent (east, north), metres from the vehicle: a patch centre that they fill.
+
+    Raises
+    ------
+    ValueError
+        No sounding, or a NaN/infinite offset.
+    """
+    east, north = (np.asarray(a, dtype=np.float64).ravel() for a in (east_m, north_m))
+    if east.size == 0 or east.size != north.size:
+        raise ValueError(f"the centre of the soundings needs at least one sounding with both offsets, got {east.size} east and {north.size} north")
+    if not (np.all(np.isfinite(east)) and np.all(np.isfinite(north))):
+        raise ValueError("sounding offsets must be finite; filter NaN readings (and count them) first")
+    return float(east.min() + east.max()) / 2, float(north.min() + north.max()) / 2
 
 
 def _check_shape(patch_shape) -> tuple[int, int]:

@@ -75,11 +75,15 @@ def reducer_geometry(surface_shape: tuple[int, int], lanes: int, exclusion_radiu
 def reducer_latency(surface_shape: tuple[int, int], lanes: int, exclusion_radius: int) -> int:
     """Cycles from the edge on which the last surface beat transfers to the one on which the best beat does.
 
-    After the last beat the reducer reads each of the ``Ho`` row minima and each of the
-    ``slots * beats_per_row`` row-store words once, one per cycle; the last word is evaluated one
-    cycle after it is read, the runner-up register settles on the next edge, and the best beat,
-    offered from then on, transfers on the edge after (with ``best.ready`` high).
+    The reducer's collecting pipeline takes ``4 + K`` edges to store the last beat, ``K = ceil(log2
+    lanes)`` being the levels of its lane-minimum tree: the beat's register, the tree, the row minimum,
+    the best fit, the slot choice; the row-store write is the last of them. The scan then starts: it
+    reads each of the ``Ho`` row minima and each of the ``slots * beats_per_row`` row-store words once,
+    one per cycle; a word is registered on the edge after it is read and its lane candidates on the
+    next, which a ``K``-level tree reduces to one compared with the runner-up on the next edge, after
+    which the best beat is offered and transfers on the edge after (with ``best.ready`` high).
     """
     rows, _ = _check_surface_shape(surface_shape)
     slots, beats_per_row = reducer_geometry(surface_shape, lanes, exclusion_radius)
-    return rows + slots * beats_per_row + 2
+    levels = (int(lanes) - 1).bit_length()  # ceil(log2 lanes)
+    return rows + slots * beats_per_row + 2 * levels + 8

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from lost.hdl.generate import shape_argument
+from lost.model.shapes import shape_argument
 from lost.model import cycles_recursive, cycles_window
 
 __all__ = ["cycle_table", "main"]

@@ -9,8 +9,9 @@ What happens at a record
 - State updater (eq. 1): the previous estimate moved by the measured velocity over the time step; a
   missing velocity is replaced by the last one measured (counted).
 - MLE (eqs. 2-3): ``matching="patch"`` correlates the record's sonar patch against the sub-map of
-  placements whose centre lies within ``search_half_width_m`` of the prediction (the correlator
-  backend is a parameter) and minimizes eq. 3 with V as the depth term; ``matching="point"``
+  placements whose centre lies within ``search_half_width_m`` of the patch centre's prediction (the
+  vehicle's plus the patch's ``centre_offset_m``; the correlator backend is a parameter), minimizes
+  eq. 3 with V as the depth term and takes the offset off again; ``matching="point"``
   matches the one ocean depth (vehicle depth + altitude) against every node of that area. Records
   without a measurement (no patch, a dropped altimeter) have no MLE; the estimate goes on by dead
   reckoning until the next one. So does a prediction whose search area leaves the map: the record
@@ -67,6 +68,17 @@ class NavParameters:
     max_cross_accel_mps2, max_cross_speed_mps : float
         Thresholds of f_a and f_v in eqs. 5-6, from the vehicle's dynamics (the patent gives no
         number): 0.05 m/s**2 and 1.0 m/s, about a tow body's turn response at 2-4 kn.
+    cat_restart_s : float
+        When the tracker's previous update is older than this (no usable MLE for that long: no patch,
+        ambiguous matches, off the map), it restarts: w = 0 and Δt the last record step. Eq. 7
+        moves the estimate by w Δt on top of a one-record prediction, so a stale w over a long gap
+        would throw it hundreds of metres (seen in a turn). Not in the patent, whose MLE runs at
+        every update. Default 30 s.
+    cross_damping_per_s : float or None
+        Decay rate of the CAT's cross-track velocity w, 1/s, in place of eq. 6's ``(1 - u)`` per
+        update: a documented departure from the patent, whose tracker rings (damping ratio 0.035 at
+        u = 0.01; see :class:`~lost.host.nav.stages.CrossTrackTracker`). Default None, the patent's;
+        the shipped scenarios use 0.05.
     search_half_width_m : float
         Half side of the square MLE search area centred on the prediction (the patent leaves the
         size to the convergence/cost trade-off). Default 300 m, enough for a 200 m start error.
@@ -77,9 +89,9 @@ class NavParameters:
         chosen placement is at least this many times the chosen placement's V (Nygren's secondary
         peaks); otherwise the record dead-reckons (counted as ``patch_ambiguous``). The default 1
         rejects only a match where a distant placement fits the patch better than the chosen one,
-        i.e. the distance prior outweighed the terrain; 0 disables the test. Higher values starve
-        the tracker on smooth terrain until the estimate drifts out of the search area (measured on
-        ``two_hour``: 1.2 loses the track). Not in the patent.
+        i.e. the distance prior outweighed the terrain; 0 disables the test. Higher values skip
+        more matches where the floor turns smooth (measured on ``two_hour``, see the README: 1.2
+        changes the RMS by a few tenths of a metre either way). Not in the patent.
     use_slant_range : bool
         Apply the SRC when a slant range is measured.
     slant_range_gate_m : float
@@ -105,6 +117,8 @@ class NavParameters:
     u: float = 0.01
     max_cross_accel_mps2: float = 0.05
     max_cross_speed_mps: float = 1.0
+    cross_damping_per_s: float | None = None
+    cat_restart_s: float = 30.0
     search_half_width_m: float = 300.0
     min_valid_fraction: float = 0.5
     min_distinctness: float = 1.0
@@ -124,7 +138,7 @@ class NavParameters:
             raise ValueError(f"layback_model must be one of {LAYBACK_MODELS}, got {self.layback_model!r}.")
         if self.backend not in BACKENDS:
             raise ValueError(f"backend must be one of {sorted(BACKENDS)}, got {self.backend!r}.")
-        for name in ("k", "search_half_width_m", "slant_range_gate_m", "layback_depth_ratio"):
+        for name in ("k", "search_half_width_m", "slant_range_gate_m", "layback_depth_ratio", "cat_restart_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
@@ -135,8 +149,13 @@ class NavParameters:
         if len(self.initial_offset_m) != 2 or not all(math.isfinite(float(x)) for x in self.initial_offset_m):
             raise ValueError(f"initial_offset_m must be two finite numbers (east, north), got {self.initial_offset_m!r}.")
         object.__setattr__(self, "initial_offset_m", tuple(float(x) for x in self.initial_offset_m))
-        # The tracker validates u and its thresholds with its own messages.
-        CrossTrackTracker(u=self.u, max_accel_mps2=self.max_cross_accel_mps2, max_speed_mps=self.max_cross_speed_mps)
+        # The tracker validates u, its thresholds and damping with its own messages.
+        self.tracker()
+
+    def tracker(self) -> CrossTrackTracker:
+        """A fresh constrained adaptive tracker with these settings."""
+        return CrossTrackTracker(u=self.u, max_accel_mps2=self.max_cross_accel_mps2, max_speed_mps=self.max_cross_speed_mps,
+                                 damping_per_s=self.cross_damping_per_s)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -209,7 +228,10 @@ class _Matcher:
         rows, cols = grid.shape
         if h > rows or w > cols:
             raise ValueError(f"the {h} x {w} sonar patch is larger than the {rows} x {cols} map")
-        row, col = grid.row_col(*predicted)
+        # The patch is matched where its centre is predicted; the vehicle is that far from it.
+        offset = np.asarray(sonar.centre_offset_m, dtype=float)
+        centre = predicted + offset
+        row, col = grid.row_col(*centre)
         # Placement (i, j) puts the patch centre on node (i + (h-1)/2, j + (w-1)/2).
         area = self._window(row - (h - 1) / 2, col - (w - 1) / 2, rows - h + 1, cols - w + 1)
         if area is None:
@@ -218,7 +240,7 @@ class _Matcher:
         surface = correlate(self._prep.words[i0 : i1 + h, j0 : j1 + w], words, mask=mask, backend=self._params.backend)
         surface = np.where(self._prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1], -1, surface)
         x, y = grid.xy(np.arange(i0, i1 + 1)[:, None] + (h - 1) / 2, np.arange(j0, j1 + 1)[None, :] + (w - 1) / 2)
-        value = patch_likelihood(predicted[0] - x, predicted[1] - y, surface, valid_nodes=valid, lsb_m=self._prep.lsb_m, k=self._params.k)
+        value = patch_likelihood(centre[0] - x, centre[1] - y, surface, valid_nodes=valid, lsb_m=self._prep.lsb_m, k=self._params.k)
         if not np.isfinite(value).any():
             self._counts["patch_no_valid_placement"] += 1
             return None
@@ -231,7 +253,7 @@ class _Matcher:
             self._counts["patch_ambiguous"] += 1
             return None
         fi, fj = refine_minimum(value, i, j)
-        return np.array(grid.xy(i0 + fi + (h - 1) / 2, j0 + fj + (w - 1) / 2), dtype=float)
+        return np.array(grid.xy(i0 + fi + (h - 1) / 2, j0 + fj + (w - 1) / 2), dtype=float) - offset
 
     def point(self, predicted: np.ndarray, ocean_depth_m: float) -> np.ndarray | None:
         grid = self._grid
@@ -310,7 +332,7 @@ def _run(
     slant_corrected = np.zeros(n_records, dtype=bool)
     off_map = np.zeros(n_records, dtype=bool)
     matcher = _Matcher(prepared, params, counts)
-    tracker = CrossTrackTracker(u=params.u, max_accel_mps2=params.max_cross_accel_mps2, max_speed_mps=params.max_cross_speed_mps)
+    tracker = params.tracker()
     sonar = records.sonar if records.sonar else (None,) * n_records
 
     velocity = np.zeros(2)
@@ -377,9 +399,12 @@ def _run(
             if frame is None:
                 counts["cat_no_ship_fix"] += 1
             else:
-                cross = tracker.update(
-                    predicted_cross_m=frame.cross(predicted[n]), mle_cross_m=frame.cross(found), dt_s=t - last_update_t
-                )
+                since = t - last_update_t
+                if since > params.cat_restart_s:
+                    tracker.restart()
+                    counts["cat_restarts"] += 1
+                    since = dt
+                cross = tracker.update(predicted_cross_m=frame.cross(predicted[n]), mle_cross_m=frame.cross(found), dt_s=since)
                 position = cat[n] = frame.position(frame.along(found), cross)
                 cross_velocity[n] = tracker.velocity_mps
                 last_update_t = t

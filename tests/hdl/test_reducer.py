@@ -66,7 +66,7 @@ def random_surface(rng, shape, *, high):
     return rng.integers(0, high, shape).astype(np.int64)
 
 
-@pytest.mark.parametrize("lanes", [1, 4])
+@pytest.mark.parametrize("lanes", [1, 3, 4, 8])  # lane trees of 0, 2 (uneven), 2 and 3 levels
 @pytest.mark.parametrize("radius", [0, 1, 2])
 def test_random_surfaces_with_ties(lanes, radius):
     rng = np.random.default_rng(100 * lanes + radius)
@@ -116,7 +116,7 @@ def test_small_surfaces_and_covering_radii(shape, radius):
         assert results == [best_fit_payload(best_fit(surface, exclusion_radius=radius)) for surface in surfaces]
 
 
-@pytest.mark.parametrize("lanes", [1, 3])
+@pytest.mark.parametrize("lanes", [1, 3, 5, 8])
 def test_latency_matches_the_cycle_model(lanes):
     rng = np.random.default_rng(lanes)
     shape = (8, 11)

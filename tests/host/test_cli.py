@@ -1,6 +1,8 @@
 """The ``lost`` command: run, demo and correlate, end to end on files."""
 
 import json
+import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -30,6 +32,20 @@ def test_run_by_builtin_name_with_backend_and_matching(tmp_path):
     assert main(["run", "short", "--out", str(out), "--backend", "model", "--matching", "point"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["parameters"]["backend"] == "model" and summary["parameters"]["matching"] == "point"
+
+
+def test_set_overrides_the_scenarios_navigation_parameters(tmp_path, capsys):
+    out = tmp_path / "patent"
+    args = ["run", "short", "--out", str(out), "--set", "cross_damping_per_s=none", "--set", "initial_offset_m=[10, -20]",
+            "--set", "layback_model=cable"]
+    assert main(args) == 0
+    parameters = json.loads((out / "summary.json").read_text())["parameters"]
+    # The shipped scenario damps the tracker; `none` restores the patent's (1 - u).
+    assert parameters["cross_damping_per_s"] is None
+    assert list(parameters["initial_offset_m"]) == [10.0, -20.0] and parameters["layback_model"] == "cable"
+    capsys.readouterr()
+    assert main(["run", "short", "--out", str(out), "--set", "kay=3"]) == 2
+    assert "--set names no navigation parameter: kay" in capsys.readouterr().err
 
 
 def test_run_needs_a_scenario_or_log_and_bathy(capsys):
@@ -113,6 +129,37 @@ def test_run_a_recorded_tow_from_log_sonar_and_grid_files(tmp_path, capsys):
     assert summary["name"] == "nav" and summary["truth_known"]
     assert summary["convergence"]["converged"] and summary["methods"]["lost"]["rms_m"] < 7.0
     assert summary["methods"]["layback"]["rms_m"] > 10 * summary["methods"]["lost"]["rms_m"]
+
+
+def test_a_recorded_realtime_swath_is_centred_on_its_soundings(tmp_path, capsys):
+    """A real-time swath (patches behind the vehicle) logged without patch centres: --patch-centre soundings."""
+    import pandas as pd
+
+    from lost.host.io import write_npz
+    from lost.host.navlog import write_navlog
+    from lost.host.scenario import load_scenario, simulate
+
+    scenario = load_scenario(builtin_scenario_path("demo"))
+    grid, records = simulate(replace(scenario, duration_s=600.0))
+    map_path = write_npz(grid, tmp_path / "map.npz")
+    write_navlog(records, tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv")
+    log = pd.read_csv(tmp_path / "nav.csv")
+    # Once the swath reaches half a patch diagonal back (the first minute), every patch lies that far behind.
+    assert np.hypot(log["patch_east_m"][60:], log["patch_north_m"][60:]).min() > 70.0
+    log.drop(columns=["patch_east_m", "patch_north_m"]).to_csv(tmp_path / "nav.csv", index=False)
+    files = ["--log", str(tmp_path / "nav.csv"), "--bathy", str(map_path), "--sonar", str(tmp_path / "sonar.csv")]
+
+    assert main(["run", *files, "--patch-centre", "soundings", "--patch-shape", "10x10", "--out", str(tmp_path / "a")]) == 0
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["convergence"]["converged"] and summary["methods"]["lost"]["rms_m"] < 5.0
+    # Centred on the vehicle, most of each patch's soundings fall beyond it, and the report says so.
+    capsys.readouterr()
+    assert main(["run", *files, "--out", str(tmp_path / "b")]) == 0
+    used, outside = (int(x) for x in re.search(r"(\d+) gridded into .*?\n.*?not used: (\d+) beyond the patch", capsys.readouterr().out, re.S).groups())
+    assert outside > used
+    with pytest.raises(SystemExit):
+        main(["run", *files, "--patch-shape", "10by10"])
+    assert "expected ROWSxCOLS" in capsys.readouterr().err
 
 
 def test_long_runs_get_a_progress_bar_that_passes_every_record():

@@ -46,7 +46,8 @@ def test_every_backend_agrees_on_the_papers_size():
     terrain = rng.integers(-32768, 32768, (501, 501)).astype(np.int16)
     patch = rng.integers(-32768, 32768, (10, 10)).astype(np.int16)
     mask = rng.random((10, 10)) > 0.2
-    surfaces = {name: correlate(terrain, patch, mask=mask, backend=name) for name in BACKENDS}
+    # The rtl backend has its own test (tests/sim/test_rtl_backend.py): a build at this size takes minutes.
+    surfaces = {name: correlate(terrain, patch, mask=mask, backend=name) for name in BACKENDS if name != "rtl"}
     for name, surface in surfaces.items():
         np.testing.assert_array_equal(surface, surfaces["model"], err_msg=name)
 

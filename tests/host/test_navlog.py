@@ -237,7 +237,9 @@ def test_written_records_read_back_value_for_value(tmp_path):
     for i in range(n):
         depth = rng.normal(500.0, 5.0, (6, 8))
         depth[rng.random((6, 8)) < 0.3] = np.nan
-        patches.append(None if i % 5 == 0 else SonarPatch(depth_m=depth, node_m=7.5))
+        # Every third patch lies behind the vehicle, as one gathered in real time does.
+        centre = (rng.normal(0.0, 30.0), rng.normal(-60.0, 10.0)) if i % 3 == 0 else (0.0, 0.0)
+        patches.append(None if i % 5 == 0 else SonarPatch(depth_m=depth, node_m=7.5, centre_offset_m=centre))
     records = NavRecords(t_s=np.cumsum(rng.uniform(0.1, 2.0, n)), sonar=tuple(patches), **columns)
     write_navlog(records, tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv")
     back, report = read_navlog(tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv", patch_shape=(6, 8), node_m=7.5)
@@ -247,7 +249,9 @@ def test_written_records_read_back_value_for_value(tmp_path):
         assert (mine is None) == (theirs is None)
         if mine is not None:
             np.testing.assert_array_equal(mine.depth_m, theirs.depth_m)
+            assert mine.centre_offset_m == theirs.centre_offset_m
     assert report.nan_counts["altitude_m"] == 2 and report.nan_counts["slant_range_m"] == 10
+    assert "patch_east_m" not in report.nan_counts  # an empty centre is no missing reading
     assert report.soundings == report.soundings_used and report.records_with_sonar == 32
     with pytest.raises(ValueError, match="pass sonar="):
         write_navlog(records, tmp_path / "again.csv")
@@ -316,3 +320,24 @@ def test_true_false_column_is_not_numbers(tmp_path):
     text = "\n".join([HEADER, ROWS[0].replace("20.0", "True"), ROWS[1].replace("19.5", "False")]) + "\n"
     with pytest.raises(ValueError, match="altitude_m holds true/false"):
         read_navlog(write(tmp_path, text))
+
+
+def test_patch_centre_from_the_log_or_the_soundings(tmp_path):
+    header = HEADER + ",patch_east_m,patch_north_m"
+    rows = [ROWS[0] + ",0,-40", ROWS[1] + ",,", ROWS[2] + ",,"]
+    nav = write(tmp_path, "\n".join([header, *rows]) + "\n")
+    # Record 0's soundings around its logged centre 40 m south; record 1's in a strip 30-50 m south.
+    sonar = write(tmp_path, "record,east_m,north_m,depth_m\n0,0,-40,321\n0,10,-50,322\n1,0,-30,5\n1,0,-50,6\n", "s.csv")
+    by_vehicle, report = read_navlog(nav, sonar=sonar, patch_shape=(3, 3), node_m=10.0)
+    assert by_vehicle.sonar[0].centre_offset_m == (0.0, -40.0)
+    assert by_vehicle.sonar[0].depth_m[1, 1] == 321.0 and by_vehicle.sonar[0].depth_m[0, 2] == 322.0
+    # Around the vehicle the 3 x 3 patch reaches 15 m south: record 1's soundings all fall beyond it.
+    assert by_vehicle.sonar[1] is None and report.soundings_outside_patch == 2
+    by_soundings, report = read_navlog(nav, sonar=sonar, patch_shape=(3, 3), node_m=10.0, patch_centre="soundings")
+    assert by_soundings.sonar[1].centre_offset_m == (0.0, -40.0) and report.soundings_outside_patch == 0
+    np.testing.assert_array_equal(by_soundings.sonar[1].depth_m[:, 1], [6.0, np.nan, 5.0])
+    with pytest.raises(ValueError, match="patch_centre must be one of"):
+        read_navlog(nav, sonar=sonar, node_m=10.0, patch_centre="ship")
+    half = write(tmp_path, "\n".join([HEADER + ",patch_east_m", *(r + ",0" for r in ROWS)]) + "\n", "half.csv")
+    with pytest.raises(ValueError, match="patch_east_m needs patch_north_m"):
+        read_navlog(half)

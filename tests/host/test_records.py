@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from lost.host.records import NavRecords
+from lost.host.records import NavRecords, SonarPatch
 
 FIELDS = ["ship_x_m", "ship_y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps", "slant_range_m", "cable_out_m"]
 
@@ -29,3 +29,11 @@ def test_length_mismatch_is_named():
 def test_half_truth_is_refused():
     with pytest.raises(ValueError, match="together"):
         _records(truth_x_m=np.zeros(4))
+
+
+def test_sonar_patch_centre_offset_is_two_finite_metres():
+    assert SonarPatch(np.zeros((2, 2)), 10.0).centre_offset_m == (0.0, 0.0)
+    assert SonarPatch(np.zeros((2, 2)), 10.0, centre_offset_m=np.array([-3, 40])).centre_offset_m == (-3.0, 40.0)
+    for bad in ((1.0,), (0.0, np.nan), (1.0, 2.0, 3.0)):
+        with pytest.raises(ValueError, match="centre_offset_m"):
+            SonarPatch(np.zeros((2, 2)), 10.0, centre_offset_m=bad)

@@ -185,8 +185,47 @@ def test_a_swath_binned_by_dead_reckoning_makes_the_gridded_patch(tmp_path):
     assert compared > 100
 
 
+def test_a_realtime_swath_patch_uses_no_later_ping_and_lies_behind_the_vehicle(tmp_path):
+    from lost.host.grid import Grid
+    from lost.host.io import write_npz
+
+    plane = 500.0 + 0.05 * np.arange(500)[None, :] + 0.03 * np.arange(200)[:, None]
+    write_npz(Grid(plane, 0.0, 0.0, 10.0), tmp_path / "plane.npz")
+    sonar = SonarSpec(mode="swath", realtime=True, beams=64, shape=(6, 6), interval_s=5.0)
+    on_plane = replace(_quiet(), base_dir=tmp_path, terrain=TerrainSpec(file="plane.npz"), sensors={"sonar": sonar})
+    _, full = simulate(on_plane)
+    _, cut = simulate(replace(on_plane, duration_s=600.0))
+    # Causal: ending the tow earlier changes no patch (the post-processing patch near the end would change).
+    for a, b in zip(full.sonar[: len(cut)], cut.sonar):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_array_equal(a.depth_m, b.depth_m)
+            assert a.centre_offset_m == b.centre_offset_m
+    _, post = simulate(replace(on_plane, duration_s=600.0, sensors={"sonar": replace(sonar, realtime=False)}))
+    _, post_full = simulate(replace(on_plane, sensors={"sonar": replace(sonar, realtime=False)}))
+    assert not np.array_equal(post.sonar[595].depth_m, post_full.sonar[595].depth_m, equal_nan=True)
+    # Behind the eastward-moving vehicle by at least half the patch diagonal, and full once the swath reaches back.
+    half_diagonal = math.hypot(6, 6) * 10.0 / 2
+    checked = 0
+    for n, patch in enumerate(full.sonar):
+        if patch is None or n < 60:
+            continue
+        east, north = patch.centre_offset_m
+        assert east < 0 and math.hypot(east, north) >= half_diagonal and abs(north) < 1.0
+        assert np.isfinite(patch.depth_m).all()
+        # Each node holds the plane's depth at its place, within the rise over half a node.
+        rows = (full.truth_y_m[n] + north + (np.arange(6) - 2.5) * 10.0) / 10.0
+        cols = (full.truth_x_m[n] + east + (np.arange(6) - 2.5) * 10.0) / 10.0
+        expected = 500.0 + 0.05 * cols[None, :] + 0.03 * rows[:, None]
+        assert np.max(np.abs(patch.depth_m - expected)) < 0.5 * 10.0 * 0.08
+        checked += 1
+    assert checked > 100
+
+
 def test_swath_settings_are_validated():
     with pytest.raises(ValueError, match="mode must be"):
         Scenario(sensors={"sonar": SonarSpec(mode="sidescan")})
     with pytest.raises(ValueError, match="at least 2 beams"):
         Scenario(sensors={"sonar": SonarSpec(mode="swath", beams=1)})
+    with pytest.raises(ValueError, match="realtime applies to mode = 'swath'"):
+        Scenario(sensors={"sonar": SonarSpec(realtime=True)})

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lost.host.sonar import grid_soundings
+from lost.host.sonar import grid_soundings, soundings_centre
 
 
 def test_each_sounding_lands_on_its_node():
@@ -49,8 +49,29 @@ def test_no_soundings_is_an_all_nan_patch():
         (([0.0], [0.0], [1.0]), dict(patch_shape=(0, 2), node_m=1.0), "patch_shape"),
         (([0.0], [0.0], [1.0]), dict(patch_shape=(2.5, 2), node_m=1.0), "patch_shape"),
         (([0.0], [0.0], [1.0]), dict(patch_shape=(2, 2), node_m=0.0), "node_m"),
+        (([0.0], [0.0], [1.0]), dict(patch_shape=(2, 2), node_m=1.0, centre_m=(0.0, np.nan)), "centre_m"),
+        (([0.0], [0.0], [1.0]), dict(patch_shape=(2, 2), node_m=1.0, centre_m=(1.0,)), "centre_m"),
     ],
 )
 def test_bad_input_is_named(args, kwargs, message):
     with pytest.raises(ValueError, match=message):
         grid_soundings(*args, **kwargs)
+
+
+def test_a_patch_centred_behind_the_vehicle_keeps_its_offset():
+    # Centre 30 m south and 4 m west of the vehicle: node (k, l) at north -30 + (k - 1) * 2, east -4 + (l - 2) * 2.
+    out = grid_soundings([-8.0, -4.0, 0.1], [-32.0, -30.0, -28.2], [10.0, 11.0, 12.0], patch_shape=(3, 5), node_m=2.0, centre_m=(-4.0, -30.0))
+    expected = np.full((3, 5), np.nan)
+    expected[0, 0], expected[1, 2], expected[2, 4] = 10.0, 11.0, 12.0
+    np.testing.assert_array_equal(out.patch.depth_m, expected)
+    assert out.patch.centre_offset_m == (-4.0, -30.0) and (out.used, out.outside) == (3, 0)
+    # The same soundings around the vehicle are all beyond a 3 x 5 patch.
+    assert grid_soundings([-8.0, -4.0, 0.1], [-32.0, -30.0, -28.2], [1.0, 1.0, 1.0], patch_shape=(3, 5), node_m=2.0).used == 0
+
+
+def test_soundings_centre_is_the_middle_of_their_extent():
+    assert soundings_centre([-10.0, 30.0, 0.0], [-60.0, -20.0, -50.0]) == (10.0, -40.0)
+    with pytest.raises(ValueError, match="at least one sounding"):
+        soundings_centre([], [])
+    with pytest.raises(ValueError, match="finite"):
+        soundings_centre([0.0, np.inf], [0.0, 1.0])

@@ -13,10 +13,10 @@ def test_full_size_figures():
     mean = schedule((501, 501), (10, 10))
     plain = schedule((501, 501), (10, 10), mean_compensation=False)
     assert mean.surface.shape == (492 * 492,)
-    assert mean.surface[0] == 2 * 100 + 4 + 2 * 100
-    assert plain.surface[-1] == 2 * 100 + 4 + (492 * 492 + 1) * 100
+    assert mean.surface[0] == 2 * 100 + 11 + 2 * 100
+    assert plain.surface[-1] == 2 * 100 + 11 + (492 * 492 + 1) * 100
     np.testing.assert_array_equal(mean.surface, plain.surface)
-    assert mean.best == mean.surface[-1] + 492 + 4 * 492 + 2
+    assert mean.best == mean.surface[-1] + 492 + 4 * 492 + 8
     assert mean.total == mean.best
 
 
@@ -24,14 +24,15 @@ def test_beats_are_one_placement_apart():
     mask = np.array([[True, False, True], [False, True, True]])
     result = schedule((6, 8), (2, 3), mask, True)
     assert set(np.diff(result.surface).tolist()) == {4}
-    assert result.surface[0] == 2 * 6 + 4 + 2 * 4
+    assert result.surface[0] == 2 * 6 + 11 + 2 * 4
     assert requests_per_placement(mask, False) == requests_per_placement(mask, True) == 4
 
 
 def test_reducer_geometry_and_latency():
     assert reducer_geometry((10, 10), 4, 1) == (4, 3)
     assert reducer_geometry((3, 10), 1, 2) == (3, 10)  # no more slots than rows
-    assert reducer_latency((10, 10), 4, 1) == 10 + 4 * 3 + 2
+    assert reducer_latency((10, 10), 4, 1) == 10 + 4 * 3 + 2 * 2 + 8  # 2 tree levels for 4 lanes
+    assert reducer_latency((10, 10), 5, 1) == 10 + 4 * 2 + 2 * 3 + 8
     assert surface_beats((2, 5), 2) == [(0, 0, 2), (0, 2, 2), (0, 4, 1), (1, 0, 2), (1, 2, 2), (1, 4, 1)]
 
 

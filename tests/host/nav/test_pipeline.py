@@ -62,6 +62,40 @@ def test_patch_mle_finds_the_vehicle_from_an_offset_start():
     assert result.counts["mle_updates"] == len(records) - 1
 
 
+def test_a_patch_centred_behind_the_vehicle_finds_the_vehicle():
+    # Each patch is cut 3 nodes south and 1 west of the vehicle, and says so: the MLE is the vehicle's.
+    grid, records, truth = _tow(n=8, start=(300.0, 240.0))
+    depth, half = grid.depth_m, SIDE // 2
+    behind = []
+    for x, y in truth:
+        row, col = (int(round(v)) for v in grid.row_col(x, y))
+        behind.append(SonarPatch(depth[row - 3 - half : row - 3 + half + 1, col - 1 - half : col - 1 + half + 1] + 3.0,
+                                 NODE, centre_offset_m=(-NODE, -3 * NODE)))
+    result = run_lost(_replace(records, sonar=tuple(behind)), grid, NavParameters(initial_offset_m=(20.0, 20.0)))
+    assert np.max(np.hypot(*(result.mle[1:] - truth[1:]).T)) < 1.0
+    # Without the offset the same patches put the vehicle where the patch is.
+    plain = tuple(SonarPatch(patch.depth_m, NODE) for patch in behind)
+    wrong = run_lost(_replace(records, sonar=plain), grid, NavParameters(initial_offset_m=(20.0, 20.0)))
+    assert np.allclose(wrong.mle[1:] - truth[1:], (-NODE, -3 * NODE), atol=1.0)
+
+
+def test_the_tracker_restarts_after_a_long_gap_instead_of_jumping():
+    # Patches at 1-3 s, none for 60 s, then patches again: a stale w times 60 s would throw the estimate.
+    grid, records, truth = _tow(n=70, start=(300.0, 20.0), speed=(0.0, 8.0))
+    gap = tuple(patch if n < 4 or n > 63 else None for n, patch in enumerate(records.sonar))
+    records = _replace(records, sonar=gap)
+    start = (40.0, 0.0)
+    restarted = run_lost(records, grid, NavParameters(initial_offset_m=start))
+    assert restarted.counts["cat_restarts"] == 1
+    # Cross track is east here: from w = 0 the estimate creeps toward the MLE, w growing by f_a (0.05) a second.
+    cross_step = np.abs(np.diff(restarted.estimate[63:68, 0]))
+    assert np.all(cross_step <= 0.05 * np.arange(1, 5) + 1e-9)
+    never = run_lost(records, grid, NavParameters(initial_offset_m=start, cat_restart_s=1e9))
+    assert "cat_restarts" not in never.counts
+    # The patent's eq. 7 with the gap as dt: w (at f_v's 1 m/s by then) times 61 s, past the MLE.
+    assert abs(never.estimate[64, 0] - never.estimate[63, 0]) > 50.0
+
+
 def test_every_backend_gives_the_same_track():
     grid, records, _ = _tow(n=6)
     a = run_lost(records, grid, NavParameters(backend="software", initial_offset_m=(30.0, 20.0)))
@@ -153,6 +187,7 @@ def test_a_patch_on_other_nodes_is_an_error():
         ({"k": -1.0}, "k must be"),
         ({"backend": "fpga-over-smoke"}, "backend"),
         ({"u": 2.0}, "adaptive constant"),
+        ({"cross_damping_per_s": -0.05}, "cross-track damping"),
         ({"initial_offset_m": (1.0,)}, "initial_offset_m"),
         ({"min_distinctness": -1.0}, "min_distinctness"),
         ({"layback_model": "guess"}, "layback_model"),

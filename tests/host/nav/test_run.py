@@ -23,7 +23,8 @@ def test_short_scenario_converges_and_beats_the_baselines(short_run):
     assert convergence["initial_error_m"] > 150.0
     assert convergence["converged"] and convergence["time_s"] < 240.0
     lost, layback, dead = methods["lost"], methods["layback"], methods["dead_reckoning"]
-    assert lost["rms_m"] < 7.0 and lost["p95_m"] < 15.0 and lost["max_m"] < 25.0
+    # The pipeline issue's goal: half a 10 m node RMS after convergence.
+    assert lost["rms_m"] <= 5.0 and lost["p95_m"] < 10.0 and lost["max_m"] < 25.0
     assert layback["rms_m"] > 10 * lost["rms_m"]
     assert dead["rms_m"] > 10 * lost["rms_m"]
 

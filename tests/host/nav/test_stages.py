@@ -112,7 +112,33 @@ def test_tracker_thresholds_acceleration_and_velocity():
     assert CrossTrackTracker(u=0.01).update(predicted_cross_m=5.0, mle_cross_m=-500.0, dt_s=1.0) == pytest.approx(5.0 - 0.05)
 
 
-@pytest.mark.parametrize("kwargs", [{"u": 0.0}, {"u": 1.0}, {"max_accel_mps2": 0.0}, {"max_speed_mps": -1.0}])
+def test_damped_tracker_decays_w_by_its_rate():
+    tracker = CrossTrackTracker(u=0.01, max_accel_mps2=0.05, max_speed_mps=1.0, damping_per_s=0.05)
+    assert CrossTrackTracker(u=0.01).decay(2.0) == pytest.approx(0.99)  # the patent's, whatever dt
+    assert tracker.decay(2.0) == pytest.approx(math.exp(-0.1))
+    # e = 2, d = 0.04, w = 0 + 0.04 * 2 = 0.08, cross = 0 + 0.16
+    assert tracker.update(predicted_cross_m=0.0, mle_cross_m=2.0, dt_s=2.0) == pytest.approx(0.16)
+    # e = 1.84, d = 0.0368, w = exp(-0.1) * 0.08 + 0.0736, cross = 0.16 + 2 w
+    w = math.exp(-0.1) * 0.08 + 0.0736
+    assert tracker.update(predicted_cross_m=0.16, mle_cross_m=2.0, dt_s=2.0) == pytest.approx(0.16 + 2 * w)
+    assert tracker.velocity_mps == pytest.approx(w)
+
+
+def test_damping_stops_the_patent_trackers_ring():
+    # Noise-free, from 3 m off: the patent's tracker still swings past 1 m after 200 s; damped, it has settled.
+    def error_after(tracker, seconds):
+        cross, errors = 0.0, []
+        for _ in range(seconds):
+            cross = tracker.update(predicted_cross_m=cross, mle_cross_m=3.0, dt_s=1.0)
+            errors.append(abs(cross - 3.0))
+        return max(errors[-60:])
+
+    assert error_after(CrossTrackTracker(u=0.01), 200) > 1.0
+    assert error_after(CrossTrackTracker(u=0.01, damping_per_s=0.05), 200) < 0.1
+
+
+@pytest.mark.parametrize("kwargs", [{"u": 0.0}, {"u": 1.0}, {"max_accel_mps2": 0.0}, {"max_speed_mps": -1.0},
+                                    {"damping_per_s": -0.1}, {"damping_per_s": float("inf")}, {"damping_per_s": "0.05"}])
 def test_tracker_rejects_bad_constants(kwargs):
     with pytest.raises(ValueError):
         CrossTrackTracker(**kwargs)
@@ -155,18 +181,19 @@ finite = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False)
     max_accel=st.floats(min_value=1e-3, max_value=1.0),
     max_speed=st.floats(min_value=1e-2, max_value=5.0),
     steps=st.lists(st.tuples(finite, finite, st.floats(min_value=0.0, max_value=10.0)), min_size=1, max_size=20),
+    damping=st.none() | st.floats(min_value=0.0, max_value=1.0),
 )
-def test_tracker_never_exceeds_its_thresholds(u, max_accel, max_speed, steps):
-    tracker = CrossTrackTracker(u=u, max_accel_mps2=max_accel, max_speed_mps=max_speed)
+def test_tracker_never_exceeds_its_thresholds(u, max_accel, max_speed, steps, damping):
+    tracker = CrossTrackTracker(u=u, max_accel_mps2=max_accel, max_speed_mps=max_speed, damping_per_s=damping)
     for predicted, mle, dt in steps:
         before = tracker.velocity_mps
         cross = tracker.update(predicted_cross_m=predicted, mle_cross_m=mle, dt_s=dt)
         assert abs(tracker.velocity_mps) <= max_speed
         # f_a bounds the change beyond the (1 - u) decay; f_v can only pull it further toward zero.
-        assert abs(tracker.velocity_mps - (1 - u) * before) <= max_accel * dt + 1e-9 or abs(tracker.velocity_mps) == max_speed
+        assert abs(tracker.velocity_mps - tracker.decay(dt) * before) <= max_accel * dt + 1e-9 or abs(tracker.velocity_mps) == max_speed
         assert cross == pytest.approx(predicted + tracker.velocity_mps * dt)
     # From rest, the first correction moves toward the MLE, never away from it.
-    fresh = CrossTrackTracker(u=u, max_accel_mps2=max_accel, max_speed_mps=max_speed)
+    fresh = CrossTrackTracker(u=u, max_accel_mps2=max_accel, max_speed_mps=max_speed, damping_per_s=damping)
     predicted, mle, dt = steps[0]
     assert (fresh.update(predicted_cross_m=predicted, mle_cross_m=mle, dt_s=dt) - predicted) * (mle - predicted) >= 0
 
