@@ -12,7 +12,7 @@ that can be computed once::
     term(k, l) = (f * M[i+k, j+l] - C[k, l]) - Wsum(i, j)     for a valid node (k, l), 0 otherwise
     C[k, l]    = f * S[k, l] - Ssum                           once per correlation, at start
     f          = n,  Ssum = sum_valid S,  Wsum = sum_valid M  with mean compensation
-    f          = 1,  Ssum = 0,            Wsum = 0            without
+    f          = 1,  Ssum = 0,            Wsum = 0            without (in the terms)
 
 ``f * M`` is formed once per map word, as it leaves the memory, and travels beside ``M`` through the
 line buffers. The window sum runs over the valid nodes only, so with a mask each column offset has its
@@ -22,14 +22,16 @@ as soon as they enter the window register; the terms are formed ``ceil(log2(h * 
 the same columns, which have moved down the register by then, so neither the sum nor the terms need a
 delay line.
 
-|z| is formed as ``(z XOR s) + s`` with ``s`` the sign of ``z``: the XOR (with the mask folded in) is
-one LUT per bit where a negation would be an adder, and the ``s`` of the valid nodes are counted in a
-small tree beside the value tree and added after it.
+No absolute value is formed. With mean compensation the terms of the valid nodes are deviations from
+their mean and sum to zero, so ``V = sum |z| = 2 * sum max(z, 0)``; without it ``z = M - S`` and
+``V = 2 * sum max(z, 0) - (sum_valid M - sum_valid S)``, the window sum (formed in both modes, subtracted
+from the terms only with mean compensation) giving the correction. ``max(z, 0)`` of a valid node is
+a register's synchronous reset, one LUT per node, where ``|z|`` costs an adder or a LUT per bit.
 
 Only the step-synchronous stages (the step register, the line buffers, the window register and the
 window-sum tree) hold still between steps; a step is a map word or, at the end, one of a fixed number
 of flush steps. Their one enable is a register, ``advance``, set on the edge a step is issued. The
-term stages (``f*M - C``, minus the window sum, sign-XOR, value tree) run on every clock with a valid
+term stages (``f*M - C``, minus the window sum, ``max(z, 0)``, value tree) run on every clock with a valid
 bit beside them: between steps they recompute the last placement, marked stale. Steps are issued
 against credits for the output queue, one per beat it holds, so a beat always finds room and
 ``surface.ready`` stalls nothing but the issue of further steps. The cycles are modelled exactly by
@@ -169,6 +171,7 @@ class WindowCore(wiring.Component):
         # A valid node's term lies within the bound, so truncating the full difference is exact.
         term = _union_bits((-term_max, term_max))
         abs_term = unsigned(term_max.bit_length())
+        difference_sum = signed(widths.sum_difference.bits)
 
         # ---- the patch, its count and sum, and C = f * S - Ssum (formed at start) ----------------
         # Like the map memory, the patch persists through a reset until reloaded. Its depths, read one
@@ -180,18 +183,13 @@ class WindowCore(wiring.Component):
         patch_valid = Signal(nodes, reset_less=True)
         centred_patch = Signal(data.ArrayLayout(centred, nodes), reset_less=True)
         mean_compensation = Signal()
-        # The nodes whose depths enter the window sum: none without mean compensation (Wsum = 0).
-        sum_valid = Signal(nodes)
-        m.d.comb += sum_valid.eq(patch_valid & mean_compensation.replicate(nodes))
         valid_count = Signal(count)
         patch_sum = Signal(window_sum)
         factor = Signal(count)
 
         idle = Signal()
         m.submodules.reducer = reducer = BestFitReducer(parameters=p)
-        # The last surface beat reaches the reducer a clock after its transfer (see below).
-        watched_valid = Signal()
-        ready_for_more = idle & ~reducer.busy & ~watched_valid
+        ready_for_more = idle & ~reducer.busy
         m.d.comb += [
             self.patch_in.ready.eq(ready_for_more),
             self.start.ready.eq(ready_for_more),
@@ -350,7 +348,6 @@ class WindowCore(wiring.Component):
 
         # ---- the lanes ------------------------------------------------------------------------------
         top = t.sum_levels * L
-        count_max = nodes
         lane_values = []
         for q in range(L):
             # Window sum of the valid nodes, on the columns as they arrive (step-synchronous).
@@ -358,35 +355,38 @@ class WindowCore(wiring.Component):
             for k in range(h):
                 for l in range(w):
                     x = k * w + l
-                    masked.append(Mux(sum_valid[x], window[top + q + l][k].depth, 0))
+                    masked.append(Mux(patch_valid[x], window[top + q + l][k].depth, 0))
             wsum = _pipelined_sum(m, advance, masked, (widths.depth.lo, widths.depth.hi),
                                   (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
 
-            # The same columns, sum_levels steps later, at the bottom of the register. |z| is formed
-            # as (z XOR s) + s with s the sign of z: the XOR is one LUT per bit with the mask folded
-            # in, and the signs of the valid nodes are counted once beside the value tree.
+            # The same columns, sum_levels steps later, at the bottom of the register: the terms, their
+            # positive parts, their sum; the plain mode's correction (sum_valid M - sum_valid S) travels
+            # beside them to the last stage.
             y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y", reset_less=True)
             wsum_y = Signal(window_sum, name=f"lane{q}_wsum_y", reset_less=True)
+            correction = Signal(data.ArrayLayout(difference_sum, t.term_stages - 1), name=f"lane{q}_correction",
+                                reset_less=True)
             z = Signal(data.ArrayLayout(term, nodes), name=f"lane{q}_z", reset_less=True)
-            a = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_xor", reset_less=True)
-            negative = Signal(nodes, name=f"lane{q}_negative", reset_less=True)
-            m.d.sync += wsum_y.eq(wsum)
+            positive = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_positive", reset_less=True)
+            m.d.sync += [
+                wsum_y.eq(Mux(mean_compensation, wsum, 0)),
+                correction[0].eq(Mux(mean_compensation, 0, wsum - patch_sum)),
+            ]
+            m.d.sync += [correction[x].eq(correction[x - 1]) for x in range(1, t.term_stages - 1)]
             for k in range(h):
                 for l in range(w):
                     x = k * w + l
-                    sign = z[x].as_unsigned()[-1]
+                    negative = z[x].as_unsigned()[-1]
                     m.d.sync += [
                         y[x].eq(window[q + l][k].scaled - centred_patch[x]),
                         z[x].eq(y[x] - wsum_y),
-                        a[x].eq(Mux(patch_valid[x], z[x].as_unsigned() ^ sign.replicate(Shape.cast(term).width), 0)),
-                        negative[x].eq(patch_valid[x] & sign),
+                        # A register's synchronous reset: one LUT per node, none per bit.
+                        positive[x].eq(Mux(patch_valid[x] & ~negative, z[x], 0)),
                     ]
-            magnitudes = _pipelined_sum(m, None, [a[x] for x in range(nodes)], (0, term_max),
-                                        (0, widths.accumulator.hi), f"lane{q}_sum")
-            signs = _pipelined_sum(m, None, [negative[x] for x in range(nodes)], (0, 1), (0, count_max),
-                                   f"lane{q}_signs")
+            positives = _pipelined_sum(m, None, [positive[x] for x in range(nodes)], (0, term_max),
+                                       (0, widths.accumulator.hi), f"lane{q}_sum")
             value = Signal(unsigned(widths.accumulator.bits), name=f"lane{q}_value", reset_less=True)
-            m.d.sync += value.eq(magnitudes + signs)
+            m.d.sync += value.eq((positives << 1) - correction[t.term_stages - 2])
             lane_values.append(value)
 
         # ---- into the output queue ---------------------------------------------------------------------
@@ -406,13 +406,11 @@ class WindowCore(wiring.Component):
         returned = (last_valid & ~last_meta.emit) + (output_queue.r_rdy & output_queue.r_en)
         m.d.sync += credits.eq(credits - issue + returned)
 
-        # The reducer watches the surface's transfers, one clock later (a register keeps the queue's
-        # read out of its paths), and answers on ``best``.
-        watched = Signal(p.surface_beat, reset_less=True)
-        m.d.sync += [watched.eq(self.surface.payload), watched_valid.eq(self.surface.valid & self.surface.ready)]
+        # The reducer watches the surface's transfers (registering each before any logic, so the
+        # queue's read stays out of its paths) and answers on ``best``.
         m.d.comb += [
-            reducer.surface.valid.eq(watched_valid),
-            reducer.surface.payload.eq(watched),
+            reducer.surface.valid.eq(self.surface.valid & self.surface.ready),
+            reducer.surface.payload.eq(self.surface.payload),
         ]
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
@@ -488,7 +486,7 @@ class WindowCorrelator(wiring.Component):
     Throughput and latency, with ``surface.ready`` and ``best.ready`` high: one memory row (``L``
     words) and one beat of ``L`` placements per clock once the pipeline is full; a correlation takes
     ``2hw + 4 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
-    row's last beat wraps to the next row's first step), then one clock and the reducer's scan.
+    row's last beat wraps to the next row's first step), then the reducer's pipeline and scan.
     Every beat's cycle is :func:`lost.model.cycles_window.schedule`;
     ``output_delay = 2 * ceil(log2(h * w)) + 6``.
 

@@ -22,9 +22,7 @@ patch and map loaded, counting from the edge on which the ``start`` beat transfe
 * a step's beat is written into the output queue ``output_delay`` edges after the step is taken (the
   ``step_stages - 1`` steps after it follow one per clock, then ``term_stages`` clocked stages) and
   transfers on the next edge;
-* the reducer sees each surface transfer one edge later (a register between the output queue and
-  the reducer), so the best beat follows the last surface beat by
-  :func:`lost.model.cycles.reducer_latency` ``+ 1``.
+* the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 
 So beat ``(i, g)`` transfers on edge ``2hw + 4 + step(i, g) + output_delay + 1`` with
 ``output_delay = 2 * ceil(log2(h * w)) + 6``. The schedule does not depend on the data, the mask or
@@ -69,7 +67,7 @@ class WindowTiming:
         step register, the window register and the window-sum levels.
     term_stages : int
         ``sum_levels + 4``: the stages that run on every clock: ``f*M - C``, minus the window sum,
-        the sign-XOR, the value-tree levels (beside them the count of negative terms) and their sum.
+        ``max(z, 0)``, the value-tree levels and ``2 * sum - correction``.
     output_delay : int
         ``step_stages + term_stages``: cycles from taking a step to writing its beat into the output
         queue once the ``step_stages - 1`` steps after it have followed one per clock.
@@ -176,5 +174,5 @@ def schedule(map_shape, patch_shape, lanes: int = 1, mask=None, mean_compensatio
     steps = completing_steps(map_shape, patch_shape, lanes)
     surface = timing.prepare_cycles + 2 + steps + timing.output_delay + 1
     (H, W), (h, w) = map_shape, patch_shape
-    best = int(surface[-1]) + 1 + reducer_latency((H - h + 1, W - w + 1), lanes, exclusion_radius)
+    best = int(surface[-1]) + reducer_latency((H - h + 1, W - w + 1), lanes, exclusion_radius)
     return Schedule(surface=surface, best=best)

@@ -63,8 +63,7 @@ def test_schedule_shape_and_steady_rate(map_shape, patch_shape, lanes):
     # The map is read once: the last beat is completed by the last map step, or by one flush step.
     last_step = H * timing.groups - 1 + int(timing.wraps)
     assert plan.surface[-1] == 2 * h * w + 4 + last_step + timing.output_delay + 1
-    # The reducer sees each transfer through one register.
-    assert plan.best == plan.surface[-1] + 1 + reducer_latency((H - h + 1, W - w + 1), lanes, 1)
+    assert plan.best == plan.surface[-1] + reducer_latency((H - h + 1, W - w + 1), lanes, 1)
 
 
 def test_full_size_nygren_figures():
@@ -81,7 +80,7 @@ def test_full_size_nygren_figures():
 @pytest.mark.parametrize("patch_shape, levels", [((1, 1), 0), ((1, 2), 1), ((3, 3), 4), ((10, 10), 7), ((16, 16), 8)])
 def test_stage_counts(patch_shape, levels):
     """Step stages: step register, window register, window-sum levels; term stages: f*M - C, minus the
-    window sum, sign-XOR, value-tree levels, the sign count's addition. The queue covers a credit's
+    window sum, max(z, 0), value-tree levels, 2 * sum - correction. The queue covers a credit's
     round trip, issue to transfer, so that steps issue one per clock."""
     timing = window_timing((20, 20), patch_shape, 2)
     assert timing.sum_levels == levels
