@@ -162,11 +162,16 @@ class WindowCore(wiring.Component):
         count = unsigned(widths.count.bits)
         scaled = signed(widths.scaled_depth.bits)
         window_sum = signed(widths.window_sum.bits)
+        # The window sum meets every node's subtractor: one register would drive h * w of them across a
+        # lane, so each lane keeps ``copies`` registers of it, copy c holding Wsum + c (distinct, so that
+        # synthesis keeps them apart) for the nodes x with x % copies == c, whose C is lowered by c.
+        copies = -(-nodes // 10)
         # Plain mode uses f = 1 and C = S, so every shape holds both modes' ranges.
-        centred_lo = min(widths.centred_depth.lo, widths.depth.lo)
+        centred_lo = min(widths.centred_depth.lo, widths.depth.lo) - (copies - 1)
         centred_hi = max(widths.centred_depth.hi, widths.depth.hi)
         centred = _union_bits((centred_lo, centred_hi))
         offset = _union_bits((widths.scaled_depth.lo - centred_hi, widths.scaled_depth.hi - centred_lo))
+        window_sum_copy = _union_bits((min(widths.window_sum.lo, 0), widths.window_sum.hi + copies - 1))
         term_max = max(widths.term.hi, widths.difference.hi)
         # A valid node's term lies within the bound, so truncating the full difference is exact.
         term = _union_bits((-term_max, term_max))
@@ -363,15 +368,15 @@ class WindowCore(wiring.Component):
             # positive parts, their sum; the plain mode's correction (sum_valid M - sum_valid S) travels
             # beside them to the last stage.
             y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y", reset_less=True)
-            wsum_y = Signal(window_sum, name=f"lane{q}_wsum_y", reset_less=True)
+            wsum_y = [Signal(window_sum_copy, name=f"lane{q}_wsum_y{c}", reset_less=True) for c in range(copies)]
             correction = Signal(data.ArrayLayout(difference_sum, t.term_stages - 1), name=f"lane{q}_correction",
                                 reset_less=True)
             z = Signal(data.ArrayLayout(term, nodes), name=f"lane{q}_z", reset_less=True)
             positive = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_positive", reset_less=True)
             m.d.sync += [
-                wsum_y.eq(Mux(mean_compensation, wsum, 0)),
                 correction[0].eq(Mux(mean_compensation, 0, wsum - patch_sum)),
             ]
+            m.d.sync += [wsum_y[c].eq(Mux(mean_compensation, wsum + c, c)) for c in range(copies)]
             m.d.sync += [correction[x].eq(correction[x - 1]) for x in range(1, t.term_stages - 1)]
             for k in range(h):
                 for l in range(w):
@@ -379,7 +384,7 @@ class WindowCore(wiring.Component):
                     negative = z[x].as_unsigned()[-1]
                     m.d.sync += [
                         y[x].eq(window[q + l][k].scaled - centred_patch[x]),
-                        z[x].eq(y[x] - wsum_y),
+                        z[x].eq(y[x] - wsum_y[x % copies]),
                         # A register's synchronous reset: one LUT per node, none per bit.
                         positive[x].eq(Mux(patch_valid[x] & ~negative, z[x], 0)),
                     ]
@@ -415,22 +420,34 @@ class WindowCore(wiring.Component):
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
         # ---- control ----------------------------------------------------------------------------------
-        prepare_step = Signal(range(2 * nodes + 2))
+        prepare_step = Signal(range(2 * nodes + 3))
+        centre_copy = Signal(_index(copies))  # the copy of the window sum of the node being centred
+        centring = Signal()  # the second pass shifts a node into ``centred_patch`` (cycles hw + 3 .. 2hw + 2)
         # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; the memory's
-        # read register and one after the multiplier keep the passes' paths short.
+        # read register, one after it (a block RAM's output is slow) and one after the multiplier keep
+        # the passes' paths short.
         node = Signal(_index(nodes))
         with m.If(idle | (node == nodes - 1)):
             m.d.sync += node.eq(0)
         with m.Else():
             m.d.sync += node.eq(node + 1)
+        head_read = Signal(depth)
         head_depth = Signal(depth)
+        head_valid_read = Signal()
         head_valid = Signal()
         product = Signal(scaled)
-        m.d.comb += [patch_read.addr.eq(node), head_depth.eq(patch_read.data)]
+        m.d.comb += [patch_read.addr.eq(node), head_read.eq(patch_read.data)]
         m.d.sync += [
-            head_valid.eq(patch_valid.bit_select(node, 1)),
+            head_valid_read.eq(patch_valid.bit_select(node, 1)),
+            head_depth.eq(head_read),
+            head_valid.eq(head_valid_read),
             product.eq(factor * head_depth),
         ]
+        # Outside the state machine, so that the register alone enables the shift.
+        with m.If(centring):
+            m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
+            m.d.sync += centred_patch[nodes - 1].eq(product - Mux(mean_compensation, patch_sum, 0) - centre_copy)
+            m.d.sync += centre_copy.eq(Mux(centre_copy == copies - 1, 0, centre_copy + 1))
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
@@ -440,6 +457,7 @@ class WindowCore(wiring.Component):
                         valid_count.eq(0),
                         patch_sum.eq(0),
                         prepare_step.eq(0),
+                        centre_copy.eq(0),
                         patch_pointer.eq(0),
                         request_addr.eq(0),
                         flush_left.eq(t.flush_steps),
@@ -451,24 +469,26 @@ class WindowCore(wiring.Component):
                     m.d.sync += [sync_meta[x].live.eq(0) for x in range(t.step_stages)]
                     m.next = "COUNT"
             with m.State("COUNT"):
-                # First pass: n and sum_valid S, from node k - 1 on cycle k = 1 .. hw.
+                # First pass: n and sum_valid S, from node k - 2 on cycle k = 2 .. hw + 1.
                 m.d.sync += prepare_step.eq(prepare_step + 1)
-                with m.If(prepare_step != 0):
+                with m.If(prepare_step >= 2):
                     m.d.sync += [
                         valid_count.eq(valid_count + head_valid),
                         patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
                     ]
-                with m.If(prepare_step == nodes):
+                with m.If(prepare_step == nodes + 1):
                     m.d.sync += factor.eq(Mux(mean_compensation, valid_count + head_valid, 1))
                     m.next = "CENTRE"
             with m.State("CENTRE"):
-                # Second pass: C = f * S - Ssum of node k - hw - 2 on cycle k = hw + 2 .. 2hw + 1,
+                # Second pass: C = f * S - Ssum of node k - hw - 3 on cycle k = hw + 3 .. 2hw + 2,
                 # shifted into the centred register so that it ends in node order.
                 m.d.sync += prepare_step.eq(prepare_step + 1)
-                with m.If(prepare_step >= nodes + 2):
-                    m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
-                    m.d.sync += centred_patch[nodes - 1].eq(product - Mux(mean_compensation, patch_sum, 0))
-                with m.If(prepare_step == 2 * nodes + 1):
+                # The shift's enable reaches every node's register: a register of its own.
+                with m.If(prepare_step == nodes + 2):
+                    m.d.sync += centring.eq(1)
+                with m.If(prepare_step == 2 * nodes + 2):
+                    m.d.sync += centring.eq(0)
+                with m.If(prepare_step == 2 * nodes + 2):
                     m.d.sync += [running.eq(1), issuing.eq(1), issuing_words.eq(1)]
                     m.next = "RUN"
             with m.State("RUN"):
@@ -485,7 +505,7 @@ class WindowCorrelator(wiring.Component):
 
     Throughput and latency, with ``surface.ready`` and ``best.ready`` high: one memory row (``L``
     words) and one beat of ``L`` placements per clock once the pipeline is full; a correlation takes
-    ``2hw + 4 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
+    ``2hw + 5 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
     row's last beat wraps to the next row's first step), then the reducer's pipeline and scan.
     Every beat's cycle is :func:`lost.model.cycles_window.schedule`;
     ``output_delay = 2 * ceil(log2(h * w)) + 6``.

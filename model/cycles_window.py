@@ -7,12 +7,12 @@ line buffers, window register, window-sum levels) load only when a step is taken
 stages after them run on every clock. With ``surface.ready`` and ``best.ready`` held high and the
 patch and map loaded, counting from the edge on which the ``start`` beat transfers (cycle 0):
 
-* cycles ``1 .. 2hw + 2`` read the patch twice, once for ``n`` and ``sum_valid S``, once for
-  ``C = f * S - Ssum`` (each pass ``hw`` nodes plus one register stage, the second plus the
-  multiplier's); the first map read request transfers on edge ``2hw + 3``;
+* cycles ``1 .. 2hw + 3`` read the patch twice, once for ``n`` and ``sum_valid S``, once for
+  ``C = f * S - Ssum`` (each pass ``hw`` nodes plus two register stages after the patch memory, the
+  second plus the multiplier's); the first map read request transfers on edge ``2hw + 4``;
 * one step is issued per clock (the output queue's ``queue_depth`` credits never run out with
   ``surface.ready`` high), in raster order of the ``H * ceil(W / L)`` memory rows, then the flush
-  steps; step ``t`` (counting map words first, flush steps after) is taken on edge ``2hw + 4 + t``;
+  steps; step ``t`` (counting map words first, flush steps after) is taken on edge ``2hw + 5 + t``;
 * the beat ``(i, g)`` (surface row ``i``, its ``g``-th group of ``L`` placements) is completed by step
   ``(i + h - 1) * G + g + D`` with ``G = ceil(W / L)`` and ``D = ceil((w - 1) / L)``, the step whose
   memory row holds the rightmost column of the beat's ``L`` windows (the lanes run in lockstep, also
@@ -24,7 +24,7 @@ patch and map loaded, counting from the edge on which the ``start`` beat transfe
   transfers on the next edge;
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 
-So beat ``(i, g)`` transfers on edge ``2hw + 4 + step(i, g) + output_delay + 1`` with
+So beat ``(i, g)`` transfers on edge ``2hw + 5 + step(i, g) + output_delay + 1`` with
 ``output_delay = 2 * ceil(log2(h * w)) + 6``. The schedule does not depend on the data, the mask or
 the mode. Numpy only; :mod:`lost.hdl.window` sizes its pipeline from :func:`window_timing`, so the
 gateware and this model share every constant.
@@ -61,7 +61,7 @@ class WindowTiming:
     sum_levels : int
         ``ceil(log2(h * w))``: register levels of the window-sum tree and of the value tree.
     prepare_cycles : int
-        ``2 * h * w + 2``: cycles after the start beat spent on the two passes over the patch.
+        ``2 * h * w + 3``: cycles after the start beat spent on the two passes over the patch.
     step_stages : int
         ``sum_levels + 2``: the step-synchronous stages, which load only when a step is taken: the
         step register, the window register and the window-sum levels.
@@ -120,7 +120,7 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
         lead=lead,
         wraps=wraps,
         sum_levels=sum_levels,
-        prepare_cycles=2 * h * w + 2,
+        prepare_cycles=2 * h * w + 3,
         step_stages=step_stages,
         term_stages=term_stages,
         output_delay=output_delay,

@@ -169,6 +169,15 @@ def test_extreme_depths_reach_the_widths(lanes):
     check_both_modes(bench, terrain, patch, mask)
 
 
+def test_extreme_depths_with_window_sum_copies():
+    """A 4 x 6 patch (24 nodes, so three copies of the window sum, each offset), extreme depths."""
+    rng = np.random.default_rng(24)
+    map_shape, patch_shape = (7, 9), (4, 6)
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=2)
+    terrain, patch, mask = random_case(rng, map_shape, patch_shape, extreme=True)
+    check_both_modes(bench, terrain, patch, mask)
+
+
 def test_narrow_depth_words():
     """5-bit depth words at their extremes: every width follows depth_bits."""
     rng = np.random.default_rng(5)

@@ -62,7 +62,7 @@ def test_schedule_shape_and_steady_rate(map_shape, patch_shape, lanes):
     assert np.all(np.diff(per_row, axis=0) == timing.groups)
     # The map is read once: the last beat is completed by the last map step, or by one flush step.
     last_step = H * timing.groups - 1 + int(timing.wraps)
-    assert plan.surface[-1] == 2 * h * w + 4 + last_step + timing.output_delay + 1
+    assert plan.surface[-1] == 2 * h * w + 5 + last_step + timing.output_delay + 1
     assert plan.best == plan.surface[-1] + reducer_latency((H - h + 1, W - w + 1), lanes, 1)
 
 
