@@ -125,6 +125,10 @@ def parse_nextpnr_report(report: dict, clock: str | None = None) -> dict:
     }
 
 
+#: The folder holding ``hdl/``; replaced by :data:`CHECKOUT_TOKEN` in the RTLIL's source attributes.
+_CHECKOUT = Path(__file__).resolve().parents[1]
+CHECKOUT_TOKEN = "<lost>"
+
 #: Yosys's ECP5 script with the classic ``abc -lut 4`` in place of ``abc9`` for the LUT mapping (the
 #: steps of ``help synth_lattice`` around its ``map_luts`` label).
 _CLASSIC_ABC_SCRIPT = (
@@ -145,7 +149,8 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     il = out_dir / f"{name}.il"
-    text = rtlil.convert(design, name="top")
+    # Source locations relative to the checkout, so one design has one fingerprint wherever it is built.
+    text = rtlil.convert(design, name="top").replace(f'"{_CHECKOUT}/', f'"{CHECKOUT_TOKEN}/')
     netlist = out_dir / f"{name}.json"
     digest = out_dir / f"{name}.il.sha256"
     fingerprint = hashlib.sha256(text.encode()).hexdigest()
@@ -571,7 +576,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--router", choices=["router1", "router2"], default="router2",
                         help="nextpnr's router (router2: router1 did not converge on the window core in 25 min)")
     parser.add_argument("--no-place", nargs="+", metavar="NAME",
-                        help="configurations only synthesized and packed (their cell counts), not placed")
+                        help="configurations only synthesized and packed (their cell counts), not placed; a name or its "
+                             "beginning (window_l1_onchip: the on-chip build whatever its map size)")
     parser.add_argument("--lanes", type=int, nargs="+", default=list(WINDOW_LANES), metavar="L",
                         help=f"window lane counts, built in order until one is over the LUT budget (default: {' '.join(map(str, WINDOW_LANES))})")
     parser.add_argument("--on-chip", type=int, nargs="*", metavar="LANES", default=[1],
@@ -609,7 +615,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     def take(config: Configuration) -> None:
         if wanted is None or config.name in wanted:
             entries[config.name] = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz,
-                                          router=args.router, place=config.name not in set(args.no_place or ()))
+                                          router=args.router,
+                                          place=not any(config.name.startswith(name) for name in args.no_place or ()))
             write()
         elif config.name in previous:
             entries[config.name] = previous[config.name]
@@ -627,9 +634,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         if external is None or not external["routed"]:
             print(f"on-chip build with {lanes} lanes skipped: its external-memory build is not in the report")
             continue
-        side = largest_square_map(core_ebr=external["result"]["ebr"], ebr_available=external["result"]["ebr_available"],
-                                  lanes=lanes)
-        take(Configuration("window", lanes=lanes, memory="on-chip", map_shape=(side, side)))
+        available = external["result"]["ebr_available"]
+        core_ebr = external["result"]["ebr"]
+        while True:
+            side = largest_square_map(core_ebr=core_ebr, ebr_available=available, lanes=lanes)
+            config = Configuration("window", lanes=lanes, memory="on-chip", map_shape=(side, side))
+            take(config)
+            entry = entries.get(config.name)
+            used = None if entry is None else (entry["result"] if entry["routed"] else entry["packed"])["ebr"]
+            if used is None or used <= available:
+                break
+            # The whole correlator needs more blocks beside its map than the core alone (its loader's
+            # memory ports): count them and take the next smaller map.
+            print(f"{config.name} needs {used} of {available} EBR: one size smaller")
+            del entries[config.name]
+            core_ebr += used - available
     print(write())
     return 0
 

@@ -320,3 +320,30 @@ def test_bad_target_is_named(tmp_path):
     # The target is checked before the design is touched, so no design is needed.
     with pytest.raises(ValueError, match="target_mhz"):
         place_and_route(None, "counter", tmp_path, target_mhz=0)
+
+
+def test_the_on_chip_map_shrinks_until_the_whole_correlator_fits_and_no_place_takes_prefixes(tmp_path, monkeypatch):
+    from lost.hdl import synth
+
+    placed = {}
+
+    def fake_build(config, out_dir, *, seeds, target_mhz, router, place):
+        placed[config.name] = place
+        side = config.map_shape[0]
+        # The core alone needs 25 blocks; with its map, the correlator one more than the model counts.
+        ebr = 25 if config.memory == "external" else 26 + -(-side * side // 1024)
+        base = {"name": config.name, "variant": config.variant, "lanes": config.lanes, "memory": config.memory,
+                "map_shape": list(config.map_shape), "cycles": 1, "routed": config.memory == "external"}
+        if config.memory == "external":
+            return base | {"result": {"ebr": ebr, "ebr_available": 208}}
+        return base | {"reason": "no time in this run", "packed": {"lut4": 1, "ff": 1, "ebr": ebr, "dsp": 0}, "lut4_percent": 1.0}
+
+    monkeypatch.setattr(synth, "_build", fake_build)
+    monkeypatch.setattr(synth, "markdown_table", lambda entries: "")
+    monkeypatch.setattr(synth, "critical_path_lines", lambda entries: "")
+    monkeypatch.setattr(synth, "mapper_note", lambda entries: "")
+    assert synth.main(["--out", str(tmp_path), "--lanes", "1", "--no-place", "window_l1_onchip", "--on-chip", "1"]) == 0
+    on_chip = [name for name in placed if "onchip" in name]
+    assert len(on_chip) >= 2 and not any(placed[name] for name in on_chip)
+    final = json.loads((tmp_path / "report.json").read_text())["configurations"][-1]
+    assert final["name"] == on_chip[-1] and final["packed"]["ebr"] <= 208
