@@ -18,7 +18,8 @@ that can be computed once::
 line buffers. The window sum runs over the valid nodes only, so with a mask each column offset has its
 own column sum and a sliding accumulator does not apply; per lane it costs ``h * w - 1`` adders either
 as masked column sums plus a row sum or, as here, as one balanced tree. The tree starts on the columns
-as soon as they enter the window register; the terms are formed ``ceil(log2(h * w))`` steps later from
+as soon as they enter the window register, from a register of the masked depths (an invalid node's
+held at zero by its synchronous reset); the terms are formed ``ceil(log2(h * w)) + 1`` steps later from
 the same columns, which have moved down the register by then, so neither the sum nor the terms need a
 delay line.
 
@@ -28,8 +29,8 @@ their mean and sum to zero, so ``V = sum |z| = 2 * sum max(z, 0)``; without it `
 from the terms only with mean compensation) giving the correction. ``max(z, 0)`` of a valid node is
 a register's synchronous reset, one LUT per node, where ``|z|`` costs an adder or a LUT per bit.
 
-Only the step-synchronous stages (the step register, the line buffers, the window register and the
-window-sum tree) hold still between steps; a step is a map word or, at the end, one of a fixed number
+Only the step-synchronous stages (the step register, the line buffers, the window register, the masked
+depths and the window-sum tree) hold still between steps; a step is a map word or, at the end, one of a fixed number
 of flush steps. Their one enable is a register, ``advance``, set on the edge a step is issued. The
 term stages (``f*M - C``, minus the window sum, ``max(z, 0)``, value tree) run on every clock with a valid
 bit beside them: between steps they recompute the last placement, marked stale. Steps are issued
@@ -164,8 +165,10 @@ class WindowCore(wiring.Component):
         window_sum = signed(widths.window_sum.bits)
         # The window sum meets every node's subtractor: one register would drive h * w of them across a
         # lane, so each lane keeps ``copies`` registers of it, copy c holding Wsum + c (distinct, so that
-        # synthesis keeps them apart) for the nodes x with x % copies == c, whose C is lowered by c.
-        copies = -(-nodes // 10)
+        # synthesis keeps them apart) for the ``copy_nodes`` consecutive nodes x with x // copy_nodes == c
+        # (a patch row of Nygren's 10 x 10, whose subtractors sit together), whose C is lowered by c.
+        copy_nodes = 10
+        copies = -(-nodes // copy_nodes)
         # Plain mode uses f = 1 and C = S, so every shape holds both modes' ranges.
         centred_lo = min(widths.centred_depth.lo, widths.depth.lo) - (copies - 1)
         centred_hi = max(widths.centred_depth.hi, widths.depth.hi)
@@ -309,24 +312,41 @@ class WindowCore(wiring.Component):
                 m.d.sync += sync_meta[x].eq(sync_meta[x - 1])
 
         # ---- line buffers: rows r-1 .. r-h+1 of the group being taken ------------------------------
+        # Each is a delay of G steps. A block RAM's output is slow, so it is read one step ahead (the
+        # next step's group) into a register that loads with the step, and the next line buffer is
+        # written from that register: no path runs from one block RAM to another. With G >= 3 the
+        # entry read was written at least one step before, so the read port needs no transparency; a
+        # delay of one or two steps is a register or two.
+        read_ahead = Mux(step_group == G - 1, 0, step_group + 1)
         buffer_rows = []
         for x in range(h - 1):
-            line = memory.Memory(shape=row_layout, depth=G, init=[])
-            m.submodules[f"line_buffer_{x}"] = line
-            write = line.write_port()
-            # Transparent, so that a one-group row reads the row written on the same edge.
-            read = line.read_port(transparent_for=(write,))
-            m.d.comb += [
-                read.addr.eq(step_group),
-                read.en.eq(advance),
-                write.addr.eq(step_group_reg),
-                write.en.eq(advance & step_was_word),
-                write.data.eq(step_nodes if x == 0 else buffer_rows[x - 1]),
-            ]
-            buffer_rows.append(read.data)
+            entering = step_nodes if x == 0 else buffer_rows[x - 1]
+            stages = G if G <= 2 else 1
+            delayed = [Signal(row_layout, name=f"line_buffer_{x}_out{y}", reset_less=True) for y in range(stages)]
+            if G <= 2:
+                with m.If(advance):
+                    m.d.sync += [delayed[y].eq(delayed[y - 1] if y else entering) for y in range(G)]
+            else:
+                line = memory.Memory(shape=row_layout, depth=G, init=[])
+                m.submodules[f"line_buffer_{x}"] = line
+                write = line.write_port()
+                read = line.read_port()
+                m.d.comb += [
+                    read.addr.eq(read_ahead),
+                    read.en.eq(advance),
+                    write.addr.eq(step_group_reg),
+                    write.en.eq(advance & step_was_word),
+                    write.data.eq(entering),
+                ]
+                with m.If(advance):
+                    m.d.sync += delayed[0].eq(read.data)
+            buffer_rows.append(delayed[-1])
 
         # ---- window register: columns, oldest first; the newest L enter on the right ---------------
-        span = t.sum_levels * L + (t.lead + 1) * L
+        # The window sum takes sum_levels + 1 steps (the masked depths, then the tree): the columns its
+        # lanes start on sit that many steps of L columns above those the terms take.
+        top = (t.sum_levels + 1) * L
+        span = top + (t.lead + 1) * L
         # One signal per column: fewer signals than one per node, while the Python simulator (whose
         # generated code spells masks as decimal literals) still handles their width.
         window = [Signal(data.ArrayLayout(node_layout, h), name=f"window_{c}", reset_less=True) for c in range(span)]
@@ -352,19 +372,22 @@ class WindowCore(wiring.Component):
             m.d.sync += [free_meta[x].eq(free_meta[x - 1]), free_valid[x].eq(free_valid[x - 1])]
 
         # ---- the lanes ------------------------------------------------------------------------------
-        top = t.sum_levels * L
         lane_values = []
         for q in range(L):
-            # Window sum of the valid nodes, on the columns as they arrive (step-synchronous).
-            masked = []
+            # Window sum of the valid nodes, on the columns as they arrive (step-synchronous). An
+            # invalid node's depth register is held at zero by its synchronous reset: no LUT per bit.
+            masked = Signal(data.ArrayLayout(depth, nodes), name=f"lane{q}_masked", reset_less=True)
             for k in range(h):
                 for l in range(w):
                     x = k * w + l
-                    masked.append(Mux(patch_valid[x], window[top + q + l][k].depth, 0))
-            wsum = _pipelined_sum(m, advance, masked, (widths.depth.lo, widths.depth.hi),
+                    with m.If(~patch_valid[x]):
+                        m.d.sync += masked[x].eq(0)
+                    with m.Elif(advance):
+                        m.d.sync += masked[x].eq(window[top + q + l][k].depth)
+            wsum = _pipelined_sum(m, advance, [masked[x] for x in range(nodes)], (widths.depth.lo, widths.depth.hi),
                                   (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
 
-            # The same columns, sum_levels steps later, at the bottom of the register: the terms, their
+            # The same columns, sum_levels + 1 steps later, at the bottom of the register: the terms, their
             # positive parts, their sum; the plain mode's correction (sum_valid M - sum_valid S) travels
             # beside them to the last stage.
             y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y", reset_less=True)
@@ -384,7 +407,7 @@ class WindowCore(wiring.Component):
                     negative = z[x].as_unsigned()[-1]
                     m.d.sync += [
                         y[x].eq(window[q + l][k].scaled - centred_patch[x]),
-                        z[x].eq(y[x] - wsum_y[x % copies]),
+                        z[x].eq(y[x] - wsum_y[x // copy_nodes]),
                         # A register's synchronous reset: one LUT per node, none per bit.
                         positive[x].eq(Mux(patch_valid[x] & ~negative, z[x], 0)),
                     ]
@@ -422,6 +445,7 @@ class WindowCore(wiring.Component):
         # ---- control ----------------------------------------------------------------------------------
         prepare_step = Signal(range(2 * nodes + 3))
         centre_copy = Signal(_index(copies))  # the copy of the window sum of the node being centred
+        centre_run = Signal(_index(copy_nodes))  # ... and the node's place among that copy's nodes
         centring = Signal()  # the second pass shifts a node into ``centred_patch`` (cycles hw + 3 .. 2hw + 2)
         # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; the memory's
         # read register, one after it (a block RAM's output is slow) and one after the multiplier keep
@@ -447,7 +471,10 @@ class WindowCore(wiring.Component):
         with m.If(centring):
             m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
             m.d.sync += centred_patch[nodes - 1].eq(product - Mux(mean_compensation, patch_sum, 0) - centre_copy)
-            m.d.sync += centre_copy.eq(Mux(centre_copy == copies - 1, 0, centre_copy + 1))
+            with m.If(centre_run == copy_nodes - 1):
+                m.d.sync += [centre_run.eq(0), centre_copy.eq(centre_copy + 1)]
+            with m.Else():
+                m.d.sync += centre_run.eq(centre_run + 1)
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
@@ -458,6 +485,7 @@ class WindowCore(wiring.Component):
                         patch_sum.eq(0),
                         prepare_step.eq(0),
                         centre_copy.eq(0),
+                        centre_run.eq(0),
                         patch_pointer.eq(0),
                         request_addr.eq(0),
                         flush_left.eq(t.flush_steps),
@@ -508,7 +536,7 @@ class WindowCorrelator(wiring.Component):
     ``2hw + 5 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
     row's last beat wraps to the next row's first step), then the reducer's pipeline and scan.
     Every beat's cycle is :func:`lost.model.cycles_window.schedule`;
-    ``output_delay = 2 * ceil(log2(h * w)) + 6``.
+    ``output_delay = 2 * ceil(log2(h * w)) + 7``.
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
 The window core works in *steps*: each takes one memory row of ``L`` map words (or, after the last
 one, a flush step without a word). A step is issued (a map read request, or a flush step) when the
 core holds a credit for it, and taken on the next edge; the step-synchronous stages (step register,
-line buffers, window register, window-sum levels) load only when a step is taken, while the term
+line buffers, window register, masked depths, window-sum levels) load only when a step is taken, while the term
 stages after them run on every clock. With ``surface.ready`` and ``best.ready`` held high and the
 patch and map loaded, counting from the edge on which the ``start`` beat transfers (cycle 0):
 
@@ -25,7 +25,7 @@ patch and map loaded, counting from the edge on which the ``start`` beat transfe
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 
 So beat ``(i, g)`` transfers on edge ``2hw + 5 + step(i, g) + output_delay + 1`` with
-``output_delay = 2 * ceil(log2(h * w)) + 6``. The schedule does not depend on the data, the mask or
+``output_delay = 2 * ceil(log2(h * w)) + 7``. The schedule does not depend on the data, the mask or
 the mode. Numpy only; :mod:`lost.hdl.window` sizes its pipeline from :func:`window_timing`, so the
 gateware and this model share every constant.
 """
@@ -63,8 +63,8 @@ class WindowTiming:
     prepare_cycles : int
         ``2 * h * w + 3``: cycles after the start beat spent on the two passes over the patch.
     step_stages : int
-        ``sum_levels + 2``: the step-synchronous stages, which load only when a step is taken: the
-        step register, the window register and the window-sum levels.
+        ``sum_levels + 3``: the step-synchronous stages, which load only when a step is taken: the
+        step register, the window register, the masked depths and the window-sum levels.
     term_stages : int
         ``sum_levels + 4``: the stages that run on every clock: ``f*M - C``, minus the window sum,
         ``max(z, 0)``, the value-tree levels and ``2 * sum - correction``.
@@ -111,7 +111,7 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
     # ceil(a/L) + ceil(b/L) <= ceil((a+b)/L) + 1, so a row's last beat is late by at most one step.
     wraps = out_groups - 1 + lead == groups
     sum_levels = (h * w - 1).bit_length()
-    step_stages = sum_levels + 2
+    step_stages = sum_levels + 3
     term_stages = sum_levels + 4
     output_delay = step_stages + term_stages
     return WindowTiming(
