@@ -3,39 +3,44 @@
 Nygren's shift-register principle (FOI-R--0764--SE, section 8.2) made exact and streaming: the map is
 read once per correlation, one memory row of ``L`` words per clock in raster order; ``h - 1`` line
 buffers turn that stream into columns of ``h`` words; a window register of columns holds every
-``h x w`` window that the ``L`` lanes need; each lane then forms its ``h * w`` terms and the sum of
-their absolute values, with a register after every adder level.
+``h x w`` window that the ``L`` lanes need; each lane then forms its ``h * w`` terms and their sum,
+with a register after every adder level.
 
-The arithmetic follows :mod:`lost.model.correlator` rearranged so that nothing is computed per term
-that can be computed once::
+The arithmetic is :mod:`lost.model.correlator`'s, rearranged so that the per-node work is a pair of
+``b + 1``-bit operations (``b`` depth bits), not an ``n``-scaled one. With ``d = M - S`` at the valid
+nodes, ``E = sum_valid d`` (the window sum less ``Ssum = sum_valid S``) and ``t = floor(E / n)``, a
+term of mean compensation ``n * d - E`` is positive exactly when ``d > t``, so::
 
-    term(k, l) = (f * M[i+k, j+l] - C[k, l]) - Wsum(i, j)     for a valid node (k, l), 0 otherwise
-    C[k, l]    = f * S[k, l] - Ssum                           once per correlation, at start
-    f          = n,  Ssum = sum_valid S,  Wsum = sum_valid M  with mean compensation
-    f          = 1,  Ssum = 0,            Wsum = 0            without (in the terms)
+    V = sum |n * d - E| = 2 * (n * P - E * K)       P = sum of d over d > t,  K = their count
 
-``f * M`` is formed once per map word, as it leaves the memory, and travels beside ``M`` through the
-line buffers. The window sum runs over the valid nodes only, so with a mask each column offset has its
-own column sum and a sliding accumulator does not apply; per lane it costs ``h * w - 1`` adders either
-as masked column sums plus a row sum or, as here, as one balanced tree. The tree starts on the columns
-as soon as they enter the window register, from a register of the masked depths (an invalid node's
-held at zero by its synchronous reset); the terms are formed ``ceil(log2(h * w)) + 1`` steps later from
-the same columns, which have moved down the register by then, so neither the sum nor the terms need a
-delay line.
+and without mean compensation (``t = 0``) ``V = sum |d| = 2 * P - E``. Lifted by ``2**b``, every
+quantity is unsigned: ``d' = M + (2**b - S)`` and ``q = t + 2**b = floor(N / f)`` with the dividend
+``N = E + f * 2**b`` lie in ``[1, 2**(b+1) - 1]``, ``d > t`` is ``d' > q``, and with ``P'`` the sum of
+the selected ``d'``::
 
-No absolute value is formed. With mean compensation the terms of the valid nodes are deviations from
-their mean and sum to zero, so ``V = sum |z| = 2 * sum max(z, 0)``; without it ``z = M - S`` and
-``V = 2 * sum max(z, 0) - (sum_valid M - sum_valid S)``, the window sum (formed in both modes, subtracted
-from the terms only with mean compensation) giving the correction. ``max(z, 0)`` of a valid node is
-a register's synchronous reset, one LUT per node, where ``|z|`` costs an adder or a LUT per bit.
+    V = 2 * (f * P' - K * N) - correction      f = n, correction = 0    with mean compensation
+                                               f = 1, N = 2**b,         without
+                                               correction = E
+
+``2**b - S`` is formed once per correlation, at start, with ``n``, ``Ssum`` and the dividend's bias
+``f * 2**b - Ssum``. The window sum runs over the valid nodes only, so with a mask each column offset
+has its own column sum and a sliding accumulator does not apply; per lane it costs ``h * w - 1``
+adders either as masked column sums plus a row sum or, as here, as one balanced tree. The tree starts
+on the columns as soon as they enter the window register, from a register of the masked depths (an
+invalid node's held at zero by its synchronous reset); the dividend follows, then the quotient by
+restoring division over :data:`~lost.model.cycles_window.QUOTIENT_STAGES` stages; the terms are formed
+from the same columns, which have moved down the register by then, so nothing needs a delay line.
+A node's selected ``d'`` is a register's synchronous reset, one LUT per node, and the two products
+per lane are multipliers, formed modulo ``2**accumulator_bits`` (``V`` is below it, so exactly).
 
 Only the step-synchronous stages (the step register, the line buffers, the window register, the masked
-depths and the window-sum tree) hold still between steps; a step is a map word or, at the end, one of a fixed number
-of flush steps. Their one enable is a register, ``advance``, set on the edge a step is issued. The
-term stages (``f*M - C``, minus the window sum, ``max(z, 0)``, value tree) run on every clock with a valid
-bit beside them: between steps they recompute the last placement, marked stale. Steps are issued
-against credits for the output queue, one per beat it holds, so a beat always finds room and
-``surface.ready`` stalls nothing but the issue of further steps. The cycles are modelled exactly by
+depths, the window-sum tree, the dividend and the quotient stages) hold still between steps; a step
+is a map word or, at the end, one of a fixed number of flush steps. Their one enable is a register,
+``advance``, set on the edge a step is issued. The term stages (``d'``, the selected ``d'`` and their
+count, the two sum trees, the products, the value) run on every clock with a valid bit beside them:
+between steps they recompute the last placement, marked stale. Steps are issued against credits for
+the output queue, one per beat it holds, so a beat always finds room and ``surface.ready`` stalls
+nothing but the issue of further steps. The cycles are modelled exactly by
 :mod:`lost.model.cycles_window`, whose :func:`~lost.model.cycles_window.window_timing` gives the
 pipeline its constants.
 """
@@ -44,7 +49,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Const, Module, Mux, Shape, Signal, signed, unsigned
+from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal, signed, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.fifo import SyncFIFO
 from amaranth.lib.wiring import In
@@ -53,7 +58,7 @@ from amaranth.utils import ceil_log2
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
-from lost.model.cycles_window import WindowTiming, window_timing
+from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
 from lost.model.widths import bits_for
 
 __all__ = ["WindowCore", "WindowCorrelator"]
@@ -97,6 +102,38 @@ def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], 
         values = [sums[index] for index in range((len(values) + 1) // 2)]
         level += 1
     return values[0]
+
+
+def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisor: Any, quotient_bits: int, stages: int,
+                        carry: Any, name: str) -> tuple[Any, Any]:
+    """``floor(dividend / divisor)`` by restoring division in ``stages`` registers loaded on ``enable``.
+
+    The dividend must be below ``divisor * 2**quotient_bits`` (so the quotient has ``quotient_bits``
+    bits and the first remainder, ``dividend >> quotient_bits``, is below the divisor), and the
+    divisor must hold still. Each stage takes ``ceil(quotient_bits / stages)`` quotient bits (the last
+    stages fewer, or none), so the latency is ``stages`` whatever the width. One register per stage
+    holds the dividend bits still to take and, shifted in behind them, the quotient bits made; ``carry``
+    travels beside. Returns the quotient and ``carry``, both ``stages`` loads later.
+    """
+    per_stage = -(-quotient_bits // stages)
+    remainder_shape = unsigned(len(divisor))
+    remainder = dividend[quotient_bits:][:len(divisor)]
+    bits = dividend[:quotient_bits]
+    left = quotient_bits
+    for stage in range(stages):
+        for _ in range(min(per_stage, left)):
+            trial = Cat(bits[-1], remainder)  # 2 * remainder + the next dividend bit
+            fits = trial >= divisor
+            remainder = Mux(fits, trial - divisor, trial)[:len(divisor)]
+            bits = Cat(fits, bits[:-1])
+            left -= 1
+        registers = Signal(data.StructLayout({"remainder": remainder_shape, "bits": unsigned(quotient_bits),
+                                              "carry": Shape.cast(carry.shape())}),
+                           name=f"{name}_s{stage}", reset_less=True)
+        with m.If(enable):
+            m.d.sync += [registers.remainder.eq(remainder), registers.bits.eq(bits), registers.carry.eq(carry)]
+        remainder, bits, carry = registers.remainder, registers.bits, registers.carry
+    return bits, carry
 
 
 class WindowCore(wiring.Component):
@@ -161,39 +198,38 @@ class WindowCore(wiring.Component):
 
         depth = signed(b)
         count = unsigned(widths.count.bits)
-        scaled = signed(widths.scaled_depth.bits)
         window_sum = signed(widths.window_sum.bits)
-        # The window sum meets every node's subtractor: one register would drive h * w of them across a
-        # lane, so each lane keeps ``copies`` registers of it, copy c holding Wsum + c (distinct, so that
-        # synthesis keeps them apart) for the ``copy_nodes`` consecutive nodes x with x // copy_nodes == c
-        # (a patch row of Nygren's 10 x 10, whose subtractors sit together), whose C is lowered by c.
+        # Lifted: 2**b - S, M - S + 2**b and the quotient all lie in [1, 2**(b+1) - 1].
+        lift = 1 << b
+        lifted = unsigned(b + 1)
+        lifted_sum_hi = nodes * (2 * lift - 1)
+        # The dividend N = sum_valid M - Ssum + f * 2**b with mean compensation; without it the same
+        # register carries sum_valid M - Ssum (the correction), the dividend being 2**b.
+        carried = _union_bits((widths.sum_difference.lo, lifted_sum_hi))
+        bias = _union_bits((-nodes * widths.depth.hi, nodes * (lift - widths.depth.lo)))
+        value_bits = widths.accumulator.bits
+        # The quotient meets every node's comparator: one register would drive h * w of them across a
+        # lane, so each lane keeps a copy per ``copy_nodes`` consecutive nodes (a patch row of Nygren's
+        # 10 x 10, whose comparators sit together). Copy c is held at zero while none of its nodes is
+        # valid (it is then unused): distinct resets keep synthesis from merging the copies.
         copy_nodes = 10
         copies = -(-nodes // copy_nodes)
-        # Plain mode uses f = 1 and C = S, so every shape holds both modes' ranges.
-        centred_lo = min(widths.centred_depth.lo, widths.depth.lo) - (copies - 1)
-        centred_hi = max(widths.centred_depth.hi, widths.depth.hi)
-        centred = _union_bits((centred_lo, centred_hi))
-        offset = _union_bits((widths.scaled_depth.lo - centred_hi, widths.scaled_depth.hi - centred_lo))
-        window_sum_copy = _union_bits((min(widths.window_sum.lo, 0), widths.window_sum.hi + copies - 1))
-        term_max = max(widths.term.hi, widths.difference.hi)
-        # A valid node's term lies within the bound, so truncating the full difference is exact.
-        term = _union_bits((-term_max, term_max))
-        abs_term = unsigned(term_max.bit_length())
-        difference_sum = signed(widths.sum_difference.bits)
 
-        # ---- the patch, its count and sum, and C = f * S - Ssum (formed at start) ----------------
+        # ---- the patch, its count and sum, and its lifted depths 2**b - S (formed at start) -----------
         # Like the map memory, the patch persists through a reset until reloaded. Its depths, read one
-        # node per clock by the two passes, live in a small memory; its valid bits, which every lane
-        # needs at once, in a reset-less register.
+        # node per clock by the pass at start, live in a small memory; its valid bits, which every
+        # lane needs at once, in a reset-less register.
         m.submodules.patch_memory = patch_memory = memory.Memory(shape=depth, depth=nodes, init=[])
         patch_write = patch_memory.write_port()
         patch_read = patch_memory.read_port()
         patch_valid = Signal(nodes, reset_less=True)
-        centred_patch = Signal(data.ArrayLayout(centred, nodes), reset_less=True)
+        lifted_patch = Signal(data.ArrayLayout(lifted, nodes), reset_less=True)
+        group_valid = [patch_valid[c * copy_nodes:(c + 1) * copy_nodes].any() for c in range(copies)]
         mean_compensation = Signal()
         valid_count = Signal(count)
         patch_sum = Signal(window_sum)
         factor = Signal(count)
+        dividend_bias = Signal(bias)  # f * 2**b - Ssum with mean compensation, -Ssum without
 
         idle = Signal()
         m.submodules.reducer = reducer = BestFitReducer(parameters=p)
@@ -234,7 +270,6 @@ class WindowCore(wiring.Component):
             output_queue.r_en.eq(self.surface.ready),
         ]
 
-        running = Signal()
         issuing = Signal()  # steps of this correlation are left to issue
         issuing_words = Signal()  # ... and map words among them
         request_addr = Signal(range(self.map_depth + 1))
@@ -259,7 +294,8 @@ class WindowCore(wiring.Component):
                     m.d.sync += issuing.eq(0)
 
         # ``advance`` is a register: the only enable of the step-synchronous stages (step register,
-        # line buffers, window register, window-sum tree); the lanes' term stages run every clock.
+        # line buffers, window register, masked depths, window-sum tree, dividend, quotient stages);
+        # the lanes' term stages run every clock.
         advance = Signal()
         step_is_word = Signal()
         m.d.sync += [advance.eq(issue), step_is_word.eq(issue & issuing_words)]
@@ -291,13 +327,12 @@ class WindowCore(wiring.Component):
             step_meta.last.eq((beat_row == Ho - 1) & (beat_group == t.out_groups - 1)),
         ]
 
-        # ---- step register: the word, f * word, and its beat ------------------------------------
-        node_layout = data.StructLayout({"depth": depth, "scaled": scaled})
-        row_layout = data.ArrayLayout(node_layout, L)
+        # ---- step register: the words and their beat ----------------------------------------------
+        row_layout = data.ArrayLayout(depth, L)
         step_nodes = Signal(row_layout, reset_less=True)
         step_group_reg = Signal(_index(G))
         step_was_word = Signal()
-        # The beat of each step-synchronous stage: step register, window register, window-sum levels.
+        # The beat of each step-synchronous stage.
         sync_meta = Signal(data.ArrayLayout(meta_layout, t.step_stages), reset_less=True)
         with m.If(advance):
             m.d.sync += [
@@ -305,9 +340,7 @@ class WindowCore(wiring.Component):
                 step_was_word.eq(step_is_word),
                 sync_meta[0].eq(step_meta),
             ]
-            for q in range(L):
-                word = sequencer.response.payload.data[q]
-                m.d.sync += [step_nodes[q].depth.eq(word), step_nodes[q].scaled.eq(factor * word)]
+            m.d.sync += step_nodes.eq(sequencer.response.payload.data)
             for x in range(1, t.step_stages):
                 m.d.sync += sync_meta[x].eq(sync_meta[x - 1])
 
@@ -343,13 +376,14 @@ class WindowCore(wiring.Component):
             buffer_rows.append(delayed[-1])
 
         # ---- window register: columns, oldest first; the newest L enter on the right ---------------
-        # The window sum takes sum_levels + 1 steps (the masked depths, then the tree): the columns its
-        # lanes start on sit that many steps of L columns above those the terms take.
-        top = (t.sum_levels + 1) * L
+        # The quotient takes step_stages - 2 steps after the window register (the masked depths, the
+        # window-sum tree, the dividend, the quotient stages): the columns its lanes start on sit that
+        # many steps of L columns above those the terms take.
+        top = (t.step_stages - 2) * L
         span = top + (t.lead + 1) * L
         # One signal per column: fewer signals than one per node, while the Python simulator (whose
         # generated code spells masks as decimal literals) still handles their width.
-        window = [Signal(data.ArrayLayout(node_layout, h), name=f"window_{c}", reset_less=True) for c in range(span)]
+        window = [Signal(data.ArrayLayout(depth, h), name=f"window_{c}", reset_less=True) for c in range(span)]
         with m.If(advance):
             for c in range(span - L):
                 for k in range(h):
@@ -383,38 +417,54 @@ class WindowCore(wiring.Component):
                     with m.If(~patch_valid[x]):
                         m.d.sync += masked[x].eq(0)
                     with m.Elif(advance):
-                        m.d.sync += masked[x].eq(window[top + q + l][k].depth)
+                        m.d.sync += masked[x].eq(window[top + q + l][k])
             wsum = _pipelined_sum(m, advance, [masked[x] for x in range(nodes)], (widths.depth.lo, widths.depth.hi),
                                   (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
+            # The dividend (or the correction), then t + 2**b = floor(N / f) over the quotient stages.
+            carried_in = Signal(carried, name=f"lane{q}_carried_in", reset_less=True)
+            with m.If(advance):
+                m.d.sync += carried_in.eq(wsum + dividend_bias)
+            quotient, carried_out = _pipelined_quotient(
+                m, advance, Mux(mean_compensation, carried_in, lift), factor, b + 1, QUOTIENT_STAGES, carried_in,
+                f"lane{q}_quotient")
 
-            # The same columns, sum_levels + 1 steps later, at the bottom of the register: the terms, their
-            # positive parts, their sum; the plain mode's correction (sum_valid M - sum_valid S) travels
-            # beside them to the last stage.
-            y = Signal(data.ArrayLayout(offset, nodes), name=f"lane{q}_y", reset_less=True)
-            wsum_y = [Signal(window_sum_copy, name=f"lane{q}_wsum_y{c}", reset_less=True) for c in range(copies)]
-            correction = Signal(data.ArrayLayout(difference_sum, t.term_stages - 1), name=f"lane{q}_correction",
-                                reset_less=True)
-            z = Signal(data.ArrayLayout(term, nodes), name=f"lane{q}_z", reset_less=True)
-            positive = Signal(data.ArrayLayout(abs_term, nodes), name=f"lane{q}_positive", reset_less=True)
-            m.d.sync += [
-                correction[0].eq(Mux(mean_compensation, 0, wsum - patch_sum)),
-            ]
-            m.d.sync += [wsum_y[c].eq(Mux(mean_compensation, wsum + c, c)) for c in range(copies)]
-            m.d.sync += [correction[x].eq(correction[x - 1]) for x in range(1, t.term_stages - 1)]
+            # The same columns, step_stages - 2 steps later, at the bottom of the register: the lifted
+            # differences M - S + 2**b, those above the quotient (d > t) and their count, their sums.
+            quotient_copy = [Signal(lifted, name=f"lane{q}_quotient{c}", reset_less=True) for c in range(copies)]
+            for c in range(copies):
+                with m.If(~group_valid[c]):
+                    m.d.sync += quotient_copy[c].eq(0)
+                with m.Else():
+                    m.d.sync += quotient_copy[c].eq(quotient)
+            carried_term = Signal(data.ArrayLayout(carried, t.term_stages - 1), name=f"lane{q}_carried",
+                                  reset_less=True)
+            m.d.sync += carried_term[0].eq(carried_out)
+            m.d.sync += [carried_term[x].eq(carried_term[x - 1]) for x in range(1, t.term_stages - 1)]
+            difference = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_difference", reset_less=True)
+            above = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_above", reset_less=True)
+            selected = Signal(nodes, name=f"lane{q}_selected", reset_less=True)
             for k in range(h):
                 for l in range(w):
                     x = k * w + l
-                    negative = z[x].as_unsigned()[-1]
+                    chosen = patch_valid[x] & (difference[x] > quotient_copy[x // copy_nodes])
                     m.d.sync += [
-                        y[x].eq(window[q + l][k].scaled - centred_patch[x]),
-                        z[x].eq(y[x] - wsum_y[x // copy_nodes]),
+                        difference[x].eq(window[q + l][k] + lifted_patch[x]),
                         # A register's synchronous reset: one LUT per node, none per bit.
-                        positive[x].eq(Mux(patch_valid[x] & ~negative, z[x], 0)),
+                        above[x].eq(Mux(chosen, difference[x], 0)),
+                        selected[x].eq(chosen),
                     ]
-            positives = _pipelined_sum(m, None, [positive[x] for x in range(nodes)], (0, term_max),
-                                       (0, widths.accumulator.hi), f"lane{q}_sum")
-            value = Signal(unsigned(widths.accumulator.bits), name=f"lane{q}_value", reset_less=True)
-            m.d.sync += value.eq((positives << 1) - correction[t.term_stages - 2])
+            above_sum = _pipelined_sum(m, None, [above[x] for x in range(nodes)], (0, 2 * lift - 1),
+                                       (0, lifted_sum_hi), f"lane{q}_above_sum")
+            above_count = _pipelined_sum(m, None, [selected[x] for x in range(nodes)], (0, 1), (0, nodes),
+                                         f"lane{q}_above_count")
+            # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact).
+            dividend = Mux(mean_compensation, carried_term[t.term_stages - 3], lift)
+            scaled_sum = Signal(value_bits, name=f"lane{q}_scaled_sum", reset_less=True)
+            scaled_count = Signal(value_bits, name=f"lane{q}_scaled_count", reset_less=True)
+            m.d.sync += [scaled_sum.eq(factor * above_sum), scaled_count.eq(above_count * dividend)]
+            correction = Mux(mean_compensation, 0, carried_term[t.term_stages - 2])
+            value = Signal(unsigned(value_bits), name=f"lane{q}_value", reset_less=True)
+            m.d.sync += value.eq(((scaled_sum - scaled_count) << 1) - correction)
             lane_values.append(value)
 
         # ---- into the output queue ---------------------------------------------------------------------
@@ -443,13 +493,10 @@ class WindowCore(wiring.Component):
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
         # ---- control ----------------------------------------------------------------------------------
-        prepare_step = Signal(range(2 * nodes + 3))
-        centre_copy = Signal(_index(copies))  # the copy of the window sum of the node being centred
-        centre_run = Signal(_index(copy_nodes))  # ... and the node's place among that copy's nodes
-        centring = Signal()  # the second pass shifts a node into ``centred_patch`` (cycles hw + 3 .. 2hw + 2)
+        prepare_step = Signal(range(nodes + 2))
+        lifting = Signal()  # the pass shifts a node into ``lifted_patch`` (cycles 3 .. hw + 2)
         # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; the memory's
-        # read register, one after it (a block RAM's output is slow) and one after the multiplier keep
-        # the passes' paths short.
+        # read register and one after it (a block RAM's output is slow) keep the pass's paths short.
         node = Signal(_index(nodes))
         with m.If(idle | (node == nodes - 1)):
             m.d.sync += node.eq(0)
@@ -459,22 +506,16 @@ class WindowCore(wiring.Component):
         head_depth = Signal(depth)
         head_valid_read = Signal()
         head_valid = Signal()
-        product = Signal(scaled)
         m.d.comb += [patch_read.addr.eq(node), head_read.eq(patch_read.data)]
         m.d.sync += [
             head_valid_read.eq(patch_valid.bit_select(node, 1)),
             head_depth.eq(head_read),
             head_valid.eq(head_valid_read),
-            product.eq(factor * head_depth),
         ]
-        # Outside the state machine, so that the register alone enables the shift.
-        with m.If(centring):
-            m.d.sync += [centred_patch[x].eq(centred_patch[x + 1]) for x in range(nodes - 1)]
-            m.d.sync += centred_patch[nodes - 1].eq(product - Mux(mean_compensation, patch_sum, 0) - centre_copy)
-            with m.If(centre_run == copy_nodes - 1):
-                m.d.sync += [centre_run.eq(0), centre_copy.eq(centre_copy + 1)]
-            with m.Else():
-                m.d.sync += centre_run.eq(centre_run + 1)
+        # Outside the state machine, so that a register alone enables the shift.
+        with m.If(lifting):
+            m.d.sync += [lifted_patch[x].eq(lifted_patch[x + 1]) for x in range(nodes - 1)]
+            m.d.sync += lifted_patch[nodes - 1].eq(lift - head_depth)
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
@@ -484,8 +525,6 @@ class WindowCore(wiring.Component):
                         valid_count.eq(0),
                         patch_sum.eq(0),
                         prepare_step.eq(0),
-                        centre_copy.eq(0),
-                        centre_run.eq(0),
                         patch_pointer.eq(0),
                         request_addr.eq(0),
                         flush_left.eq(t.flush_steps),
@@ -497,35 +536,33 @@ class WindowCore(wiring.Component):
                     m.d.sync += [sync_meta[x].live.eq(0) for x in range(t.step_stages)]
                     m.next = "COUNT"
             with m.State("COUNT"):
-                # First pass: n and sum_valid S, from node k - 2 on cycle k = 2 .. hw + 1.
+                # n, sum_valid S and the lifted depths, from node k - 2 on cycle k = 2 .. hw + 1.
                 m.d.sync += prepare_step.eq(prepare_step + 1)
+                with m.If(prepare_step == 1):
+                    m.d.sync += lifting.eq(1)
                 with m.If(prepare_step >= 2):
                     m.d.sync += [
                         valid_count.eq(valid_count + head_valid),
                         patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
                     ]
                 with m.If(prepare_step == nodes + 1):
-                    m.d.sync += factor.eq(Mux(mean_compensation, valid_count + head_valid, 1))
-                    m.next = "CENTRE"
-            with m.State("CENTRE"):
-                # Second pass: C = f * S - Ssum of node k - hw - 3 on cycle k = hw + 3 .. 2hw + 2,
-                # shifted into the centred register so that it ends in node order.
-                m.d.sync += prepare_step.eq(prepare_step + 1)
-                # The shift's enable reaches every node's register: a register of its own.
-                with m.If(prepare_step == nodes + 2):
-                    m.d.sync += centring.eq(1)
-                with m.If(prepare_step == 2 * nodes + 2):
-                    m.d.sync += centring.eq(0)
-                with m.If(prepare_step == 2 * nodes + 2):
-                    m.d.sync += [running.eq(1), issuing.eq(1), issuing_words.eq(1)]
-                    m.next = "RUN"
+                    m.d.sync += [
+                        lifting.eq(0),
+                        factor.eq(Mux(mean_compensation, valid_count + head_valid, 1)),
+                    ]
+                    m.next = "BIAS"
+            with m.State("BIAS"):
+                m.d.sync += [
+                    dividend_bias.eq(Mux(mean_compensation, factor << b, 0) - patch_sum),
+                    issuing.eq(1),
+                    issuing_words.eq(1),
+                ]
+                m.next = "RUN"
             with m.State("RUN"):
                 with m.If(self.surface.valid & self.surface.ready & self.surface.payload.last):
-                    m.d.sync += running.eq(0)
                     m.next = "IDLE"
 
         return m
-
 
 
 class WindowCorrelator(wiring.Component):
@@ -533,10 +570,10 @@ class WindowCorrelator(wiring.Component):
 
     Throughput and latency, with ``surface.ready`` and ``best.ready`` high: one memory row (``L``
     words) and one beat of ``L`` placements per clock once the pipeline is full; a correlation takes
-    ``2hw + 5 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
+    ``hw + 5 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
     row's last beat wraps to the next row's first step), then the reducer's pipeline and scan.
     Every beat's cycle is :func:`lost.model.cycles_window.schedule`;
-    ``output_delay = 2 * ceil(log2(h * w)) + 7``.
+    ``output_delay = 2 * ceil(log2(h * w)) + 8 + QUOTIENT_STAGES``.
 
     Parameters
     ----------

@@ -3,16 +3,16 @@
 The window core works in *steps*: each takes one memory row of ``L`` map words (or, after the last
 one, a flush step without a word). A step is issued (a map read request, or a flush step) when the
 core holds a credit for it, and taken on the next edge; the step-synchronous stages (step register,
-line buffers, window register, masked depths, window-sum levels) load only when a step is taken, while the term
-stages after them run on every clock. With ``surface.ready`` and ``best.ready`` held high and the
+line buffers, window register, masked depths, window-sum levels, quotient stages) load only when a
+step is taken, while the term stages after them run on every clock. With ``surface.ready`` and ``best.ready`` held high and the
 patch and map loaded, counting from the edge on which the ``start`` beat transfers (cycle 0):
 
-* cycles ``1 .. 2hw + 3`` read the patch twice, once for ``n`` and ``sum_valid S``, once for
-  ``C = f * S - Ssum`` (each pass ``hw`` nodes plus two register stages after the patch memory, the
-  second plus the multiplier's); the first map read request transfers on edge ``2hw + 4``;
+* cycles ``1 .. hw + 3`` read the patch once, for ``n``, ``sum_valid S`` and the lifted depths
+  ``2**b - S`` (``hw`` nodes plus two register stages after the patch memory, and one for the
+  divider's bias); the first map read request transfers on edge ``hw + 4``;
 * one step is issued per clock (the output queue's ``queue_depth`` credits never run out with
   ``surface.ready`` high), in raster order of the ``H * ceil(W / L)`` memory rows, then the flush
-  steps; step ``t`` (counting map words first, flush steps after) is taken on edge ``2hw + 5 + t``;
+  steps; step ``t`` (counting map words first, flush steps after) is taken on edge ``hw + 5 + t``;
 * the beat ``(i, g)`` (surface row ``i``, its ``g``-th group of ``L`` placements) is completed by step
   ``(i + h - 1) * G + g + D`` with ``G = ceil(W / L)`` and ``D = ceil((w - 1) / L)``, the step whose
   memory row holds the rightmost column of the beat's ``L`` windows (the lanes run in lockstep, also
@@ -24,8 +24,8 @@ patch and map loaded, counting from the edge on which the ``start`` beat transfe
   transfers on the next edge;
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 
-So beat ``(i, g)`` transfers on edge ``2hw + 5 + step(i, g) + output_delay + 1`` with
-``output_delay = 2 * ceil(log2(h * w)) + 7``. The schedule does not depend on the data, the mask or
+So beat ``(i, g)`` transfers on edge ``hw + 5 + step(i, g) + output_delay + 1`` with
+``output_delay = 2 * ceil(log2(h * w)) + 8 + QUOTIENT_STAGES``. The schedule does not depend on the data, the mask or
 the mode. Numpy only; :mod:`lost.hdl.window` sizes its pipeline from :func:`window_timing`, so the
 gateware and this model share every constant.
 """
@@ -39,7 +39,12 @@ import numpy as np
 from .cycles import Schedule, reducer_latency
 from .widths import placement_widths
 
-__all__ = ["WindowTiming", "completing_steps", "schedule", "window_timing"]
+__all__ = ["QUOTIENT_STAGES", "WindowTiming", "completing_steps", "schedule", "window_timing"]
+
+# The window core divides each placement's dividend by n in this many step-synchronous stages, as many
+# quotient bits in each as it takes (two for 16-bit depths), so that the schedule does not depend on
+# the depth width.
+QUOTIENT_STAGES = 9
 
 
 @dataclass(frozen=True)
@@ -61,13 +66,14 @@ class WindowTiming:
     sum_levels : int
         ``ceil(log2(h * w))``: register levels of the window-sum tree and of the value tree.
     prepare_cycles : int
-        ``2 * h * w + 3``: cycles after the start beat spent on the two passes over the patch.
+        ``h * w + 3``: cycles after the start beat spent on the pass over the patch.
     step_stages : int
-        ``sum_levels + 3``: the step-synchronous stages, which load only when a step is taken: the
-        step register, the window register, the masked depths and the window-sum levels.
+        ``sum_levels + 4 + QUOTIENT_STAGES``: the step-synchronous stages, which load only when a step
+        is taken: the step register, the window register, the masked depths, the window-sum levels,
+        the dividend and the quotient stages.
     term_stages : int
-        ``sum_levels + 4``: the stages that run on every clock: ``f*M - C``, minus the window sum,
-        ``max(z, 0)``, the value-tree levels and ``2 * sum - correction``.
+        ``sum_levels + 4``: the stages that run on every clock: the lifted differences, the selected
+        ones (with their count), the levels of their sum trees, the two products and the value.
     output_delay : int
         ``step_stages + term_stages``: cycles from taking a step to writing its beat into the output
         queue once the ``step_stages - 1`` steps after it have followed one per clock.
@@ -111,7 +117,7 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
     # ceil(a/L) + ceil(b/L) <= ceil((a+b)/L) + 1, so a row's last beat is late by at most one step.
     wraps = out_groups - 1 + lead == groups
     sum_levels = (h * w - 1).bit_length()
-    step_stages = sum_levels + 3
+    step_stages = sum_levels + 4 + QUOTIENT_STAGES
     term_stages = sum_levels + 4
     output_delay = step_stages + term_stages
     return WindowTiming(
@@ -120,7 +126,7 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
         lead=lead,
         wraps=wraps,
         sum_levels=sum_levels,
-        prepare_cycles=2 * h * w + 3,
+        prepare_cycles=h * w + 3,
         step_stages=step_stages,
         term_stages=term_stages,
         output_delay=output_delay,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from lost.model.cycles import reducer_latency, surface_beats
-from lost.model.cycles_window import completing_steps, schedule, window_timing
+from lost.model.cycles_window import QUOTIENT_STAGES, completing_steps, schedule, window_timing
 
 
 def brute_force_completing_steps(map_shape, patch_shape, lanes):
@@ -62,7 +62,7 @@ def test_schedule_shape_and_steady_rate(map_shape, patch_shape, lanes):
     assert np.all(np.diff(per_row, axis=0) == timing.groups)
     # The map is read once: the last beat is completed by the last map step, or by one flush step.
     last_step = H * timing.groups - 1 + int(timing.wraps)
-    assert plan.surface[-1] == 2 * h * w + 5 + last_step + timing.output_delay + 1
+    assert plan.surface[-1] == h * w + 5 + last_step + timing.output_delay + 1
     assert plan.best == plan.surface[-1] + reducer_latency((H - h + 1, W - w + 1), lanes, 1)
 
 
@@ -84,8 +84,8 @@ def test_stage_counts(patch_shape, levels):
     round trip, issue to transfer, so that steps issue one per clock."""
     timing = window_timing((20, 20), patch_shape, 2)
     assert timing.sum_levels == levels
-    assert (timing.step_stages, timing.term_stages) == (levels + 3, levels + 4)
-    assert timing.output_delay == 2 * levels + 7
+    assert (timing.step_stages, timing.term_stages) == (levels + 4 + QUOTIENT_STAGES, levels + 4)
+    assert timing.output_delay == 2 * levels + 8 + QUOTIENT_STAGES
     assert timing.queue_depth == timing.output_delay + 3
     # Enough flush steps to carry the last completing step through the step-synchronous stages.
     assert timing.flush_steps == int(timing.wraps) + timing.step_stages - 1
