@@ -105,7 +105,7 @@ def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], 
 
 
 def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisor: Any, quotient_bits: int, stages: int,
-                        carry: Any, name: str) -> tuple[Any, Any]:
+                        carry: Any, holds: list, name: str) -> tuple[list, Any]:
     """``floor(dividend / divisor)`` by restoring division in ``stages`` registers loaded on ``enable``.
 
     The dividend must be below ``divisor * 2**quotient_bits`` (so the quotient has ``quotient_bits``
@@ -113,7 +113,9 @@ def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisor: Any, quo
     divisor must hold still. Each stage takes ``ceil(quotient_bits / stages)`` quotient bits (the last
     stages fewer, or none), so the latency is ``stages`` whatever the width. One register per stage
     holds the dividend bits still to take and, shifted in behind them, the quotient bits made; ``carry``
-    travels beside. Returns the quotient and ``carry``, both ``stages`` loads later.
+    travels beside. The last stage's quotient is loaded into one register per signal in ``holds``,
+    each held at zero while its signal is high: copies for a wide fan-out, which distinct resets keep
+    synthesis from merging. Returns those copies and ``carry``, ``stages`` loads later.
     """
     per_stage = -(-quotient_bits // stages)
     remainder_shape = unsigned(len(divisor))
@@ -131,9 +133,19 @@ def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisor: Any, quo
                                               "carry": Shape.cast(carry.shape())}),
                            name=f"{name}_s{stage}", reset_less=True)
         with m.If(enable):
-            m.d.sync += [registers.remainder.eq(remainder), registers.bits.eq(bits), registers.carry.eq(carry)]
+            m.d.sync += [registers.remainder.eq(remainder), registers.carry.eq(carry)]
+            if stage < stages - 1:
+                m.d.sync += registers.bits.eq(bits)
+        if stage == stages - 1:
+            break
         remainder, bits, carry = registers.remainder, registers.bits, registers.carry
-    return bits, carry
+    quotients = [Signal(unsigned(quotient_bits), name=f"{name}_copy{c}", reset_less=True) for c in range(len(holds))]
+    for quotient, hold in zip(quotients, holds):
+        with m.If(hold):
+            m.d.sync += quotient.eq(0)
+        with m.Elif(enable):
+            m.d.sync += quotient.eq(bits)
+    return quotients, registers.carry
 
 
 class WindowCore(wiring.Component):
@@ -210,10 +222,14 @@ class WindowCore(wiring.Component):
         value_bits = widths.accumulator.bits
         # The quotient meets every node's comparator: one register would drive h * w of them across a
         # lane, so each lane keeps a copy per ``copy_nodes`` consecutive nodes (a patch row of Nygren's
-        # 10 x 10, whose comparators sit together). Copy c is held at zero while none of its nodes is
-        # valid (it is then unused): distinct resets keep synthesis from merging the copies.
+        # 10 x 10, whose comparators sit together), loaded from one of ``sources`` copies of the
+        # divider's last stage, each serving ``per_source`` of them: a fan-out of a few at each level.
+        # A copy is held at zero while none of its nodes is valid (it is then unused): distinct resets
+        # keep synthesis from merging the copies.
         copy_nodes = 10
         copies = -(-nodes // copy_nodes)
+        sources = ceil_log2(copies) if copies > 2 else 1
+        per_source = -(-copies // sources)
 
         # ---- the patch, its count and sum, and its lifted depths 2**b - S (formed at start) -----------
         # Like the map memory, the patch persists through a reset until reloaded. Its depths, read one
@@ -225,6 +241,8 @@ class WindowCore(wiring.Component):
         patch_valid = Signal(nodes, reset_less=True)
         lifted_patch = Signal(data.ArrayLayout(lifted, nodes), reset_less=True)
         group_valid = [patch_valid[c * copy_nodes:(c + 1) * copy_nodes].any() for c in range(copies)]
+        source_valid = [patch_valid[s * per_source * copy_nodes:(s + 1) * per_source * copy_nodes].any()
+                        for s in range(sources)]
         mean_compensation = Signal()
         valid_count = Signal(count)
         patch_sum = Signal(window_sum)
@@ -424,9 +442,9 @@ class WindowCore(wiring.Component):
             carried_in = Signal(carried, name=f"lane{q}_carried_in", reset_less=True)
             with m.If(advance):
                 m.d.sync += carried_in.eq(wsum + dividend_bias)
-            quotient, carried_out = _pipelined_quotient(
+            quotients, carried_out = _pipelined_quotient(
                 m, advance, Mux(mean_compensation, carried_in, lift), factor, b + 1, QUOTIENT_STAGES, carried_in,
-                f"lane{q}_quotient")
+                [~valid for valid in source_valid], f"lane{q}_quotient")
 
             # The same columns, step_stages - 2 steps later, at the bottom of the register: the lifted
             # differences M - S + 2**b, those above the quotient (d > t) and their count, their sums.
@@ -435,7 +453,7 @@ class WindowCore(wiring.Component):
                 with m.If(~group_valid[c]):
                     m.d.sync += quotient_copy[c].eq(0)
                 with m.Else():
-                    m.d.sync += quotient_copy[c].eq(quotient)
+                    m.d.sync += quotient_copy[c].eq(quotients[c // per_source])
             carried_term = Signal(data.ArrayLayout(carried, t.term_stages - 1), name=f"lane{q}_carried",
                                   reset_less=True)
             m.d.sync += carried_term[0].eq(carried_out)
@@ -446,7 +464,9 @@ class WindowCore(wiring.Component):
             for k in range(h):
                 for l in range(w):
                     x = k * w + l
-                    chosen = patch_valid[x] & (difference[x] > quotient_copy[x // copy_nodes])
+                    # d' > q as the sign of q - d': a sum bit of the carry chain, where a comparison's
+                    # carry out would be rebuilt in LUTs.
+                    chosen = patch_valid[x] & (quotient_copy[x // copy_nodes] - difference[x])[-1]
                     m.d.sync += [
                         difference[x].eq(window[q + l][k] + lifted_patch[x]),
                         # A register's synchronous reset: one LUT per node, none per bit.
