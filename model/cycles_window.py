@@ -25,7 +25,7 @@ patch and map loaded, counting from the edge on which the ``start`` beat transfe
 * the best beat follows the last surface beat by :func:`lost.model.cycles.reducer_latency`.
 
 So beat ``(i, g)`` transfers on edge ``hw + 5 + step(i, g) + output_delay + 1`` with
-``output_delay = 2 * ceil(log2(h * w)) + 8 + QUOTIENT_STAGES``. The schedule does not depend on the data, the mask or
+``output_delay = 2 * ceil(log2(h * w)) + 9 + QUOTIENT_STAGES``. The schedule does not depend on the data, the mask or
 the mode. Numpy only; :mod:`lost.hdl.window` sizes its pipeline from :func:`window_timing`, so the
 gateware and this model share every constant.
 """
@@ -72,8 +72,9 @@ class WindowTiming:
         is taken: the step register, the window register, the masked depths, the window-sum levels,
         the dividend and the quotient stages.
     term_stages : int
-        ``sum_levels + 4``: the stages that run on every clock: the lifted differences, the selected
-        ones (with their count), the levels of their sum trees, the two products and the value.
+        ``sum_levels + 5``: the stages that run on every clock: the lifted differences, the selected
+        ones (with their count), the levels of their sum trees, the partial products, their sums and
+        the value.
     output_delay : int
         ``step_stages + term_stages``: cycles from taking a step to writing its beat into the output
         queue once the ``step_stages - 1`` steps after it have followed one per clock.
@@ -118,7 +119,7 @@ def window_timing(map_shape: tuple[int, int], patch_shape: tuple[int, int], lane
     wraps = out_groups - 1 + lead == groups
     sum_levels = (h * w - 1).bit_length()
     step_stages = sum_levels + 4 + QUOTIENT_STAGES
-    term_stages = sum_levels + 4
+    term_stages = sum_levels + 5
     output_delay = step_stages + term_stages
     return WindowTiming(
         groups=groups,

@@ -84,8 +84,8 @@ def test_stage_counts(patch_shape, levels):
     round trip, issue to transfer, so that steps issue one per clock."""
     timing = window_timing((20, 20), patch_shape, 2)
     assert timing.sum_levels == levels
-    assert (timing.step_stages, timing.term_stages) == (levels + 4 + QUOTIENT_STAGES, levels + 4)
-    assert timing.output_delay == 2 * levels + 8 + QUOTIENT_STAGES
+    assert (timing.step_stages, timing.term_stages) == (levels + 4 + QUOTIENT_STAGES, levels + 5)
+    assert timing.output_delay == 2 * levels + 9 + QUOTIENT_STAGES
     assert timing.queue_depth == timing.output_delay + 3
     # Enough flush steps to carry the last completing step through the step-synchronous stages.
     assert timing.flush_steps == int(timing.wraps) + timing.step_stages - 1
