@@ -562,6 +562,20 @@ class WindowCore(wiring.Component):
         with m.If(lifting):
             m.d.sync += [lifted_patch[x].eq(lifted_patch[x + 1]) for x in range(nodes - 1)]
             m.d.sync += lifted_patch[nodes - 1].eq(lift - head_depth)
+        # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
+        # own, so that the start beat's condition reaches only the pass's few registers.
+        clearing = Signal(init=1)
+        m.d.sync += clearing.eq(idle)
+        with m.If(clearing):
+            m.d.sync += [
+                request_addr.eq(0),
+                flush_left.eq(t.flush_steps),
+                credits.eq(t.queue_depth),
+                step_row.eq(0),
+                step_group.eq(0),
+            ]
+            # The step-synchronous stages may still hold the last correlation's flush steps.
+            m.d.sync += [sync_meta[x].live.eq(0) for x in range(t.step_stages)]
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
@@ -572,14 +586,7 @@ class WindowCore(wiring.Component):
                         patch_sum.eq(0),
                         prepare_step.eq(0),
                         patch_pointer.eq(0),
-                        request_addr.eq(0),
-                        flush_left.eq(t.flush_steps),
-                        credits.eq(t.queue_depth),
-                        step_row.eq(0),
-                        step_group.eq(0),
                     ]
-                    # The step-synchronous stages still hold the last correlation's flush steps.
-                    m.d.sync += [sync_meta[x].live.eq(0) for x in range(t.step_stages)]
                     m.next = "COUNT"
             with m.State("COUNT"):
                 # n, sum_valid S and the lifted depths, from node k - 2 on cycle k = 2 .. hw + 1.
