@@ -111,13 +111,13 @@ def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], 
 _MULTIPLIER_BITS = 18
 
 
-def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisor: Any, quotient_bits: int, stages: int,
+def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisors: list, quotient_bits: int, stages: int,
                         carry: Any, holds: list, name: str) -> tuple[list, Any]:
     """``floor(dividend / divisor)`` by restoring division in ``stages`` registers loaded on ``enable``.
 
     The dividend must be below ``divisor * 2**quotient_bits`` (so the quotient has ``quotient_bits``
     bits and the first remainder, ``dividend >> quotient_bits``, is below the divisor), and the
-    divisor must hold still. Each stage takes ``ceil(quotient_bits / stages)`` quotient bits (the last
+    divisor must hold still; ``divisors`` are copies of it, each serving a run of the stages. Each stage takes ``ceil(quotient_bits / stages)`` quotient bits (the last
     stages fewer, or none), so the latency is ``stages`` whatever the width. One register per stage
     holds the dividend bits still to take and, shifted in behind them, the quotient bits made; ``carry``
     travels beside. The last stage's quotient is loaded into one register per signal in ``holds``,
@@ -125,15 +125,20 @@ def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisor: Any, quo
     synthesis from merging. Returns those copies and ``carry``, ``stages`` loads later.
     """
     per_stage = -(-quotient_bits // stages)
-    remainder_shape = unsigned(len(divisor))
-    remainder = dividend[quotient_bits:][:len(divisor)]
+    divisor_bits = len(divisors[0])
+    remainder_shape = unsigned(divisor_bits)
+    remainder = dividend[quotient_bits:][:divisor_bits]
     bits = dividend[:quotient_bits]
     left = quotient_bits
     for stage in range(stages):
+        divisor = divisors[stage * len(divisors) // stages]
         for _ in range(min(per_stage, left)):
             trial = Cat(bits[-1], remainder)  # 2 * remainder + the next dividend bit
-            fits = trial >= divisor
-            remainder = Mux(fits, trial - divisor, trial)[:len(divisor)]
+            reduced = trial - divisor
+            # The divisor fits when the difference is not negative: its sign is a sum bit of the
+            # carry chain, where a comparison's carry out would be rebuilt in LUTs.
+            fits = ~reduced[-1]
+            remainder = Mux(fits, reduced, trial)[:divisor_bits]
             bits = Cat(fits, bits[:-1])
             left -= 1
         registers = Signal(data.StructLayout({"remainder": remainder_shape, "bits": unsigned(quotient_bits),
@@ -433,10 +438,14 @@ class WindowCore(wiring.Component):
         # ---- the lanes ------------------------------------------------------------------------------
         lane_values = []
         for q in range(L):
-            # The mode and f reach much of a lane: each lane has registers of its own for them.
+            # The mode and f reach much of a lane: each lane has registers of its own for them, one for
+            # each of its parts (the dividend, each run of quotient stages, the products).
             mode = Signal(name=f"lane{q}_mode_replica")
-            lane_factor = Signal(count, name=f"lane{q}_factor_replica")
-            m.d.sync += [mode.eq(mean_compensation), lane_factor.eq(factor)]
+            term_mode = Signal(name=f"lane{q}_term_mode_replica")
+            divisors = [Signal(count, name=f"lane{q}_factor_replica{r}") for r in range(-(-QUOTIENT_STAGES // 6))]
+            lane_factor = Signal(count, name=f"lane{q}_product_factor_replica")
+            m.d.sync += [mode.eq(mean_compensation), term_mode.eq(mean_compensation), lane_factor.eq(factor)]
+            m.d.sync += [divisor.eq(factor) for divisor in divisors]
             # Window sum of the valid nodes, on the columns as they arrive (step-synchronous). An
             # invalid node's depth register is held at zero by its synchronous reset: no LUT per bit.
             masked = Signal(data.ArrayLayout(depth, nodes), name=f"lane{q}_masked", reset_less=True)
@@ -454,7 +463,7 @@ class WindowCore(wiring.Component):
             with m.If(advance):
                 m.d.sync += carried_in.eq(wsum + dividend_bias)
             quotients, carried_out = _pipelined_quotient(
-                m, advance, Mux(mode, carried_in, lift), lane_factor, b + 1, QUOTIENT_STAGES, carried_in,
+                m, advance, Mux(mode, carried_in, lift), divisors, b + 1, QUOTIENT_STAGES, carried_in,
                 [~valid for valid in source_valid], f"lane{q}_quotient")
 
             # The same columns, step_stages - 2 steps later, at the bottom of the register: the lifted
@@ -493,9 +502,9 @@ class WindowCore(wiring.Component):
             # dividend beside the sums' last level, then each product as two partial products of a
             # multiplier's width, then their sums (with the correction), then V.
             dividend = Signal(lifted_sum_hi.bit_length(), name=f"lane{q}_dividend", reset_less=True)
-            m.d.sync += dividend.eq(Mux(mode, carried_term[t.term_stages - 5], lift))
+            m.d.sync += dividend.eq(Mux(term_mode, carried_term[t.term_stages - 5], lift))
             correction = Signal(carried, name=f"lane{q}_correction", reset_less=True)
-            m.d.sync += correction.eq(Mux(mode, 0, carried_term[t.term_stages - 4]))
+            m.d.sync += correction.eq(Mux(term_mode, 0, carried_term[t.term_stages - 4]))
             partials = Signal(data.ArrayLayout(unsigned(value_bits), 4), name=f"lane{q}_partials", reset_less=True)
             m.d.sync += [
                 partials[0].eq(lane_factor * above_sum[:_MULTIPLIER_BITS]),

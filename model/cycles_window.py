@@ -42,9 +42,9 @@ from .widths import placement_widths
 __all__ = ["QUOTIENT_STAGES", "WindowTiming", "completing_steps", "schedule", "window_timing"]
 
 # The window core divides each placement's dividend by n in this many step-synchronous stages, as many
-# quotient bits in each as it takes (two for 16-bit depths), so that the schedule does not depend on
-# the depth width.
-QUOTIENT_STAGES = 9
+# quotient bits in each as it takes (one for depths of up to 16 bits, whose quotients have 17), so that
+# the schedule does not depend on the depth width.
+QUOTIENT_STAGES = 17
 
 
 @dataclass(frozen=True)
