@@ -310,7 +310,8 @@ class Configuration:
         sizes = {"map_shape": self.map_shape, "patch_shape": self.patch_shape}
         if self.variant == "recursive":
             return (RecursiveCore if self.memory == "external" else RecursiveCorrelator)(**sizes)
-        return (WindowCore if self.memory == "external" else WindowCorrelator)(lanes=self.lanes, **sizes)
+        return (WindowCore if self.memory == "external" else WindowCorrelator)(
+            lanes=self.lanes, global_enable=True, **sizes)
 
     def design(self):
         """The core inside its :class:`~lost.hdl.harness.MeasurementHarness`."""

@@ -51,7 +51,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal, signed, unsigned
+from amaranth.hdl import Cat, Const, Instance, Module, Mux, Shape, Signal, signed, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.fifo import SyncFIFO
 from amaranth.lib.wiring import In
@@ -165,7 +165,7 @@ class WindowCore(wiring.Component):
 
     Parameters
     ----------
-    map_shape, patch_shape, depth_bits, lanes, exclusion_radius
+    map_shape, patch_shape, depth_bits, lanes, exclusion_radius, global_enable
         See :class:`WindowCorrelator`.
 
     Members
@@ -190,7 +190,9 @@ class WindowCore(wiring.Component):
     an all-zero surface.
     """
 
-    def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1):
+    def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
+                 global_enable: bool = False):
+        self._global_enable = bool(global_enable)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -326,9 +328,14 @@ class WindowCore(wiring.Component):
         # ``advance`` is a register: the only enable of the step-synchronous stages (step register,
         # line buffers, window register, masked depths, window-sum tree, dividend, quotient stages);
         # the lanes' term stages run every clock.
-        advance = Signal()
+        advance_register = Signal()
         step_is_word = Signal()
-        m.d.sync += [advance.eq(issue), step_is_word.eq(issue & issuing_words)]
+        m.d.sync += [advance_register.eq(issue), step_is_word.eq(issue & issuing_words)]
+        if self._global_enable:
+            advance = Signal()
+            m.submodules.advance_buffer = Instance("DCCA", i_CLKI=advance_register, i_CE=1, o_CLKO=advance)
+        else:
+            advance = advance_register
 
         step_row = Signal(range(H + t.flush_steps + 2))
         step_group = Signal(_index(G))
@@ -549,7 +556,7 @@ class WindowCore(wiring.Component):
 
         # ---- control ----------------------------------------------------------------------------------
         prepare_step = Signal(range(nodes + 2))
-        lifting = Signal()  # the pass shifts a node into ``lifted_patch`` (cycles 3 .. hw + 2)
+        lifting = Signal()  # the pass takes a node: n, Ssum and lifted_patch (cycles 3 .. hw + 2)
         # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; the memory's
         # read register and one after it (a block RAM's output is slow) keep the pass's paths short.
         node = Signal(_index(nodes))
@@ -567,10 +574,16 @@ class WindowCore(wiring.Component):
             head_depth.eq(head_read),
             head_valid.eq(head_valid_read),
         ]
-        # Outside the state machine, so that a register alone enables the shift.
+        # Outside the state machine, so that a register alone enables the pass's registers.
         with m.If(lifting):
             m.d.sync += [lifted_patch[x].eq(lifted_patch[x + 1]) for x in range(nodes - 1)]
-            m.d.sync += lifted_patch[nodes - 1].eq(lift - head_depth)
+            m.d.sync += [
+                lifted_patch[nodes - 1].eq(lift - head_depth),
+                valid_count.eq(valid_count + head_valid),
+                patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
+            ]
+        with m.If(idle):
+            m.d.sync += [valid_count.eq(0), patch_sum.eq(0), prepare_step.eq(0)]
         # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
         # own, so that the start beat's condition reaches only the pass's few registers.
         clearing = Signal(init=1)
@@ -591,9 +604,6 @@ class WindowCore(wiring.Component):
                 with m.If(self.start.valid & self.start.ready):
                     m.d.sync += [
                         mean_compensation.eq(self.start.payload.mean_compensation),
-                        valid_count.eq(0),
-                        patch_sum.eq(0),
-                        prepare_step.eq(0),
                         patch_pointer.eq(0),
                     ]
                     m.next = "COUNT"
@@ -602,11 +612,6 @@ class WindowCore(wiring.Component):
                 m.d.sync += prepare_step.eq(prepare_step + 1)
                 with m.If(prepare_step == 1):
                     m.d.sync += lifting.eq(1)
-                with m.If(prepare_step >= 2):
-                    m.d.sync += [
-                        valid_count.eq(valid_count + head_valid),
-                        patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
-                    ]
                 with m.If(prepare_step == nodes + 1):
                     m.d.sync += [
                         lifting.eq(0),
@@ -650,6 +655,10 @@ class WindowCorrelator(wiring.Component):
         words per row, each map row padded to a multiple of ``L``.
     exclusion_radius : int
         Chebyshev radius around the best fit outside which the runner-up is searched.
+    global_enable : bool
+        Route the step enable, which reaches every register of the step-synchronous stages, through
+        an ECP5 ``DCCA`` onto a global net (synthesis for the ECP5 only: the simulators know no
+        ``DCCA``).
 
     Members
     -------
@@ -662,7 +671,9 @@ class WindowCorrelator(wiring.Component):
         See :class:`lost.hdl.interface.CorrelatorParameters`.
     """
 
-    def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1):
+    def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
+                 global_enable: bool = False):
+        self._global_enable = bool(global_enable)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -684,7 +695,7 @@ class WindowCorrelator(wiring.Component):
 
         m.submodules.core = core = WindowCore(
             map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits, lanes=L,
-            exclusion_radius=p.exclusion_radius)
+            exclusion_radius=p.exclusion_radius, global_enable=self._global_enable)
         m.submodules.map_memory = map_memory = memory.Memory(
             shape=core.map_word, depth=core.map_depth, init=[])
         wiring.connect(m, core.map_read, map_memory.read_port())
