@@ -21,6 +21,7 @@ from lost.hdl.synth import (
     markdown_table,
     parse_nextpnr_report,
     place_and_route,
+    synthesize,
 )
 from lost.model import cycles_recursive, cycles_window
 
@@ -53,6 +54,21 @@ class Echo(wiring.Component):
             self.map_read.en.eq(self.b[0]),
             self.seen.eq(self.map_read.data),
         ]
+        return m
+
+
+class Replicas(wiring.Component):
+    """Three registers of one input, two of them named replicas: Yosys would merge all three."""
+
+    a: In(8)
+    y: Out(24)
+
+    def elaborate(self, platform):
+        m = Module()
+        plain = Signal(8)
+        replicas = [Signal(8, name=f"copy{k}_replica") for k in range(2)]
+        m.d.sync += [register.eq(self.a) for register in [plain, *replicas]]
+        m.d.comb += self.y.eq(Cat(plain, *replicas))
         return m
 
 
@@ -111,6 +127,27 @@ def test_synthesis_harness_resets_the_core_through_a_registered_global_buffer():
     assert "cell \\DCCA" in top
     # The simulation harness keeps the caller's domain and has no DCCA.
     assert "DCCA" not in rtlil.convert(MeasurementHarness(core=Echo()), name="top")
+
+
+def test_the_window_core_takes_its_step_enable_from_a_global_buffer_only_when_asked():
+    from amaranth.back import rtlil
+
+    from lost.hdl.window import WindowCore, WindowCorrelator
+
+    sizes = {"map_shape": (8, 9), "patch_shape": (3, 2), "lanes": 2}
+    assert "cell \\DCCA" in rtlil.convert(WindowCore(global_enable=True, **sizes))
+    assert "cell \\DCCA" in rtlil.convert(WindowCorrelator(global_enable=True, **sizes))
+    assert "DCCA" not in rtlil.convert(WindowCore(**sizes))
+    # The synthesis builds ask for it.
+    assert "DCCA" in rtlil.convert(Configuration("window", lanes=1, map_shape=(12, 12), patch_shape=(3, 3)).core())
+
+
+@pytest.mark.fpga
+def test_replica_registers_stay_apart_through_synthesis(tmp_path):
+    netlist = json.loads(synthesize(Replicas(), "replicas", tmp_path).read_text())
+    cells = netlist["modules"]["top"]["cells"].values()
+    # The plain register is merged into one of the replicas, which the flow keeps apart.
+    assert sum(cell["type"] == "TRELLIS_FF" for cell in cells) == 16
 
 
 def test_harness_parameters_are_checked():
