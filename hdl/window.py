@@ -115,14 +115,14 @@ def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisors: list, q
                         carry: Any, holds: list, name: str) -> tuple[list, Any]:
     """``floor(dividend / divisor)`` by restoring division in ``stages`` registers loaded on ``enable``.
 
-    The dividend must be below ``divisor * 2**quotient_bits`` (so the quotient has ``quotient_bits``
-    bits and the first remainder, ``dividend >> quotient_bits``, is below the divisor), and the
-    divisor must hold still; ``divisors`` are copies of it, each serving a run of the stages. Each stage takes ``ceil(quotient_bits / stages)`` quotient bits (the last
-    stages fewer, or none), so the latency is ``stages`` whatever the width. One register per stage
-    holds the dividend bits still to take and, shifted in behind them, the quotient bits made; ``carry``
-    travels beside. The last stage's quotient is loaded into one register per signal in ``holds``,
-    each held at zero while its signal is high: copies for a wide fan-out, which distinct resets keep
-    synthesis from merging. Returns those copies and ``carry``, ``stages`` loads later.
+    The dividend must be below ``divisor * 2**quotient_bits`` (so the first remainder, ``dividend >>
+    quotient_bits``, is below the divisor) and the divisor must hold still; ``divisors`` are copies of
+    it, each serving a run of the stages. Each stage takes ``ceil(quotient_bits / stages)`` quotient
+    bits (the last fewer, or none), so the latency is ``stages`` whatever the width. One register per
+    stage holds the dividend bits still to take and, shifted in behind them, the quotient bits made;
+    ``carry`` travels beside. The last stage's quotient is loaded into one register per signal in
+    ``holds``, held at zero while its signal is high: copies for a wide fan-out, which distinct resets
+    keep synthesis from merging. Returns those copies and ``carry``, ``stages`` loads later.
     """
     per_stage = -(-quotient_bits // stages)
     divisor_bits = len(divisors[0])
