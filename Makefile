@@ -22,7 +22,9 @@ $(STAMP): pyproject.toml host/_sad.c
 demo: setup
 	$(BIN)/lost demo
 
+# The linter first (seconds), then every test.
 test: setup
+	$(BIN)/ruff check .
 	$(BIN)/python -m pytest
 
 bench: setup

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from amaranth.hdl import Shape, ShapeCastable, signed, unsigned
-from amaranth.utils import bits_for
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
+from amaranth.utils import bits_for
 
 from lost.model.widths import CorrelatorWidths, correlator_widths, placement_widths
 

@@ -457,7 +457,7 @@ class RecursiveCorrelator(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         p = self._parameters
-        (H, W), (h, w) = p.map_shape, p.patch_shape
+        (H, W) = p.map_shape
         m.submodules.core = core = RecursiveCore(
             map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits,
             exclusion_radius=p.exclusion_radius)

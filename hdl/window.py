@@ -216,7 +216,7 @@ class WindowCore(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         p, t = self._parameters, self._timing
-        (H, W), (h, w), L, b = p.map_shape, p.patch_shape, p.lanes, p.depth_bits
+        (H, _), (h, w), L, b = p.map_shape, p.patch_shape, p.lanes, p.depth_bits
         widths = p.widths
         nodes = h * w
         Ho, Wo = p.surface_shape
@@ -691,7 +691,7 @@ class WindowCorrelator(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         p = self._parameters
-        (H, W), L = p.map_shape, p.lanes
+        (_, W), L = p.map_shape, p.lanes
 
         m.submodules.core = core = WindowCore(
             map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits, lanes=L,

@@ -6,7 +6,7 @@ kernel, a simulated RTL core or a board: every backend returns the golden model'
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

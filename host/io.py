@@ -560,7 +560,7 @@ def _to_depth(values: np.ndarray, positive: str | None, name: str, variable: str
 
 def _ascending(values: np.ndarray, xs: np.ndarray, ys: np.ndarray, name: str):
     """Flip so both coordinate vectors ascend (north-up files become row 0 south)."""
-    for axis, coords, label in ((1, xs, "x"), (0, ys, "y")):
+    for _axis, coords, label in ((1, xs, "x"), (0, ys, "y")):
         if coords.size > 1:
             steps = np.diff(coords)
             if not (np.all(steps > 0) or np.all(steps < 0)):

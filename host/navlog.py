@@ -600,7 +600,7 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
         record = int(owner[group[0]])
         gamma = np.radians(convergence_deg[record])
 
-        def to_grid(east, north):
+        def to_grid(east, north, gamma=gamma):
             if not gamma:
                 return east, north
             return east * np.cos(gamma) + north * np.sin(gamma), -east * np.sin(gamma) + north * np.cos(gamma)

@@ -78,7 +78,8 @@ def convergence_index(t_s: np.ndarray, errors: np.ndarray, rule: ConvergenceRule
     return None
 
 
-def summarize(result: NavResult, *, name: str, parameters: dict[str, Any], rule: ConvergenceRule | None = None, run_time_s: float | None = None) -> dict[str, Any]:
+def summarize(result: NavResult, *, name: str, parameters: dict[str, Any], rule: ConvergenceRule | None = None,
+              run_time_s: float | None = None) -> dict[str, Any]:
     """The content of summary.json for one run."""
     rule = rule or ConvergenceRule()
     summary: dict[str, Any] = {

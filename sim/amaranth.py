@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 from amaranth.hdl import ClockDomain, Module, ShapeCastable
-from amaranth.sim import Simulator
 from amaranth.lib import data
+from amaranth.sim import Simulator
 
 from lost.hdl.interface import comparable_best, decode_payload
 from lost.model.cycles import surface_beats

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from lost.model.shapes import shape_argument
 from lost.model import cycles_recursive, cycles_window
+from lost.model.shapes import shape_argument
 
 __all__ = ["cycle_table", "main"]
 

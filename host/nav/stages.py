@@ -187,7 +187,7 @@ class CrossTrackTracker:
         if not max_speed_mps > 0:
             raise ValueError(f"The cross-track velocity threshold must be positive, got {max_speed_mps!r}.")
         if damping_per_s is not None and not (isinstance(damping_per_s, (int, float)) and math.isfinite(damping_per_s) and damping_per_s >= 0):
-            raise ValueError(f"The cross-track damping must be a finite rate of at least 0 per second, or None for the patent's (1 - u), got {damping_per_s!r}.")
+            raise ValueError(f"The cross-track damping must be a finite rate of at least 0 per second, or None (the patent's 1 - u), got {damping_per_s!r}.")
         self._u = float(u)
         self._damping = None if damping_per_s is None else float(damping_per_s)
         self._max_accel = float(max_accel_mps2)

@@ -69,7 +69,7 @@ class BenchConfig:
             raise ValueError(f"the recursive core has one lane, got lanes={self.lanes}")
         object.__setattr__(self, "map_shape", tuple(self.map_shape))
         object.__setattr__(self, "patch_shape", tuple(self.patch_shape))
-        self.parameters  # validates the rest
+        _ = self.parameters  # validates the rest
 
     @property
     def parameters(self) -> CorrelatorParameters:

@@ -6,15 +6,11 @@ import itertools
 import numpy as np
 import pytest
 
-from lost.hdl.recursive import RecursiveCorrelator
 from lost.hdl.interface import best_fit_payload
+from lost.hdl.recursive import RecursiveCorrelator
 from lost.model import best_fit, correlate
 from lost.model.cycles_recursive import schedule
 from lost.sim.amaranth import CorrelatorBench, drain, feed, stream_get, stream_put
-
-
-
-
 
 
 def patch_words(patch, mask):

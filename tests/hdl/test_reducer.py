@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 from amaranth.sim import Simulator
 
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, best_fit_payload, comparable_best
 from lost.hdl.reducer import BestFitReducer
-from lost.hdl.interface import best_fit_payload, comparable_best
 from lost.model import best_fit
 from lost.model.cycles import reducer_latency, surface_beats
 from lost.sim.amaranth import feed, record_transfers, stream_get

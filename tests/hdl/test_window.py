@@ -7,8 +7,8 @@ import random
 import numpy as np
 import pytest
 
-from lost.hdl.window import WindowCorrelator
 from lost.hdl.interface import best_fit_payload
+from lost.hdl.window import WindowCorrelator
 from lost.model import best_fit, correlate
 from lost.model.cycles import surface_beats
 from lost.model.cycles_window import schedule
@@ -75,7 +75,7 @@ def test_every_value_best_fit_and_cycle(map_shape, patch_shape, lanes):
     results = []
 
     async def testbench(ctx):
-        for run, ((terrain, patch, mask), mode) in enumerate(zip(cases, [True, False])):
+        for _run, ((terrain, patch, mask), mode) in enumerate(zip(cases, [True, False])):
             await bench.load(ctx, terrain=terrain, patch=patch, mask=mask)
             results.append(await bench.correlate(ctx, mean_compensation=mode))
         await ctx.tick().repeat(2)  # so that busy is sampled after the last best beat

@@ -6,8 +6,7 @@ from hypothesis.extra import numpy as hnp
 from strategies import DEPTH, correlation_cases
 
 from lost import model
-from lost.host import BACKENDS, correlate
-from lost.host import software
+from lost.host import BACKENDS, correlate, software
 
 
 @given(correlation_cases(max_map=80, max_patch=16))

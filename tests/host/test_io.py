@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import rasterio
 import xarray as xr
-from pyproj import Transformer
 from affine import Affine
+from pyproj import Transformer
 
 from lost.host.grid import Grid
 from lost.host.io import read_grid, utm_crs, write_npz
