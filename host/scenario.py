@@ -48,7 +48,11 @@ __all__ = [
     "SensorSpec",
     "SonarSpec",
     "SlantRangeSpec",
+    "MapSpec",
+    "FaultSpec",
     "load_scenario",
+    "scenario_floor",
+    "survey_map",
     "builtin_scenarios",
     "builtin_scenario_path",
     "simulate",
@@ -69,6 +73,13 @@ class TerrainSpec:
     x0_m, y0_m : easting/northing of node (0, 0).
     mean_depth_m, relief_m, roughness_m, smooth_fraction, hurst : see ``synthetic_terrain``;
         ``smooth_fraction`` of the columns at the east edge are smooth, the rest rough.
+    corner_m, aspect, azimuth_deg : with ``corner_m``, the roughness follows the von Karman spectrum
+        of Goff and Jordan (corner wavelength in metres, elongation, its direction) rather than a pure
+        power law: the statistical model of real sea-floor morphology.
+    repeat_m : (north, east) size of a tile repeated over the whole floor (look-alike terrain).
+
+    This is the true sea floor, which the sonar, altimeter and depth follow; the navigation map is
+    made from it by ``[map]``.
     """
 
     file: str | None = None
@@ -82,6 +93,44 @@ class TerrainSpec:
     roughness_m: float = 8.0
     smooth_fraction: float = 0.0
     hurst: float = 0.8
+    corner_m: float | None = None
+    aspect: float = 1.0
+    azimuth_deg: float = 0.0
+    repeat_m: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class MapSpec:
+    """``[map]``: the navigation map, made from the true floor as a survey makes one.
+
+    node_m : the map's node spacing, a whole multiple of ``terrain.node_m``; each map node is the mean
+        of the floor's nodes in its cell, as a gridded multibeam survey is. None (the default): the
+        map is the true floor itself, node for node, as in a simulation that knows too much.
+    noise_m : 1-sigma survey noise of each map node (independent from node to node).
+    offset_m : a constant added to every map depth (a datum or tide error).
+    extent_m : (west, south, east, north), metres: the map covers only this box (a map that stops
+        before the survey does); None: the whole floor.
+    seed : the noise's seed (default: the scenario's seed + 1).
+    """
+
+    node_m: float | None = None
+    noise_m: float = 0.0
+    offset_m: float = 0.0
+    extent_m: tuple[float, float, float, float] | None = None
+    seed: int | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class FaultSpec:
+    """``[fault]``: a navigation fault injected into the records.
+
+    position_jump_m : (east, north), metres the dead reckoning jumps at ``at_s`` (added to the measured
+        velocity of the record at that time, as after a long DVL outage the INS has drifted that far).
+    at_s : when; None: no fault.
+    """
+
+    position_jump_m: tuple[float, float] = (0.0, 0.0)
+    at_s: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -190,6 +239,8 @@ class Scenario:
     duration_s: float = 600.0
     rate_hz: float = 1.0
     terrain: TerrainSpec = field(default_factory=TerrainSpec)
+    map: MapSpec = field(default_factory=MapSpec)
+    fault: FaultSpec = field(default_factory=FaultSpec)
     ship: ShipSpec = field(default_factory=ShipSpec)
     cable: CableSpec = field(default_factory=CableSpec)
     current: CurrentSpec = field(default_factory=CurrentSpec)
@@ -222,6 +273,15 @@ class Scenario:
         if not sonar.interval_s > 0:
             raise ValueError(f"sensors.sonar.interval_s must be positive, got {sonar.interval_s!r}.")
         object.__setattr__(self, "sensors", sensors)
+        if self.map.node_m is not None:
+            ratio = self.map.node_m / self.terrain.node_m
+            if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
+                raise ValueError(f"map.node_m must be a whole multiple of terrain.node_m ({self.terrain.node_m} m), got {self.map.node_m!r}.")
+        if self.map.noise_m < 0:
+            raise ValueError(f"map.noise_m must not be negative, got {self.map.noise_m!r}.")
+        if self.map.extent_m is not None and not (len(self.map.extent_m) == 4 and self.map.extent_m[0] < self.map.extent_m[2]
+                                                  and self.map.extent_m[1] < self.map.extent_m[3]):
+            raise ValueError(f"map.extent_m must be (west, south, east, north) with west < east and south < north, got {self.map.extent_m!r}.")
 
 
 def _tuples(value: Any) -> Any:
@@ -251,7 +311,8 @@ def load_scenario(path: str | Path) -> Scenario:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{path} is not valid TOML: {error}") from None
-    tables = {"terrain": TerrainSpec, "ship": ShipSpec, "cable": CableSpec, "current": CurrentSpec, "vehicle": VehicleSpec}
+    tables = {"terrain": TerrainSpec, "map": MapSpec, "fault": FaultSpec, "ship": ShipSpec, "cable": CableSpec, "current": CurrentSpec,
+              "vehicle": VehicleSpec}
     top = {"name", "description", "seed", "duration_s", "rate_hz", "sensors", "navigation", *tables}
     unknown = sorted(set(data) - top)
     if unknown:
@@ -285,8 +346,8 @@ def builtin_scenario_path(name: str) -> Path:
     return path
 
 
-def scenario_grid(scenario: Scenario) -> Grid:
-    """The scenario's map: its grid file, or its seeded synthetic floor."""
+def scenario_floor(scenario: Scenario) -> Grid:
+    """The scenario's true sea floor: its grid file, or its seeded synthetic floor."""
     spec = scenario.terrain
     if spec.file is not None:
         from .io import read_grid  # lazily: the file readers and their dependencies load only when used
@@ -300,8 +361,42 @@ def scenario_grid(scenario: Scenario) -> Grid:
         roughness_m=spec.roughness_m,
         smooth_fraction=spec.smooth_fraction,
         hurst=spec.hurst,
+        corner_nodes=None if spec.corner_m is None else spec.corner_m / spec.node_m,
+        aspect=spec.aspect,
+        azimuth_deg=spec.azimuth_deg,
+        repeat_nodes=None if spec.repeat_m is None else tuple(max(int(round(m / spec.node_m)), 2) for m in spec.repeat_m),
     )
     return Grid(depth, spec.x0_m, spec.y0_m, spec.node_m)
+
+
+def survey_map(floor: Grid, spec: MapSpec, seed: int) -> Grid:
+    """The navigation map a survey would make of ``floor`` (see :class:`MapSpec`)."""
+    depth, x0, y0, node = floor.depth_m, floor.x0_m, floor.y0_m, floor.node_m
+    if spec.node_m is not None:
+        f = int(round(spec.node_m / node))
+        rows, cols = depth.shape[0] // f, depth.shape[1] // f
+        depth = depth[: rows * f, : cols * f].reshape(rows, f, cols, f).mean(axis=(1, 3))
+        # A map node stands at the centre of the floor nodes it averages.
+        x0, y0, node = x0 + (f - 1) / 2 * node, y0 + (f - 1) / 2 * node, spec.node_m
+    depth = depth + spec.offset_m + np.random.default_rng(seed).normal(0.0, spec.noise_m, depth.shape)
+    grid = Grid(depth, x0, y0, node, floor.crs)
+    if spec.extent_m is None:
+        return grid
+    west, south, east, north = spec.extent_m
+    (r0, c0), (r1, c1) = (np.floor(grid.row_col(west, south)).astype(int)), (np.ceil(grid.row_col(east, north)).astype(int))
+    r0, c0 = max(r0, 0), max(c0, 0)
+    r1, c1 = min(r1, depth.shape[0] - 1), min(c1, depth.shape[1] - 1)
+    if r0 >= r1 or c0 >= c1:
+        raise ValueError(f"map.extent_m {spec.extent_m} leaves no part of the floor")
+    x, y = grid.xy(r0, c0)
+    return Grid(depth[r0 : r1 + 1, c0 : c1 + 1], float(x), float(y), node, floor.crs)
+
+
+def scenario_grid(scenario: Scenario) -> Grid:
+    """The scenario's navigation map: the floor as ``[map]`` surveys it (the floor itself by default)."""
+    floor = scenario_floor(scenario)
+    seed = scenario.seed + 1 if scenario.map.seed is None else scenario.map.seed
+    return survey_map(floor, scenario.map, seed)
 
 
 def _floor_depth(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -350,8 +445,13 @@ def _read(rng: np.random.Generator, truth: np.ndarray, spec: SensorSpec) -> np.n
 
 
 def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
-    """Simulate a tow: the map and the records (with the truth) of the scenario, reproducible by its seed."""
-    grid = scenario_grid(scenario)
+    """Simulate a tow: the navigation map and the records (with the truth) of the scenario, reproducible by its seed.
+
+    The vehicle, its altimeter and its sonar see the true floor (:func:`scenario_floor`); the map
+    returned is the survey of it that ``[map]`` describes.
+    """
+    floor = scenario_floor(scenario)
+    grid = survey_map(floor, scenario.map, scenario.seed + 1 if scenario.map.seed is None else scenario.map.seed)
     rng = np.random.default_rng(scenario.seed)
     dt = 1.0 / scenario.rate_hz
     t = np.arange(int(round(scenario.duration_s * scenario.rate_hz))) * dt
@@ -370,8 +470,8 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
     ship_velocity = speed * np.array([math.sin(math.radians(heading[0])), math.cos(math.radians(heading[0]))])
     water_track = ship_velocity - current
     position = np.array([ship_x[0], ship_y[0]])
-    depth = float(_floor_depth(grid, position[0], position[1])) - vehicle.altitude_m
-    depth = depth if np.isfinite(depth) else float(np.nanmean(grid.depth_m)) - vehicle.altitude_m
+    depth = float(_floor_depth(floor, position[0], position[1])) - vehicle.altitude_m
+    depth = depth if np.isfinite(depth) else float(np.nanmean(floor.depth_m)) - vehicle.altitude_m
     position = position - layback(depth) * water_track / np.linalg.norm(water_track)
     truth = np.empty((t.size, 2))
     depths = np.empty(t.size)
@@ -381,11 +481,11 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
             ship = np.array([ship_x[n], ship_y[n]])
             towline = ship - position
             position = ship - layback(depth) * towline / max(np.linalg.norm(towline), 1e-9)
-        floor = float(_floor_depth(grid, position[0], position[1]))
-        if np.isfinite(floor):
-            depth += (floor - vehicle.altitude_m - depth) * min(dt / vehicle.depth_time_constant_s, 1.0)
+        below = float(_floor_depth(floor, position[0], position[1]))
+        if np.isfinite(below):
+            depth += (below - vehicle.altitude_m - depth) * min(dt / vehicle.depth_time_constant_s, 1.0)
         truth[n], depths[n] = position, depth
-    floor = _floor_depth(grid, truth[:, 0], truth[:, 1])
+    floor_below = _floor_depth(floor, truth[:, 0], truth[:, 1])
     velocity = np.gradient(truth, dt, axis=0)
 
     sensors = scenario.sensors
@@ -399,6 +499,9 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
         measured_velocity = _read(rng, ship_velocity, sensors["velocity"])
     # A dropped velocity reading loses both components.
     measured_velocity[np.isnan(measured_velocity).any(axis=1)] = np.nan
+    if scenario.fault.at_s is not None:
+        n = min(int(round(scenario.fault.at_s * scenario.rate_hz)), t.size - 1)
+        measured_velocity[n] = np.nan_to_num(measured_velocity[n]) + np.asarray(scenario.fault.position_jump_m, float) / dt
     slant_spec = sensors["slant_range"]
     if slant_spec.enabled:
         true_range = np.sqrt(np.sum((truth - np.column_stack([ship_x, ship_y])) ** 2, axis=1) + depths**2)
@@ -412,39 +515,53 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
         ship_y_m=gps[:, 1],
         ship_heading_deg=ship_heading,
         vehicle_depth_m=_read(rng, depths, sensors["depth"]),
-        altitude_m=_read(rng, floor - depths, sensors["altimeter"]),
+        altitude_m=_read(rng, floor_below - depths, sensors["altimeter"]),
         vel_x_mps=measured_velocity[:, 0],
         vel_y_mps=measured_velocity[:, 1],
         slant_range_m=slant,
         cable_out_m=np.full(t.size, cable.out_m),
-        sonar=_sonar_patches(rng, grid, truth, measured_velocity, sensors["sonar"], scenario.rate_hz),
+        sonar=_sonar_patches(rng, floor, grid.node_m, truth, measured_velocity, sensors["sonar"], scenario.rate_hz),
         truth_x_m=truth[:, 0],
         truth_y_m=truth[:, 1],
     )
 
 
 def _sonar_patches(
-    rng: np.random.Generator, grid: Grid, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float
+    rng: np.random.Generator, floor: Grid, node_m: float, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float
 ) -> tuple:
+    """Patches on the map's nodes (``node_m``) of soundings of the true ``floor``."""
     if not spec.enabled:
         return ()
     every = max(int(round(spec.interval_s * rate_hz)), 1)
     at = np.arange(0, truth.shape[0], every)
     patches: list[SonarPatch | None] = [None] * truth.shape[0]
     if spec.mode == "swath":
-        for n, patch in zip(at, _swath_patches(rng, grid, truth, measured_velocity, spec, rate_hz, at)):
+        for n, patch in zip(at, _swath_patches(rng, floor, node_m, truth, measured_velocity, spec, rate_hz, at)):
             patches[n] = patch
         return tuple(patches)
     h, w = spec.shape
-    north = (np.arange(h) - (h - 1) / 2) * grid.node_m
-    east = (np.arange(w) - (w - 1) / 2) * grid.node_m
+    north = (np.arange(h) - (h - 1) / 2) * node_m
+    east = (np.arange(w) - (w - 1) / 2) * node_m
     x = truth[at, 0][:, None, None] + east[None, None, :]
     y = truth[at, 1][:, None, None] + north[None, :, None]
     x, y = np.broadcast_arrays(x, y)
-    depth = _sound(rng, _floor_depth(grid, x, y), spec)
+    depth = _sound(rng, _cell_mean_depth(floor, x, y, node_m), spec)
     for k, n in enumerate(at):
-        patches[n] = SonarPatch(depth_m=depth[k], node_m=grid.node_m)
+        patches[n] = SonarPatch(depth_m=depth[k], node_m=node_m)
     return tuple(patches)
+
+
+def _cell_mean_depth(floor: Grid, x: np.ndarray, y: np.ndarray, node_m: float) -> np.ndarray:
+    """The floor's mean depth over square cells of ``node_m`` centred on (x, y): what binning soundings gives."""
+    f = max(int(round(node_m / floor.node_m)), 1)
+    if f == 1:
+        return _floor_depth(floor, x, y)
+    offsets = (np.arange(f) - (f - 1) / 2) * floor.node_m
+    total = np.zeros(np.shape(x))
+    for dy in offsets:
+        for dx in offsets:
+            total += _floor_depth(floor, x + dx, y + dy)
+    return total / f**2
 
 
 def _sound(rng: np.random.Generator, true_depth: np.ndarray, spec: SonarSpec) -> np.ndarray:
@@ -457,7 +574,8 @@ def _sound(rng: np.random.Generator, true_depth: np.ndarray, spec: SonarSpec) ->
 
 
 def _swath_patches(
-    rng: np.random.Generator, grid: Grid, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float, at: np.ndarray
+    rng: np.random.Generator, floor: Grid, node_m: float, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float,
+    at: np.ndarray,
 ) -> list[SonarPatch | None]:
     from .sonar import grid_soundings
 
@@ -468,11 +586,11 @@ def _swath_patches(
     # Beams across the vehicle's motion (to starboard positive); a vehicle at rest looks north.
     motion = np.where(speed[:, None] > 1e-6, velocity / np.maximum(speed, 1e-6)[:, None], (0.0, 1.0))
     starboard = np.column_stack([motion[:, 1], -motion[:, 0]])
-    width = spec.swath_width_m if spec.swath_width_m is not None else max(h, w) * grid.node_m
+    width = spec.swath_width_m if spec.swath_width_m is not None else max(h, w) * node_m
     across = np.linspace(-width / 2, width / 2, spec.beams)
     beam_offsets = across[None, :, None] * starboard[:, None, :]  # (pings, beams, 2)
     spots = truth[:, None, :] + beam_offsets
-    depth = _sound(rng, _floor_depth(grid, spots[..., 0], spots[..., 1]), spec)
+    depth = _sound(rng, _floor_depth(floor, spots[..., 0], spots[..., 1]), spec)
     # Where the navigation believes each ping was: dead reckoning on the measured velocity, a dropped
     # reading holding the last one.
     held = measured_velocity.copy()
@@ -483,7 +601,7 @@ def _swath_patches(
     reckoned = np.vstack([np.zeros(2), np.cumsum(held[:-1] * dt, axis=0)])
     # The pings whose reckoned position lies within half a patch diagonal of the vehicle's, looked
     # for at most max_window_s away: a slow vehicle gathers pings for longer.
-    half_diagonal = math.hypot(h, w) * grid.node_m / 2
+    half_diagonal = math.hypot(h, w) * node_m / 2
     window = int(np.ceil(spec.max_window_s * rate_hz))
     patches: list[SonarPatch | None] = []
     for n in at:
@@ -499,6 +617,6 @@ def _swath_patches(
         sounded = np.isfinite(depth[pings])
         patches.append(grid_soundings(
             offsets[..., 0][sounded], offsets[..., 1][sounded], depth[pings][sounded],
-            patch_shape=(h, w), node_m=grid.node_m, centre_m=tuple(reckoned[centre] - reckoned[n]),
+            patch_shape=(h, w), node_m=node_m, centre_m=tuple(reckoned[centre] - reckoned[n]),
         ).patch)
     return patches

@@ -1,11 +1,14 @@
-"""The LOST navigation pipeline (NRL patent US 09/599,868) on top of the exact terrain correlator.
+"""Terrain navigation on top of the exact terrain correlator: the record loop over several estimators.
 
-:func:`run_lost` drives the four stages of :mod:`lost.host.nav.stages` over a tow's records and a
-bathymetric grid, with the lay-back model and dead reckoning as baselines on the same data.
+:func:`navigate` runs the LOST patent pipeline (NRL US 09/599,868; the four stages of
+:mod:`lost.host.nav.stages`), the point-mass filter and the particle filter of Nygren's recursive
+Bayesian estimation over a tow's records and a bathymetric grid, with the lay-back model and dead
+reckoning as baselines on the same data; :func:`run_lost` runs the patent pipeline alone.
 """
 
+from .estimator import Estimate, Estimator, Motion, Observation
 from .mapprep import PreparedMap
-from .pipeline import NavParameters, NavResult, layback_distance, run_lost
+from .pipeline import ESTIMATORS, FilterTrack, NavParameters, NavResult, layback_distance, navigate, run_lost
 from .stages import (
     CrossTrackTracker,
     TrackFrame,
@@ -18,6 +21,13 @@ from .stages import (
 )
 
 __all__ = [
+    "ESTIMATORS",
+    "Estimate",
+    "Estimator",
+    "FilterTrack",
+    "Motion",
+    "Observation",
+    "navigate",
     "CrossTrackTracker",
     "NavParameters",
     "NavResult",

@@ -1,50 +1,40 @@
-"""The LOST pipeline driver: state updater -> MLE -> constrained adaptive tracker -> slant-range corrector.
+"""The record loop: every record through each estimator, with the lay-back and dead-reckoning baselines.
 
-One record at a time, as in the patent's Figure 6, over a :class:`~lost.host.records.NavRecords`
-and a :class:`~lost.host.grid.Grid`. Two baselines run on the same records: the lay-back model and
-dead reckoning from the same start.
-
-What happens at a record
-------------------------
-- State updater (eq. 1): the previous estimate moved by the measured velocity over the time step; a
-  missing velocity is replaced by the last one measured (counted).
-- MLE (eqs. 2-3): ``matching="patch"`` correlates the record's sonar patch against the sub-map of
-  placements whose centre lies within ``search_half_width_m`` of the patch centre's prediction (the
-  vehicle's plus the patch's ``centre_offset_m``; the correlator backend is a parameter), minimizes
-  eq. 3 with V as the depth term and takes the offset off again; ``matching="point"``
-  matches the one ocean depth (vehicle depth + altitude) against every node of that area. Records
-  without a measurement (no patch, a dropped altimeter) have no MLE; the estimate goes on by dead
-  reckoning until the next one. So does a prediction whose search area leaves the map: the record
-  is flagged ``off_map`` and counted.
-- CAT (eqs. 4-7) at each MLE, with dt the time since its previous update; along track the MLE.
-- SRC (eq. 8) whenever a slant range is measured and passes the gate.
+One record at a time over a :class:`~lost.host.records.NavRecords` and a :class:`~lost.host.grid.Grid`:
+the loop turns the record into a :class:`~lost.host.nav.estimator.Motion` (the measured velocity, the
+last one held when a reading is missing, counted) and an :class:`~lost.host.nav.estimator.Observation`
+(patch, ocean depth, slant range, ship fix), and hands both to each estimator in turn: the LOST
+patent pipeline (:mod:`lost.host.nav.patent`), the point-mass filter (:mod:`lost.host.nav.pmf`) and
+the particle filter (:mod:`lost.host.nav.pf`). All start from the lay-back model's position (plus
+``initial_offset_m``) at the first record that has one. Two baselines run on the same records: the
+lay-back model and dead reckoning from the same start.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..correlator import BACKENDS, correlate
+from ..correlator import BACKENDS
 from ..grid import Grid
-from ..records import NavRecords, SonarPatch
+from ..records import NavRecords
+from .estimator import Estimator, Motion, Observation
+from .likelihood import LIKELIHOODS, TerrainLikelihood, map_error_estimate
 from .mapprep import PreparedMap
-from .stages import (
-    CrossTrackTracker,
-    TrackFrame,
-    layback_position,
-    patch_likelihood,
-    point_likelihood,
-    refine_minimum,
-    slant_range_correct,
-    state_update,
-)
+from .patent import PatentEstimator
+from .pf import ParticleFilter
+from .pmf import PointMassFilter
+from .stages import CrossTrackTracker, TrackFrame, layback_position, state_update
 
-__all__ = ["NavParameters", "NavResult", "run_lost", "layback_distance"]
+__all__ = ["NavParameters", "NavResult", "FilterTrack", "ESTIMATORS", "navigate", "run_lost", "layback_distance"]
+
+#: The estimators of ``navigate`` (``lost run --estimator``).
+ESTIMATORS = ("lost", "pmf", "pf")
 
 MATCHING = ("patch", "point")
 LAYBACK_MODELS = ("cable", "depth_ratio")
@@ -52,10 +42,10 @@ LAYBACK_MODELS = ("cable", "depth_ratio")
 
 @dataclass(frozen=True, kw_only=True)
 class NavParameters:
-    """Every constant of the pipeline, with the patent's nominal value where it gives one.
+    """Every constant of the navigation, with the patent's nominal value where it gives one.
 
-    Attributes
-    ----------
+    The patent pipeline
+    -------------------
     matching : {"patch", "point"}
         MLE form: the correlator surface of a sonar patch, or the patent's single ocean depth.
     k : float
@@ -110,6 +100,64 @@ class NavParameters:
         Depth word step for the correlator; None chooses one from the map (see PreparedMap).
     backend : str
         Correlator backend name (``lost.host.BACKENDS``).
+
+    The Bayesian filters (point-mass and particle; see ``lost.host.nav.trust`` for the rules)
+    --------------------------------------------------------------------------------------------
+    depth_noise_m : float
+        1-sigma error of a sonar patch node (binned soundings), metres. Default 0.5.
+    map_error_m : float or None
+        1-sigma error of the map where a patch node samples it (survey noise and interpolation
+        between nodes). None: estimated from the map (``likelihood.map_error_estimate``). The residual
+        sigma of the likelihood is ``hypot(depth_noise_m, map_error_m)``.
+    likelihood : {"laplace", "gaussian"}
+        The residual distribution: Laplace uses the correlator's sum of absolute differences as the
+        hardware gives it; Gaussian is eq. 3.4 (a sum of squares on the host).
+    likelihood_weight : float
+        Multiplies every terrain log-likelihood (after the new-share tempering). Default 1.
+    initial_sigma_m : float
+        1-sigma of the start position about the lay-back model, each axis; also the width a
+        re-initialization widens to. Default 300 m.
+    velocity_noise_mps : float
+        1-sigma white error of each velocity reading, m/s (the motion's uncertainty, eq. 3.1's v_t).
+    gyro_bias_rps, accel_bias_mps2 : float
+        RMS gyro and accelerometer biases of the INS error model (eq. 6.2) that widens the density
+        while no update arrives. Defaults 0.01 deg/h and 10 micro-g, a navigation-grade INS.
+    velocity_bias_time_s : float or None
+        Time constant of the point-mass filter's velocity-bias estimate; None: not estimated.
+    velocity_bias_sigma_mps, velocity_bias_walk_mps : float
+        The particle filter's prior on the velocity bias (1-sigma, m/s) and its random walk (m/s per
+        square-root second).
+    slant_range_sigma_m : float
+        1-sigma of a slant range for the filters, which take it as a measurement (gated), not as the
+        patent's correction.
+    position_floor_nodes : float
+        The density is kept at least this many map nodes wide (1-sigma, each axis): the map says
+        nothing of the terrain between its nodes and a real-time patch's own position is reckoned,
+        so the errors of successive matches are not independent and no number of them places the
+        vehicle better than a fraction of a node. Without the floor the density collapses into a
+        cell and can no longer follow the slowly varying error of the matches (measured: NEES far
+        above its band). Default 0.25.
+    pmf_cells : int
+        Most cells a side of the point-mass grid. Default 96.
+    pmf_sigmas : float
+        The grid's half-width in standard deviations of the density. Default 4.
+    pmf_min_cell_m : float or None
+        Smallest cell, metres; None: a quarter of a map node.
+    pf_particles : int
+        Particles of the particle filter. Default 10,000.
+    gate_nis : float
+        A terrain or range update whose NIS exceeds this is refused. Default 13.8 (chi-square, 2
+        degrees of freedom, 0.999).
+    misfit_gate : float
+        A patch whose best mean absolute residual in the filter's area exceeds this many times the
+        expected one fits nowhere there: refused. Default 3.
+    usable_sigma_nodes, usable_updates : float, int
+        The usable flag: the covariance's largest 1-sigma axis under this many map nodes for this many
+        terrain updates in a row. Defaults 1 node, 20 updates.
+    reinit_after : int
+        Terrain updates refused in a row before the filter re-initializes. Default 10.
+    seed : int
+        The particle filter's random stream.
     """
 
     matching: str = "patch"
@@ -130,6 +178,29 @@ class NavParameters:
     initial_offset_m: tuple[float, float] = (0.0, 0.0)
     lsb_m: float | None = None
     backend: str = "software"
+    depth_noise_m: float = 0.5
+    map_error_m: float | None = None
+    likelihood: str = "laplace"
+    likelihood_weight: float = 1.0
+    initial_sigma_m: float = 300.0
+    velocity_noise_mps: float = 0.05
+    gyro_bias_rps: float = math.radians(0.01) / 3600.0
+    accel_bias_mps2: float = 10e-6 * 9.81
+    velocity_bias_time_s: float | None = 600.0
+    velocity_bias_sigma_mps: float = 0.05
+    velocity_bias_walk_mps: float = 0.0005
+    slant_range_sigma_m: float = 3.0
+    position_floor_nodes: float = 0.25
+    pmf_cells: int = 96
+    pmf_sigmas: float = 4.0
+    pmf_min_cell_m: float | None = None
+    pf_particles: int = 10_000
+    gate_nis: float = 13.8
+    misfit_gate: float = 3.0
+    usable_sigma_nodes: float = 1.0
+    usable_updates: int = 20
+    reinit_after: int = 10
+    seed: int = 0
 
     def __post_init__(self) -> None:
         if self.matching not in MATCHING:
@@ -142,6 +213,25 @@ class NavParameters:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+        if self.likelihood not in LIKELIHOODS:
+            raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}.")
+        for name in ("depth_noise_m", "likelihood_weight", "initial_sigma_m", "slant_range_sigma_m", "pmf_sigmas", "gate_nis",
+                     "misfit_gate", "usable_sigma_nodes"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+        for name in ("position_floor_nodes", "velocity_noise_mps", "gyro_bias_rps", "accel_bias_mps2", "velocity_bias_sigma_mps", "velocity_bias_walk_mps"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number, at least 0, got {value!r}.")
+        for name in ("map_error_m", "pmf_min_cell_m", "velocity_bias_time_s"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive finite number or None, got {value!r}.")
+        for name, low in (("pmf_cells", 8), ("pf_particles", 10), ("usable_updates", 1), ("reinit_after", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name} must be a whole number of at least {low}, got {value!r}.")
         if not (math.isfinite(self.min_distinctness) and self.min_distinctness >= 0.0):
             raise ValueError(f"min_distinctness must be a finite number, at least 0 (0 disables the test), got {self.min_distinctness!r}.")
         if not 0.0 < self.min_valid_fraction <= 1.0:
@@ -162,12 +252,46 @@ class NavParameters:
 
 
 @dataclass(frozen=True)
-class NavResult:
-    """Per-record outputs of every stage and the baselines; positions are (N, 2) arrays (east, north).
+class FilterTrack:
+    """One estimator's outputs at every record (NaN rows before it starts).
 
+    Attributes
+    ----------
+    position : (N, 2) array
+    covariance : (N, 2, 2) array, m**2 (NaN for an estimator that carries none)
+    usable : (N,) bool array
+    stage : (N,) str array, one of ``lost.host.nav.estimator.STAGES``
+    nis : (N,) array, the terrain update's NIS (NaN without one)
+    rejected : (N,) str array, why a measurement was refused ("" when none was)
+    ms : (N,) array, wall time of the estimator's predict + update at each record, milliseconds
+    counts : dict, every skip, rejection and re-initialization the estimator made
+    """
+
+    position: np.ndarray
+    covariance: np.ndarray
+    usable: np.ndarray
+    stage: np.ndarray
+    nis: np.ndarray
+    rejected: np.ndarray
+    ms: np.ndarray
+    counts: dict[str, int] = field(default_factory=dict)
+
+    @classmethod
+    def empty(cls, n: int) -> FilterTrack:
+        return cls(np.full((n, 2), np.nan), np.full((n, 2, 2), np.nan), np.zeros(n, bool), np.full(n, "uninitialized", dtype="<U14"),
+                   np.full(n, np.nan), np.full(n, "", dtype="<U32"), np.full(n, np.nan))
+
+
+@dataclass(frozen=True)
+class NavResult:
+    """Per-record outputs of every estimator and the baselines; positions are (N, 2) arrays (east, north).
+
+    The patent pipeline's stage outputs have fields of their own (``estimate`` is its answer);
     ``mle_source`` is ``"patch"``, ``"point"`` or ``""`` (no MLE at that record); ``distinctness``
     the runner-up-to-best V ratio of each patch match (NaN without one); NaN rows mean the
-    stage had no output. ``counts`` names every skip and substitution the run made.
+    stage had no output. ``counts`` names every skip and substitution the record loop and the patent
+    pipeline made. ``tracks`` holds every estimator's :class:`FilterTrack` by name (``"lost"``,
+    ``"pmf"``, ``"pf"``), those that ran.
     """
 
     t_s: np.ndarray
@@ -184,6 +308,7 @@ class NavResult:
     dead_reckoning: np.ndarray
     truth: np.ndarray | None
     counts: dict[str, int] = field(default_factory=dict)
+    tracks: dict[str, FilterTrack] = field(default_factory=dict)
 
 
 def layback_distance(cable_out_m: float, vehicle_depth_m: float, params: NavParameters) -> float:
@@ -191,84 +316,6 @@ def layback_distance(cable_out_m: float, vehicle_depth_m: float, params: NavPara
     if params.layback_model == "depth_ratio":
         return params.layback_depth_ratio * vehicle_depth_m
     return math.sqrt(max(cable_out_m**2 - vehicle_depth_m**2, 0.0))
-
-
-class _Matcher:
-    """The MLE of one record against a prepared map, both forms."""
-
-    def __init__(self, prepared: PreparedMap, params: NavParameters, counts: Counter) -> None:
-        self._prep = prepared
-        self._grid = prepared.grid
-        self._params = params
-        self._counts = counts
-        self._half_nodes = int(math.ceil(params.search_half_width_m / self._grid.node_m))
-        self.distinctness = float("nan")  # of the last patch match: runner-up V over best V
-
-    def _window(self, centre_row: float, centre_col: float, rows: int, cols: int) -> tuple[int, int, int, int] | None:
-        """Inclusive index ranges of the search area around a (fractional) node, clipped to [0, rows/cols)."""
-        r, c = int(round(centre_row)), int(round(centre_col))
-        r0, r1 = max(r - self._half_nodes, 0), min(r + self._half_nodes, rows - 1)
-        c0, c1 = max(c - self._half_nodes, 0), min(c + self._half_nodes, cols - 1)
-        if r0 > r1 or c0 > c1:
-            return None
-        return r0, r1, c0, c1
-
-    def patch(self, predicted: np.ndarray, sonar: SonarPatch) -> np.ndarray | None:
-        self.distinctness = float("nan")
-        grid = self._grid
-        if not math.isclose(sonar.node_m, grid.node_m, rel_tol=1e-9):
-            raise ValueError(f"the sonar patch has {sonar.node_m} m nodes but the map {grid.node_m} m; grid the patch on the map's nodes")
-        words, mask, dropped = self._prep.quantize_patch(sonar.depth_m)
-        self._counts["patch_beams_out_of_word_range"] += dropped
-        h, w = words.shape
-        valid = int(mask.sum())
-        if valid < self._params.min_valid_fraction * h * w:
-            self._counts["patch_too_sparse"] += 1
-            return None
-        rows, cols = grid.shape
-        if h > rows or w > cols:
-            raise ValueError(f"the {h} x {w} sonar patch is larger than the {rows} x {cols} map")
-        # The patch is matched where its centre is predicted; the vehicle is that far from it.
-        offset = np.asarray(sonar.centre_offset_m, dtype=float)
-        centre = predicted + offset
-        row, col = grid.row_col(*centre)
-        # Placement (i, j) puts the patch centre on node (i + (h-1)/2, j + (w-1)/2).
-        area = self._window(row - (h - 1) / 2, col - (w - 1) / 2, rows - h + 1, cols - w + 1)
-        if area is None:
-            return None
-        i0, i1, j0, j1 = area
-        surface = correlate(self._prep.words[i0 : i1 + h, j0 : j1 + w], words, mask=mask, backend=self._params.backend)
-        surface = np.where(self._prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1], -1, surface)
-        x, y = grid.xy(np.arange(i0, i1 + 1)[:, None] + (h - 1) / 2, np.arange(j0, j1 + 1)[None, :] + (w - 1) / 2)
-        value = patch_likelihood(centre[0] - x, centre[1] - y, surface, valid_nodes=valid, lsb_m=self._prep.lsb_m, k=self._params.k)
-        if not np.isfinite(value).any():
-            self._counts["patch_no_valid_placement"] += 1
-            return None
-        i, j = (int(x) for x in np.unravel_index(int(np.argmin(value)), value.shape))
-        radius = max(h, w) // 2
-        others = np.where(surface < 0, np.iinfo(np.int64).max, surface)
-        others[max(i - radius, 0) : i + radius + 1, max(j - radius, 0) : j + radius + 1] = np.iinfo(np.int64).max
-        self.distinctness = float(others.min()) / max(int(surface[i, j]), 1) if others.size else float("inf")
-        if self.distinctness < self._params.min_distinctness:
-            self._counts["patch_ambiguous"] += 1
-            return None
-        fi, fj = refine_minimum(value, i, j)
-        return np.array(grid.xy(i0 + fi + (h - 1) / 2, j0 + fj + (w - 1) / 2), dtype=float) - offset
-
-    def point(self, predicted: np.ndarray, ocean_depth_m: float) -> np.ndarray | None:
-        grid = self._grid
-        rows, cols = grid.shape
-        area = self._window(*grid.row_col(*predicted), rows, cols)
-        if area is None:
-            return None
-        r0, r1, c0, c1 = area
-        x, y = grid.xy(np.arange(r0, r1 + 1)[:, None], np.arange(c0, c1 + 1)[None, :])
-        value = point_likelihood(predicted[0] - x, predicted[1] - y, ocean_depth_m, grid.depth_m[r0 : r1 + 1, c0 : c1 + 1], k=self._params.k)
-        if not np.isfinite(value).any():
-            self._counts["point_area_all_holes"] += 1
-            return None
-        r, c = np.unravel_index(int(np.argmin(value)), value.shape)
-        return np.array(grid.xy(r0 + r, c0 + c), dtype=float)
 
 
 def _frame(records: NavRecords, n: int) -> TrackFrame | None:
@@ -286,7 +333,42 @@ def run_lost(
     prepared: PreparedMap | None = None,
     progress: Callable[[Iterable[int]], Iterable[int]] | None = None,
 ) -> NavResult:
-    """Run the LOST pipeline and both baselines over a tow.
+    """The LOST patent pipeline alone (and both baselines) over a tow: ``navigate(..., estimators=("lost",))``."""
+    return navigate(records, grid, params, estimators=("lost",), prepared=prepared, progress=progress)
+
+
+def make_estimators(names: Iterable[str], prepared: PreparedMap, params: NavParameters, counts: Counter) -> list[Estimator]:
+    """The named estimators on one prepared map; the filters share one likelihood."""
+    names = list(names)
+    unknown = sorted(set(names) - set(ESTIMATORS))
+    if unknown or not names:
+        raise ValueError(f"estimators must be some of {ESTIMATORS}, got {names!r}")
+    likelihood = None
+    if set(names) & {"pmf", "pf"}:
+        map_error = params.map_error_m if params.map_error_m is not None else map_error_estimate(prepared.grid.depth_m)
+        sigma = math.hypot(params.depth_noise_m, map_error)
+        likelihood = TerrainLikelihood(prepared, sigma_m=sigma, depth_sigma_m=sigma, form=params.likelihood, backend=params.backend)
+    made: list[Estimator] = []
+    for name in names:
+        if name == "lost":
+            made.append(PatentEstimator(prepared, params, counts))
+        elif name == "pmf":
+            made.append(PointMassFilter(likelihood, params, grid=prepared.grid))
+        else:
+            made.append(ParticleFilter(likelihood, params, grid=prepared.grid, seed=params.seed))
+    return made
+
+
+def navigate(
+    records: NavRecords,
+    grid: Grid,
+    params: NavParameters | None = None,
+    *,
+    estimators: Iterable[str] = ESTIMATORS,
+    prepared: PreparedMap | None = None,
+    progress: Callable[[Iterable[int]], Iterable[int]] | None = None,
+) -> NavResult:
+    """Run the named estimators and both baselines over a tow.
 
     Parameters
     ----------
@@ -296,6 +378,8 @@ def run_lost(
         The bathymetry, in the records' frame.
     params : NavParameters
         Constants; the defaults are the patent's nominal values where it gives them.
+    estimators : names from :data:`ESTIMATORS`
+        Which to run, each on the same records.
     prepared : PreparedMap, optional
         The grid already quantized (to reuse across runs); built from ``grid`` otherwise.
     progress : callable, optional
@@ -305,143 +389,115 @@ def run_lost(
     ------
     ValueError
         Patch matching on a tow without sonar patches, a sonar patch on other nodes than the map, a
-        prepared map of another grid.
+        prepared map of another grid, an unknown estimator.
     """
-    return _run(records, grid, params, prepared, progress)
-
-
-def _run(
-    records: NavRecords,
-    grid: Grid,
-    params: NavParameters | None,
-    prepared: PreparedMap | None,
-    progress: Callable[[Iterable[int]], Iterable[int]] | None,
-) -> NavResult:
     params = params or NavParameters()
     prepared = prepared or PreparedMap(grid=grid, lsb_m=params.lsb_m)
     if prepared.grid is not grid:
         raise ValueError("the prepared map was made from another grid than the one given")
     if params.matching == "patch" and not any(patch is not None for patch in records.sonar):
         raise ValueError("the tow has no sonar patch, so patch matching has nothing to match; use matching='point'")
-    n_records = len(records)
     counts: Counter = Counter()
-    estimate, predicted, mle, cat, layback, dead = (np.full((n_records, 2), np.nan) for _ in range(6))
-    mle_source = np.full(n_records, "", dtype="<U5")
-    cross_velocity = np.full(n_records, np.nan)
-    distinctness = np.full(n_records, np.nan)
-    slant_corrected = np.zeros(n_records, dtype=bool)
-    off_map = np.zeros(n_records, dtype=bool)
-    matcher = _Matcher(prepared, params, counts)
-    tracker = params.tracker()
-    sonar = records.sonar if records.sonar else (None,) * n_records
-
-    velocity = np.zeros(2)
-    last_depth = float("nan")
-    previous: np.ndarray | None = None
-    dead_previous: np.ndarray | None = None
-    last_update_t = float("nan")
-    iterator: Iterable[int] = range(n_records)
+    loop = _RecordLoop(records, params, make_estimators(estimators, prepared, params, counts), counts)
+    iterator: Iterable[int] = range(len(records))
     if progress is not None:
         iterator = progress(iterator)
     for n in iterator:
-        t = float(records.t_s[n])
+        loop.step(n)
+    return loop.result()
+
+
+class _RecordLoop:
+    """The shared per-record work: velocity held, depth held, lay-back, start, baselines, estimators."""
+
+    def __init__(self, records: NavRecords, params: NavParameters, estimators: list[Estimator], counts: Counter) -> None:
+        n = len(records)
+        self._records, self._p, self._estimators, self.counts = records, params, estimators, counts
+        self._sonar = records.sonar if records.sonar else (None,) * n
+        self._velocity = np.zeros(2)
+        self._last_depth = float("nan")
+        self._dead: np.ndarray | None = None
+        self.layback, self.dead_reckoning = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
+        self.tracks = {e.name: FilterTrack.empty(n) for e in estimators}
+        self.patent = {"predicted": np.full((n, 2), np.nan), "mle": np.full((n, 2), np.nan), "cat": np.full((n, 2), np.nan),
+                       "distinctness": np.full(n, np.nan), "cross_velocity_mps": np.full(n, np.nan),
+                       "slant_corrected": np.zeros(n, bool), "off_map": np.zeros(n, bool), "mle_source": np.full(n, "", dtype="<U5")}
+
+    def step(self, n: int) -> None:
+        records = self._records
         frame = _frame(records, n)
-        measured_velocity = np.array([records.vel_x_mps[n], records.vel_y_mps[n]])
-        if np.all(np.isfinite(measured_velocity)):
-            velocity = measured_velocity
-        elif previous is not None:
-            counts["velocity_held"] += 1
+        measured = np.array([records.vel_x_mps[n], records.vel_y_mps[n]])
+        held = not np.all(np.isfinite(measured))
+        if not held:
+            self._velocity = measured
+        elif self._dead is not None:
+            self.counts["velocity_held"] += 1
         depth = float(records.vehicle_depth_m[n])
         if np.isfinite(depth):
-            last_depth = depth
-        distance = layback_distance(float(records.cable_out_m[n]), last_depth, params)
+            self._last_depth = depth
+        distance = layback_distance(float(records.cable_out_m[n]), self._last_depth, self._p)
         if frame is not None and np.isfinite(distance):
-            layback[n] = layback_position(frame, distance)
-
-        if previous is None:
+            self.layback[n] = layback_position(frame, distance)
+        observation = Observation(t_s=float(records.t_s[n]), frame=frame, patch=self._sonar[n],
+                                  ocean_depth_m=depth + float(records.altitude_m[n]), vehicle_depth_m=self._last_depth,
+                                  slant_range_m=float(records.slant_range_m[n]))
+        if self._dead is None:
             # Initialization: the lay-back model (cross-track zero), plus the requested offset.
-            if not np.all(np.isfinite(layback[n])):
-                counts["before_initialization"] += 1
-                continue
-            previous = layback[n] + np.array(params.initial_offset_m)
-            dead_previous = previous.copy()
-            estimate[n] = predicted[n] = dead[n] = previous
-            last_update_t = t
-            continue
+            if not np.all(np.isfinite(self.layback[n])):
+                self.counts["before_initialization"] += 1
+                return
+            self._dead = start = self.layback[n] + np.array(self._p.initial_offset_m)
+            self.dead_reckoning[n] = start
+            for estimator in self._estimators:
+                estimator.start(observation.t_s, start, observation)
+                self._record(n, estimator, 0.0)
+            return
+        motion = Motion(dt_s=observation.t_s - float(records.t_s[n - 1]), velocity_mps=self._velocity, held=held)
+        self.dead_reckoning[n] = self._dead = state_update(self._dead, self._velocity, motion.dt_s)
+        for estimator in self._estimators:
+            begin = time.perf_counter()
+            estimator.predict(motion)
+            estimator.update(observation)
+            self._record(n, estimator, (time.perf_counter() - begin) * 1e3)
 
-        dt = t - float(records.t_s[n - 1])
-        predicted[n] = state_update(previous, velocity, dt)
-        dead[n] = dead_previous = state_update(dead_previous, velocity, dt)
+    def _record(self, n: int, estimator: Estimator, ms: float) -> None:
+        answer = estimator.estimate()
+        track = self.tracks[estimator.name]
+        track.position[n], track.covariance[n], track.usable[n] = answer.position, answer.covariance, answer.usable
+        track.stage[n], track.nis[n], track.rejected[n], track.ms[n] = answer.stage, answer.nis, answer.rejected, ms
+        if isinstance(estimator, PatentEstimator):
+            last = estimator.last
+            self.patent["predicted"][n] = last["predicted"]
+            if "mle" in last:
+                if last["mle"] is not None:
+                    self.patent["mle"][n] = last["mle"]
+                    self.patent["mle_source"][n] = self._p.matching
+                if last["cat"] is not None:
+                    self.patent["cat"][n] = last["cat"]
+                self.patent["distinctness"][n] = last["distinctness"]
+                self.patent["cross_velocity_mps"][n] = last["cross_velocity_mps"]
+                self.patent["slant_corrected"][n] = last["slant_corrected"]
+                self.patent["off_map"][n] = last["off_map"]
 
-        # Maximum-likelihood estimator, patch or point form.
-        found: np.ndarray | None = None
-        if not bool(grid.contains(*predicted[n])):
-            off_map[n] = True
-            counts["off_map"] += 1
-        elif params.matching == "patch":
-            if sonar[n] is not None:
-                found = matcher.patch(predicted[n], sonar[n])
-                distinctness[n] = matcher.distinctness
-                if found is None:
-                    counts["patch_no_estimate"] += 1
-        else:
-            ocean_depth = depth + float(records.altitude_m[n])
-            if np.isfinite(ocean_depth):
-                found = matcher.point(predicted[n], ocean_depth)
-            else:
-                counts["point_no_depth"] += 1
+    def result(self) -> NavResult:
+        records, patent = self._records, self.patent
+        truth = np.column_stack([records.truth_x_m, records.truth_y_m]) if records.has_truth else None
+        self.counts["records"] = len(records)
+        self.counts["mle_updates"] = int(np.count_nonzero(patent["mle_source"] != ""))
+        self.counts["slant_range_corrections"] = int(patent["slant_corrected"].sum())
+        lost = self.tracks.get("lost")
+        tracks = {name: FilterTrack(**{**track.__dict__, "counts": dict(self._counts_of(name))}) for name, track in self.tracks.items()}
+        return NavResult(
+            t_s=np.asarray(records.t_s, float),
+            estimate=lost.position if lost is not None else np.full((len(records), 2), np.nan),
+            predicted=patent["predicted"], mle=patent["mle"], mle_source=patent["mle_source"], distinctness=patent["distinctness"],
+            cat=patent["cat"], cross_velocity_mps=patent["cross_velocity_mps"], slant_corrected=patent["slant_corrected"],
+            off_map=patent["off_map"], layback=self.layback, dead_reckoning=self.dead_reckoning, truth=truth,
+            counts=dict(self.counts), tracks=tracks,
+        )
 
-        # Constrained adaptive tracker: along track from the MLE, cross track through eqs. 4-7.
-        position = predicted[n]
-        if found is not None:
-            mle[n] = found
-            mle_source[n] = params.matching
-            if frame is None:
-                counts["cat_no_ship_fix"] += 1
-            else:
-                since = t - last_update_t
-                if since > params.cat_restart_s:
-                    tracker.restart()
-                    counts["cat_restarts"] += 1
-                    since = dt
-                cross = tracker.update(predicted_cross_m=frame.cross(predicted[n]), mle_cross_m=frame.cross(found), dt_s=since)
-                position = cat[n] = frame.position(frame.along(found), cross)
-                cross_velocity[n] = tracker.velocity_mps
-                last_update_t = t
-
-        # Slant-range corrector on the horizontal range left by the known depth difference.
-        slant = float(records.slant_range_m[n])
-        if params.use_slant_range and np.isfinite(slant) and frame is not None and np.isfinite(last_depth):
-            horizontal_sq = slant**2 - (last_depth - params.reference_depth_m) ** 2
-            ship = np.array([frame.ship_x_m, frame.ship_y_m])
-            if horizontal_sq <= 0:
-                counts["slant_range_shorter_than_depth"] += 1
-            elif abs(math.sqrt(horizontal_sq) - float(np.linalg.norm(position - ship))) > params.slant_range_gate_m:
-                counts["slant_range_gated"] += 1
-            else:
-                position = slant_range_correct(position, ship, math.sqrt(horizontal_sq))
-                slant_corrected[n] = True
-        estimate[n] = previous = position
-
-    truth = None
-    if records.has_truth:
-        truth = np.column_stack([records.truth_x_m, records.truth_y_m])
-    counts["records"] = n_records
-    counts["mle_updates"] = int(np.count_nonzero(mle_source != ""))
-    counts["slant_range_corrections"] = int(slant_corrected.sum())
-    return NavResult(
-        t_s=np.asarray(records.t_s, float),
-        estimate=estimate,
-        predicted=predicted,
-        mle=mle,
-        mle_source=mle_source,
-        distinctness=distinctness,
-        cat=cat,
-        cross_velocity_mps=cross_velocity,
-        slant_corrected=slant_corrected,
-        off_map=off_map,
-        layback=layback,
-        dead_reckoning=dead,
-        truth=truth,
-        counts=dict(counts),
-    )
+    def _counts_of(self, name: str) -> Counter:
+        for estimator in self._estimators:
+            if estimator.name == name:
+                return estimator.counts
+        return Counter()

@@ -1,0 +1,130 @@
+"""The interface every position estimator of the record loop follows, and the values that cross it.
+
+The record loop (:mod:`lost.host.nav.pipeline`) turns each record into a :class:`Motion` (what the
+vehicle did since the previous record) and an :class:`Observation` (what it measured now), and hands
+both to each estimator in turn: ``predict(motion)`` then ``update(observation)``, then reads an
+:class:`Estimate`. The shape follows MB-System's TRN (``motionUpdate``, ``measUpdate``,
+``computeMMSE``): one interface, several filters behind it.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from ..records import SonarPatch
+from .stages import TrackFrame
+
+__all__ = ["Motion", "Observation", "Estimate", "Estimator", "STAGES"]
+
+#: What produced an estimate at a record (``Estimate.stage``).
+STAGES = (
+    "uninitialized",   # before the first ship fix
+    "initialization",  # the start: the lay-back model
+    "dead_reckoning",  # no measurement used at this record
+    "off_map",         # the measurement fell off the map (or on holes): no information
+    "rejected",        # a measurement was refused by its gate (``Estimate.rejected`` says which)
+    "acquisition",     # a terrain update while the estimate is not yet usable (wide, perhaps multimodal)
+    "tracking",        # a terrain update while usable
+    "patch",           # the patent pipeline: its MLE came from a sonar patch
+    "point",           # the patent pipeline: its MLE came from a single depth
+    "reinitialized",   # the filter widened its search after divergence
+)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The vehicle's motion over one record step.
+
+    Attributes
+    ----------
+    dt_s : float
+        Time since the previous record, seconds.
+    velocity_mps : (2,) array
+        Measured velocity over ground (east, north), or the last measured one when ``held``.
+    held : bool
+        No velocity was measured at this record; the last one is reused.
+    """
+
+    dt_s: float
+    velocity_mps: np.ndarray
+    held: bool = False
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What was measured at one record; NaN where a sensor gave nothing.
+
+    Attributes
+    ----------
+    t_s : float
+        Time of the record.
+    frame : TrackFrame or None
+        The ship's position and heading (None when its fix is missing).
+    patch : SonarPatch or None
+        The sonar patch of this record.
+    ocean_depth_m : float
+        Vehicle depth plus altitude: the single-depth (point) measurement of the sea floor.
+    vehicle_depth_m : float
+        The last measured vehicle depth (for the slant range's vertical leg).
+    slant_range_m : float
+        Ship to vehicle.
+    """
+
+    t_s: float
+    frame: TrackFrame | None
+    patch: SonarPatch | None
+    ocean_depth_m: float
+    vehicle_depth_m: float
+    slant_range_m: float
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """An estimator's answer at one record.
+
+    Attributes
+    ----------
+    position : (2,) array
+        East, north, metres (the MMSE estimate for the Bayesian filters).
+    covariance : (2, 2) array
+        Its covariance, m**2; NaN for an estimator that carries none (the patent pipeline).
+    usable : bool
+        Whether the estimator vouches for the estimate (see each estimator's rule).
+    stage : str
+        One of :data:`STAGES`.
+    nis : float
+        Normalized innovation squared of the terrain update at this record (NaN without one).
+    rejected : str
+        Why a measurement of this record was refused ("" when none was).
+    """
+
+    position: np.ndarray
+    covariance: np.ndarray
+    usable: bool
+    stage: str
+    nis: float = float("nan")
+    rejected: str = ""
+
+
+class Estimator(Protocol):
+    """A position estimator driven by the record loop."""
+
+    name: str
+    counts: Counter
+
+    def start(self, t_s: float, position: np.ndarray, observation: Observation) -> None:
+        """Begin at ``position`` (the lay-back start) at the first record the loop can place."""
+
+    def predict(self, motion: Motion) -> None:
+        """Move the estimate by the motion, with its uncertainty (Nygren eq. 3.3)."""
+
+    def update(self, observation: Observation) -> None:
+        """Use what the record measured (Nygren eq. 3.5), gated."""
+
+    def estimate(self) -> Estimate:
+        """The estimate after this record's update."""
+

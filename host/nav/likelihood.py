@@ -1,0 +1,203 @@
+"""The terrain likelihood of Nygren's recursive estimation (eqs. 3.2-3.5) from the exact correlator.
+
+For a sonar patch of n valid nodes the correlator gives, at every placement, V = n * sum |d_k - mean d|
+in depth words (ARCHITECTURE.md), d the map-minus-sonar depths: the sum of absolute residuals after
+the patch's mean is removed is ``V * lsb / n`` metres. With the residuals independent and
+Laplace-distributed with standard deviation sigma (scale b = sigma / sqrt 2), the log-likelihood of a
+placement is, up to a constant::
+
+    log L = -sqrt(2) * (V * lsb / n) / sigma                      (Laplace: what the hardware gives)
+    log L = -sum (d_k - mean d)**2 / (2 sigma**2)                  (Gaussian, eq. 3.4: computed on the host)
+
+sigma**2 = depth_noise**2 + map_error**2: the sonar's error per patch node and the map's error where
+the patch samples it (survey noise, and the interpolation the map's node spacing leaves). Mean
+compensation makes both blind to a constant depth offset (tide, pressure depth), as eq. 8.1 intends.
+
+Tempering. Successive real-time patches share most of their soundings, so their likelihoods are far
+from independent; multiplying them all in would make the posterior overconfident. Each log-likelihood
+is multiplied by a weight w in (0, 1]: the share of the patch that is new since the last update used,
+``w = min(1, distance travelled / patch length)``, times ``likelihood_weight`` (default 1; lower for
+map errors correlated over several nodes).
+
+No information. A placement that leaves the map or touches a hole carries no information about where
+the vehicle is: the terrain there is unknown. Such candidates get the median log-likelihood of the
+placements around (those the candidates span): flat, as likely as a typical wrong placement, so that
+a map's edge neither attracts the estimate nor repels it, and a placement that really fits still
+wins. (The mean likelihood over the map would be the textbook value for unknown terrain, but the
+placement the patch came from dominates that mean and would make the unknown nearly as good as it.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage, signal
+
+from ..correlator import correlate
+from ..records import SonarPatch
+from .mapprep import PreparedMap
+
+__all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "map_error_estimate"]
+
+LIKELIHOODS = ("laplace", "gaussian")
+
+
+def map_error_estimate(depth_m: np.ndarray) -> float:
+    """A default map error, metres: half the RMS difference between a node and the mean of its 4 neighbours.
+
+    The difference from the neighbours' mean is the error of interpolating a node from one node
+    away; a patch node lies at most half a node from a map node, where that error is roughly halved.
+    A heuristic, stated as such: give ``map_error_m`` when the survey's error is known.
+    """
+    d = np.asarray(depth_m, float)
+    if min(d.shape) < 3:
+        return 0.0
+    centre = d[1:-1, 1:-1]
+    neighbours = (d[:-2, 1:-1] + d[2:, 1:-1] + d[1:-1, :-2] + d[1:-1, 2:]) / 4.0
+    difference = (centre - neighbours)[np.isfinite(centre - neighbours)]
+    return 0.5 * float(np.sqrt(np.mean(difference**2))) if difference.size else 0.0
+
+
+@dataclass(frozen=True)
+class PatchLikelihood:
+    """A patch's log-likelihood at a set of candidate vehicle positions.
+
+    Attributes
+    ----------
+    log_likelihood : array, the shape of the candidates
+        Tempered log-likelihood (weight included), with the no-information value where the patch
+        would leave the map or touch a hole.
+    informative : bool array, same shape
+        Where the patch lay wholly on valid map nodes.
+    misfit : float
+        The smallest mean absolute residual over the informative candidates, in units of the
+        residual expected at the true position (about 1 when the patch fits somewhere; NaN if none is
+        informative).
+    weight : float
+        The tempering weight used.
+    valid_nodes : int
+    """
+
+    log_likelihood: np.ndarray
+    informative: np.ndarray
+    misfit: float
+    weight: float
+    valid_nodes: int
+
+
+class TerrainLikelihood:
+    """Log-likelihoods of sonar patches and single depths against a prepared map.
+
+    Parameters
+    ----------
+    prepared : PreparedMap
+        The map in correlator words, with its holes.
+    sigma_m : float
+        Standard deviation of one patch node's residual (sonar and map together), metres.
+    form : {"laplace", "gaussian"}
+        The residual distribution; Laplace uses the correlator's V as it is.
+    depth_sigma_m : float
+        Standard deviation of a single ocean-depth measurement against the map, metres.
+    backend : str
+        Correlator backend for the Laplace form.
+    """
+
+    def __init__(self, prepared: PreparedMap, *, sigma_m: float, depth_sigma_m: float | None = None, form: str = "laplace",
+                 backend: str = "software") -> None:
+        if form not in LIKELIHOODS:
+            raise ValueError(f"the likelihood form must be one of {LIKELIHOODS}, got {form!r}")
+        if not (math.isfinite(sigma_m) and sigma_m > 0):
+            raise ValueError(f"the residual standard deviation must be a positive number of metres, got {sigma_m!r}")
+        self._prep = prepared
+        self._grid = prepared.grid
+        self.sigma_m = float(sigma_m)
+        self.depth_sigma_m = float(sigma_m if depth_sigma_m is None else depth_sigma_m)
+        self.form = form
+        self._backend = backend
+
+    def patch(self, x_m: np.ndarray, y_m: np.ndarray, patch: SonarPatch, *, weight: float = 1.0) -> PatchLikelihood | None:
+        """Log-likelihood of ``patch`` were the vehicle at each (x, y); None for a patch with no valid node.
+
+        The patch centre is placed ``patch.centre_offset_m`` from each candidate; the surface is computed
+        once over the placements that the candidates span and interpolated bilinearly between nodes.
+        """
+        grid, prep = self._grid, self._prep
+        if not math.isclose(patch.node_m, grid.node_m, rel_tol=1e-9):
+            raise ValueError(f"the sonar patch has {patch.node_m} m nodes but the map {grid.node_m} m; grid the patch on the map's nodes")
+        words, mask, _ = prep.quantize_patch(patch.depth_m)
+        n = int(mask.sum())
+        if n < 2:
+            return None
+        h, w = words.shape
+        rows, cols = grid.shape
+        if h > rows or w > cols:
+            raise ValueError(f"the {h} x {w} sonar patch is larger than the {rows} x {cols} map")
+        x = np.asarray(x_m, float) + patch.centre_offset_m[0]
+        y = np.asarray(y_m, float) + patch.centre_offset_m[1]
+        row, col = grid.row_col(x, y)
+        # Placement (i, j) puts the patch centre on node (i + (h-1)/2, j + (w-1)/2).
+        pi, pj = row - (h - 1) / 2, col - (w - 1) / 2
+        last_i, last_j = rows - h, cols - w
+        i0, i1 = max(int(np.floor(pi.min())), 0), min(int(np.ceil(pi.max())) + 1, last_i)
+        j0, j1 = max(int(np.floor(pj.min())), 0), min(int(np.ceil(pj.max())) + 1, last_j)
+        if i0 > i1 or j0 > j1:
+            shape = np.shape(x)
+            return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
+        residual = self._mean_abs_or_square(words, mask, i0, i1, j0, j1, h, w)
+        valid = ~prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1]
+        if self.form == "laplace":
+            per_node = residual  # mean |r| (metres) at each placement
+            ell = -math.sqrt(2.0) * n * per_node / self.sigma_m
+            expected = self.sigma_m / math.sqrt(2.0) * (n - 1) / n
+        else:
+            per_node = residual  # mean r**2
+            ell = -n * per_node / (2.0 * self.sigma_m**2)
+            expected = self.sigma_m**2 * (n - 1) / n
+        if not valid.any():
+            shape = np.shape(x)
+            return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
+        misfit = float(per_node[valid].min() / expected)
+        neutral = weight * float(np.median(ell[valid]))
+        if self.form == "gaussian" and math.isfinite(misfit):
+            misfit = math.sqrt(misfit)  # in residual units, like the Laplace form's
+        coords = np.stack([np.ravel(pi - i0), np.ravel(pj - j0)])
+        share = ndimage.map_coordinates(valid.astype(np.float64), coords, order=1, mode="constant", cval=0.0)
+        value = ndimage.map_coordinates(np.where(valid, ell, 0.0), coords, order=1, mode="constant", cval=0.0)
+        informative = share > 1.0 - 1e-9
+        log_likelihood = np.where(informative, weight * value, neutral).reshape(np.shape(x))
+        return PatchLikelihood(log_likelihood, informative.reshape(np.shape(x)), misfit, weight, n)
+
+    def _mean_abs_or_square(self, words: np.ndarray, mask: np.ndarray, i0: int, i1: int, j0: int, j1: int, h: int, w: int) -> np.ndarray:
+        """Per placement, the mean |residual| (Laplace, from the correlator) or mean residual**2 (Gaussian), metres."""
+        prep = self._prep
+        sub = prep.words[i0 : i1 + h, j0 : j1 + w]
+        n = int(mask.sum())
+        if self.form == "laplace":
+            surface = correlate(sub, words, mask=mask, backend=self._backend)
+            return surface.astype(np.float64) * prep.lsb_m / float(n) ** 2
+        m = sub.astype(np.float64) * prep.lsb_m
+        s = np.where(mask, words.astype(np.float64) * prep.lsb_m, 0.0)
+        k = mask.astype(np.float64)
+        sum_m = signal.correlate(m, k, mode="valid")
+        sum_m2 = signal.correlate(m * m, k, mode="valid")
+        sum_ms = signal.correlate(m, s, mode="valid")
+        sum_s, sum_s2 = s.sum(), (s * s).sum()
+        sum_d = sum_m - sum_s
+        sum_d2 = sum_m2 - 2.0 * sum_ms + sum_s2
+        return np.maximum(sum_d2 - sum_d**2 / n, 0.0) / n
+
+    def depth(self, x_m: np.ndarray, y_m: np.ndarray, ocean_depth_m: float, *, sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """Gaussian log-likelihood of one ocean-depth measurement at each (x, y), and where the map informs it.
+
+        The map is interpolated bilinearly; off the map or next to a hole the value is the expected
+        one at the true position (-1/2).
+        """
+        grid = self._grid
+        row, col = grid.row_col(np.asarray(x_m, float), np.asarray(y_m, float))
+        coords = np.stack([np.ravel(row), np.ravel(col)])
+        depth = ndimage.map_coordinates(grid.depth_m, coords, order=1, mode="constant", cval=np.nan).reshape(np.shape(row))
+        informative = np.isfinite(depth)
+        ell = np.where(informative, -0.5 * ((ocean_depth_m - np.where(informative, depth, 0.0)) / sigma_m) ** 2, -0.5)
+        return ell, informative

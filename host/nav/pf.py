@@ -1,0 +1,195 @@
+"""The particle filter: the same likelihood as the point-mass filter, carried by weighted samples.
+
+State of each particle: position (east, north) and the velocity sensor's bias (east, north), so the
+bias that shifts every real-time match is estimated inside the filter (the point-mass filter
+estimates it beside itself). Motion: ``x += (v_measured - b) dt`` plus the error growth of
+:mod:`lost.host.nav.trust`; the bias walks by ``velocity_bias_walk_mps`` per square-root second.
+Measurement: the log-likelihood of :mod:`lost.host.nav.likelihood` at each particle, added to its log
+weight. Systematic resampling when the effective sample size falls below half the particles, then
+roughening (Gordon et al. 1993: a jitter of ``K E N^(-1/d)`` per dimension, E the particles' spread
+in it, K = 0.2) so that copies of one particle spread again. Gating, the usable flag and
+re-initialization follow :mod:`lost.host.nav.trust`, as for the point-mass filter.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..grid import Grid
+from .estimator import Estimate, Motion, Observation
+from .likelihood import TerrainLikelihood
+from .trust import Trust, moments, nis
+
+__all__ = ["ParticleFilter", "systematic_resample"]
+
+ROUGHENING_K = 0.2
+
+
+def systematic_resample(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Indices of a systematic resampling of normalized ``weights`` (one uniform draw, N even strides)."""
+    n = weights.size
+    positions = (rng.random() + np.arange(n)) / n
+    cumulative = np.cumsum(weights)
+    cumulative[-1] = 1.0  # rounding must not leave the last stride past the end
+    return np.searchsorted(cumulative, positions)
+
+
+class ParticleFilter:
+    """Recursive Bayesian terrain navigation with particles (see the module docstring).
+
+    Parameters
+    ----------
+    likelihood : TerrainLikelihood
+    params : NavParameters
+        ``pf_particles``, ``velocity_bias_*``, the trust rules and noise levels.
+    grid : Grid
+        The map (for its node spacing).
+    seed : int
+        The filter's random stream: the same seed gives the same track.
+    """
+
+    def __init__(self, likelihood: TerrainLikelihood, params, *, grid: Grid, seed: int = 0, name: str = "pf") -> None:
+        self.name = name
+        self._lik = likelihood
+        self._p = params
+        self._trust = Trust(params, node_m=grid.node_m)
+        self.counts = self._trust.counts
+        self._rng = np.random.default_rng(seed)
+        self._n = int(params.pf_particles)
+        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2
+        self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
+
+    def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None) -> None:
+        """Particles around ``centre``: Gaussian of ``sigma_m``, or flat over a square of ``half_width_m``."""
+        n = self._n
+        if sigma_m is not None:
+            xy = centre + self._rng.normal(0.0, sigma_m, (n, 2))
+        else:
+            xy = centre + self._rng.uniform(-half_width_m, half_width_m, (n, 2))
+        self._x, self._y = xy[:, 0].copy(), xy[:, 1].copy()
+        bias_sigma = self._p.velocity_bias_sigma_mps
+        self._b = self._rng.normal(0.0, bias_sigma, (n, 2)) if bias_sigma > 0 else np.zeros((n, 2))
+        self._w = np.full(n, 1.0 / n)
+
+    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+        return moments(self._w, self._x, self._y)
+
+    @property
+    def velocity_bias_mps(self) -> np.ndarray:
+        return np.array([np.sum(self._w * self._b[:, 0]), np.sum(self._w * self._b[:, 1])])
+
+    def start(self, t_s: float, position: np.ndarray, observation: Observation) -> None:
+        self._spawn(np.asarray(position, float), None, self._p.initial_sigma_m)
+        self._stage = "initialization"
+
+    def predict(self, motion: Motion) -> None:
+        dt = motion.dt_s
+        v = np.asarray(motion.velocity_mps, float)
+        sigma = math.sqrt(self._trust.growth_variance(dt))
+        noise = self._rng.normal(0.0, 1.0, (self._n, 2))
+        self._x += (v[0] - self._b[:, 0]) * dt + sigma * noise[:, 0]
+        self._y += (v[1] - self._b[:, 1]) * dt + sigma * noise[:, 1]
+        if self._p.velocity_bias_walk_mps > 0:
+            self._b += self._rng.normal(0.0, self._p.velocity_bias_walk_mps * math.sqrt(dt), (self._n, 2))
+        self._trust.moved(dt, float(np.hypot(*v)) * dt)
+        self._stage, self._nis, self._rejected = "dead_reckoning", float("nan"), ""
+
+    def update(self, observation: Observation) -> None:
+        if observation.patch is not None and self._p.matching == "patch":
+            self._terrain_update(observation)
+        elif self._p.matching == "point" and math.isfinite(observation.ocean_depth_m):
+            ell, informative = self._lik.depth(self._x, self._y, observation.ocean_depth_m, sigma_m=self._lik.depth_sigma_m)
+            if informative.any():
+                self._apply(ell * self._p.likelihood_weight, terrain=True)
+            else:
+                self.counts["depth_off_map"] += 1
+                self._stage = "off_map"
+        if self._p.use_slant_range and math.isfinite(observation.slant_range_m) and observation.frame is not None:
+            self._range_update(observation)
+        self._trust.watch(self._moments()[1])
+
+    def _terrain_update(self, observation: Observation) -> None:
+        patch = observation.patch
+        length = max(patch.depth_m.shape) * patch.node_m
+        result = self._lik.patch(self._x, self._y, patch, weight=self._trust.patch_weight(length))
+        if result is None:
+            self.counts["patch_too_sparse"] += 1
+            return
+        if not result.informative.any():
+            self.counts["patch_off_map"] += 1
+            self._stage = "off_map"
+            return
+        # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
+        if result.misfit > self._p.misfit_gate and self._w[result.informative].sum() > 0.5:
+            self._reject("misfit", terrain=True)
+            return
+        self._apply(result.log_likelihood, terrain=True)
+
+    def _range_update(self, observation: Observation) -> None:
+        frame = observation.frame
+        vertical = observation.vehicle_depth_m - self._p.reference_depth_m
+        horizontal_sq = observation.slant_range_m**2 - vertical**2
+        if not (math.isfinite(horizontal_sq) and horizontal_sq > 0):
+            self.counts["range_shorter_than_depth"] += 1
+            return
+        distance = np.hypot(self._x - frame.ship_x_m, self._y - frame.ship_y_m)
+        self._apply(-0.5 * ((distance - math.sqrt(horizontal_sq)) / self._p.slant_range_sigma_m) ** 2, terrain=False)
+
+    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> None:
+        prior_mean, prior_cov = self._moments()
+        log_w = np.log(np.maximum(self._w, 1e-300)) + log_likelihood
+        log_w -= log_w.max()
+        w = np.exp(log_w)
+        w /= w.sum()
+        post_mean, post_cov = moments(w, self._x, self._y)
+        value = nis(prior_mean, prior_cov, post_mean, post_cov)
+        if terrain:
+            self._nis = value
+        if value > self._p.gate_nis:
+            self._reject("gate", terrain)
+            return
+        self._w = w
+        if terrain:
+            self._trust.accepted(post_cov)
+            self._stage = "tracking" if self._trust.usable else "acquisition"
+            self.counts["terrain_updates"] += 1
+        else:
+            self.counts["range_updates"] += 1
+        if 1.0 / np.sum(w * w) < 0.5 * self._n:
+            self._resample()
+        self._keep_floor(post_cov)
+
+    def _keep_floor(self, covariance: np.ndarray) -> None:
+        """Jitter the particles back to the floor's width where an update made the cloud narrower."""
+        missing = self._floor_var - float(np.linalg.eigvalsh(covariance)[0])
+        if missing > 0:
+            jitter = self._rng.normal(0.0, math.sqrt(missing), (self._n, 2))
+            self._x += jitter[:, 0]
+            self._y += jitter[:, 1]
+
+    def _resample(self) -> None:
+        index = systematic_resample(self._w, self._rng)
+        states = np.column_stack([self._x[index], self._y[index], self._b[index]])
+        spread = states.max(axis=0) - states.min(axis=0)
+        jitter = ROUGHENING_K * spread * self._n ** (-1.0 / states.shape[1])
+        states += self._rng.normal(0.0, 1.0, states.shape) * jitter
+        self._x, self._y, self._b = states[:, 0].copy(), states[:, 1].copy(), states[:, 2:].copy()
+        self._w = np.full(self._n, 1.0 / self._n)
+        self.counts["resamples"] += 1
+
+    def _reject(self, reason: str, terrain: bool) -> None:
+        self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
+        if not terrain:
+            self.counts[f"range_rejected_{reason}"] += 1
+            return
+        self._stage = "rejected"
+        if self._trust.rejected(reason):
+            mean, _ = self._moments()
+            self._spawn(mean, self._p.pmf_sigmas * self._p.initial_sigma_m, None)
+            self._stage = "reinitialized"
+
+    def estimate(self) -> Estimate:
+        mean, cov = self._moments()
+        return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected)

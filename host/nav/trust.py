@@ -1,0 +1,134 @@
+"""What makes a Bayesian filter's estimate trustworthy: error growth, tempering, gating, the usable flag, recovery.
+
+These rules are shared by the point-mass and the particle filter, and kept as named parameters of
+:class:`~lost.host.nav.pipeline.NavParameters`, as MB-System's TRN keeps its reinitialization rules.
+
+- Error growth (Nygren section 6): between terrain updates the position error grows by the velocity
+  noise of each step and by the INS error model of eqs. 6.1-6.2 over the time since the last update.
+- Tempering: each patch's log-likelihood is weighted by the share of the patch that is new since the
+  last update used (see :mod:`lost.host.nav.likelihood`).
+- Gating: an update is refused when the patch fits nowhere in the filter's area (misfit), or when it
+  moves the estimate further than its own information allows: the normalized innovation squared
+  ``NIS = d^T (P_prior - P_post)^-1 d``, d the shift of the mean, is chi-square with 2 degrees of freedom
+  for a consistent linear-Gaussian update (there d = K nu and Cov(d) = P_prior - P_post).
+- Usable: the largest 1-sigma axis of the covariance stays under ``usable_sigma_nodes`` map nodes for
+  ``usable_updates`` terrain updates in a row (MB-System: under a threshold for 200 updates). A
+  multimodal posterior has a wide covariance, so look-alike terrain lowers the flag by itself.
+- Recovery: after ``reinit_after`` refused terrain updates in a row the filter re-initializes, its
+  search widened to ``initial_sigma_m`` around its current estimate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+
+import numpy as np
+
+__all__ = ["SCHULER_PERIOD_S", "ins_position_sigma", "nis", "moments", "Trust"]
+
+#: Nygren section 6.1.
+SCHULER_PERIOD_S = 84.4 * 60.0
+GRAVITY_MPS2 = 9.81
+
+
+def ins_position_sigma(t_s: float | np.ndarray, *, gyro_bias_rps: float, accel_bias_mps2: float) -> np.ndarray:
+    """1-sigma position error of a free INS after ``t_s`` seconds, Nygren eq. 6.2 (one horizontal axis).
+
+    ``gyro_bias_rps`` and ``accel_bias_mps2`` are the RMS gyro and accelerometer biases, rad/s and m/s**2.
+    """
+    t = np.asarray(t_s, float)
+    w = 2.0 * math.pi / SCHULER_PERIOD_S
+    wt = np.maximum(w * t, 1e-12)
+    gyro = GRAVITY_MPS2 * t / w**2 * (1.0 - np.sin(wt) / wt)
+    accel = (1.0 - np.cos(wt)) / w**2
+    return np.sqrt((gyro * gyro_bias_rps) ** 2 + (accel * accel_bias_mps2) ** 2)
+
+
+def moments(weights: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of points weighted by normalized ``weights``."""
+    mx, my = float(np.sum(weights * x)), float(np.sum(weights * y))
+    dx, dy = x - mx, y - my
+    sxy = float(np.sum(weights * dx * dy))
+    cov = np.array([[float(np.sum(weights * dx * dx)), sxy], [sxy, float(np.sum(weights * dy * dy))]])
+    return np.array([mx, my]), cov
+
+
+def nis(prior_mean: np.ndarray, prior_cov: np.ndarray, post_mean: np.ndarray, post_cov: np.ndarray) -> float:
+    """Normalized innovation squared of an update from its prior and posterior moments (see the module)."""
+    d = post_mean - prior_mean
+    gain = prior_cov - post_cov
+    # The information an update brings is at least a little in every direction it moves the estimate.
+    gain = gain + 1e-6 * np.trace(prior_cov) * np.eye(2)
+    try:
+        return float(d @ np.linalg.solve(gain, d))
+    except np.linalg.LinAlgError:
+        return float("inf")
+
+
+class Trust:
+    """A filter's bookkeeping of error growth, tempering, the usable flag and recovery.
+
+    Parameters
+    ----------
+    params : NavParameters
+        The named rules (see the module docstring).
+    node_m : float
+        The map's node spacing (the usable threshold is in nodes).
+    """
+
+    def __init__(self, params, *, node_m: float) -> None:
+        self._p = params
+        self._node_m = float(node_m)
+        self.counts: Counter = Counter()
+        self.since_update_s = 0.0
+        self.travelled_m = math.inf  # the first patch is wholly new
+        self.rejects_in_row = 0
+        self.good_in_row = 0
+        self.usable = False
+
+    def growth_variance(self, dt_s: float) -> float:
+        """Variance (m**2, per axis) the position error gains over one step of ``dt_s``."""
+        p = self._p
+        before = ins_position_sigma(self.since_update_s, gyro_bias_rps=p.gyro_bias_rps, accel_bias_mps2=p.accel_bias_mps2)
+        after = ins_position_sigma(self.since_update_s + dt_s, gyro_bias_rps=p.gyro_bias_rps, accel_bias_mps2=p.accel_bias_mps2)
+        return (p.velocity_noise_mps * dt_s) ** 2 + float(after**2 - before**2)
+
+    def moved(self, dt_s: float, distance_m: float) -> None:
+        self.since_update_s += dt_s
+        self.travelled_m += distance_m
+
+    def patch_weight(self, patch_length_m: float) -> float:
+        """Tempering weight of the next patch: the share of it that is new, times ``likelihood_weight``."""
+        return self._p.likelihood_weight * min(1.0, self.travelled_m / patch_length_m)
+
+    def accepted(self, covariance: np.ndarray) -> None:
+        """An update was used: reset growth and tempering, and advance the usable rule."""
+        self.since_update_s = 0.0
+        self.travelled_m = 0.0
+        self.rejects_in_row = 0
+        sigma = math.sqrt(max(float(np.linalg.eigvalsh(covariance)[-1]), 0.0))
+        if sigma <= self._p.usable_sigma_nodes * self._node_m:
+            self.good_in_row += 1
+        else:
+            self.good_in_row = 0
+        self.usable = self.good_in_row >= self._p.usable_updates
+
+    def watch(self, covariance: np.ndarray) -> None:
+        """Between updates the flag drops as soon as the covariance outgrows the threshold."""
+        sigma = math.sqrt(max(float(np.linalg.eigvalsh(covariance)[-1]), 0.0))
+        if sigma > self._p.usable_sigma_nodes * self._node_m:
+            self.usable = False
+            self.good_in_row = 0
+
+    def rejected(self, reason: str) -> bool:
+        """A terrain update was refused; True when the filter should re-initialize now."""
+        self.counts[f"rejected_{reason}"] += 1
+        self.rejects_in_row += 1
+        self.good_in_row = 0
+        self.usable = False
+        if self.rejects_in_row >= self._p.reinit_after:
+            self.rejects_in_row = 0
+            self.counts["reinitializations"] += 1
+            return True
+        return False
