@@ -73,6 +73,11 @@ class ParticleFilter:
         self._b = self._rng.normal(0.0, bias_sigma, (n, 2)) if bias_sigma > 0 else np.zeros((n, 2))
         self._w = np.full(n, 1.0 / n)
 
+    def _spacing(self) -> float:
+        """The particles' typical spacing, metres: a square of four sigma a side shared among them."""
+        _, cov = self._moments()
+        return 4.0 * math.sqrt(max(math.sqrt(max(np.linalg.det(cov), 0.0)), 0.0) / self._n)
+
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
         return moments(self._w, self._x, self._y)
 
@@ -113,8 +118,12 @@ class ParticleFilter:
     def _terrain_update(self, observation: Observation) -> None:
         patch = observation.patch
         length = max(patch.depth_m.shape) * patch.node_m
-        result = self._lik.patch(self._x, self._y, patch, weight=self._trust.patch_weight(length))
+        result = self._lik.patch(self._x, self._y, patch, weight=self._trust.patch_weight(length),
+                                sigma_scale=self._trust.misfit_level, spacing_m=self._spacing())
         if result is None:
+            self.counts["patch_too_sparse"] += 1
+            return
+        if result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
             self.counts["patch_too_sparse"] += 1
             return
         if not result.informative.any():
@@ -122,10 +131,13 @@ class ParticleFilter:
             self._stage = "off_map"
             return
         # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
-        if result.misfit > self._p.misfit_gate and self._w[result.informative].sum() > 0.5:
+        if self._trust.misfit_refused(result.misfit) and self._w[result.informative].sum() > 0.5:
             self._reject("misfit", terrain=True)
             return
-        self._apply(result.log_likelihood, terrain=True)
+        if self._apply(result.log_likelihood, terrain=True):
+            self._trust.note_misfit(result.misfit)
+            self._trust.look_alike(self._lik, *self._moments(), patch)
+            self._stage = "tracking" if self._trust.usable else "acquisition"
 
     def _range_update(self, observation: Observation) -> None:
         frame = observation.frame
@@ -137,7 +149,8 @@ class ParticleFilter:
         distance = np.hypot(self._x - frame.ship_x_m, self._y - frame.ship_y_m)
         self._apply(-0.5 * ((distance - math.sqrt(horizontal_sq)) / self._p.slant_range_sigma_m) ** 2, terrain=False)
 
-    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> None:
+    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> bool:
+        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used."""
         prior_mean, prior_cov = self._moments()
         log_w = np.log(np.maximum(self._w, 1e-300)) + log_likelihood
         log_w -= log_w.max()
@@ -149,7 +162,7 @@ class ParticleFilter:
             self._nis = value
         if value > self._p.gate_nis:
             self._reject("gate", terrain)
-            return
+            return False
         self._w = w
         if terrain:
             self._trust.accepted(post_cov)
@@ -157,9 +170,11 @@ class ParticleFilter:
             self.counts["terrain_updates"] += 1
         else:
             self.counts["range_updates"] += 1
+            self._trust.range_outcome(refused=False)
         if 1.0 / np.sum(w * w) < 0.5 * self._n:
             self._resample()
         self._keep_floor(post_cov)
+        return True
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
         """Jitter the particles back to the floor's width where an update made the cloud narrower."""
@@ -183,6 +198,7 @@ class ParticleFilter:
         self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
         if not terrain:
             self.counts[f"range_rejected_{reason}"] += 1
+            self._trust.range_outcome(refused=True)
             return
         self._stage = "rejected"
         if self._trust.rejected(reason):
