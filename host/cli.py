@@ -25,7 +25,7 @@ from lost.model.shapes import shape_argument
 
 from . import BACKENDS, correlate
 from .grid import Grid
-from .nav import NavParameters, PreparedMap, run_lost
+from .nav import ESTIMATORS, NavParameters, PreparedMap, navigate
 from .navlog import PATCH_CENTRES
 from .records import NavRecords
 
@@ -45,12 +45,17 @@ def _progress(total: int):
     return lambda iterable: track(iterable, total=total, description="navigating", console=console, transient=True)
 
 
-def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path) -> dict:
+def _estimators(choice: str) -> tuple[str, ...]:
+    """``--estimator``: one name of ESTIMATORS, or ``all``."""
+    return ESTIMATORS if choice == "all" else (choice,)
+
+
+def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, estimators: tuple[str, ...] = ESTIMATORS) -> dict:
     from .report import plot_run, summarize, write_summary, write_track_csv
 
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    result = run_lost(records, grid, params, progress=_progress(len(records)))
+    result = navigate(records, grid, params, estimators=estimators, progress=_progress(len(records)))
     elapsed = time.perf_counter() - start
     summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
     write_track_csv(out / "track.csv", result)
@@ -63,14 +68,16 @@ def _print_summary(summary: dict, out: Path) -> None:
     print(f"{summary['name']}: {summary['records']} records, {summary['duration_s']:.0f} s of tow, navigated in {summary['run_time_s']:.2f} s")
     convergence = summary["convergence"]
     if summary["truth_known"]:
+        who = "LOST" if convergence["estimator"] == "lost" else convergence["estimator"]
         if convergence["converged"]:
-            print(f"LOST converged after {convergence['time_s']:.0f} s from an initial error of {convergence['initial_error_m']:.1f} m")
+            print(f"{who} converged after {convergence['time_s']:.0f} s from an initial error of {convergence['initial_error_m']:.1f} m")
         else:
-            print(f"LOST did not converge (initial error {convergence['initial_error_m']:.1f} m)")
-        print(f"{'method':16s} {'rms_m':>9s} {'p95_m':>9s} {'max_m':>9s}   (after convergence)")
+            print(f"{who} did not converge (initial error {convergence['initial_error_m']:.1f} m)")
+        columns = ("rms_m", "p95_m", "max_m", "nees_in_band", "usable_fraction", "false_fixes", "ms_per_update")
+        print(f"{'method':16s} " + " ".join(f"{c:>15s}" for c in columns) + "   (errors after each one's convergence)")
         for method, stats in summary["methods"].items():
-            cells = ["-" if stats[k] is None else f"{stats[k]:.2f}" for k in ("rms_m", "p95_m", "max_m")]
-            print(f"{method:16s} {cells[0]:>9s} {cells[1]:>9s} {cells[2]:>9s}")
+            cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
+            print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
     print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
     print(f"wrote {out}/track.csv, summary.json, map.png" + (", error.png" if summary["truth_known"] else ""))
 
@@ -115,7 +122,8 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     scenario = load_scenario(path)
     grid, records = simulate(scenario)
     out = out or Path("runs") / scenario.name
-    summary = _navigate(records, grid, _parameters(args, scenario.navigation), name=scenario.name, out=out)
+    summary = _navigate(records, grid, _parameters(args, scenario.navigation), name=scenario.name, out=out,
+                        estimators=_estimators(args.estimator))
     _print_summary(summary, out)
     return 0
 
@@ -137,7 +145,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                   patch_shape=args.patch_shape, patch_centre=args.patch_centre)
     print(report.summary())
     out = args.out or Path("runs") / Path(args.log).stem
-    summary = _navigate(records, grid, _parameters(args, {}), name=Path(args.log).stem, out=out)
+    summary = _navigate(records, grid, _parameters(args, {}), name=Path(args.log).stem, out=out, estimators=_estimators(args.estimator))
     _print_summary(summary, out)
     return 0
 
@@ -220,6 +228,8 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME)")
         sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
+        sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",
+                         help="the LOST patent pipeline, the point-mass filter, the particle filter, or all three on the same records (default)")
         sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
                          help="a navigation parameter (NavParameters), over the scenario's [navigation]; repeatable; "
                               "VALUE is TOML, or none for the patent's default (e.g. --set u=0.005 --set cross_damping_per_s=none)")

@@ -96,6 +96,11 @@ class PointMassFilter:
         total = carried.sum()
         self._p_grid = carried / total if total > 0 else np.full((n, n), 1.0 / n**2)
         self.counts["regrids"] += 1
+        # A coarse cell's mass was spread over the cell, not on its centre: keep that spread on finer cells.
+        old_cell = old[1]
+        if old_cell > self._cell:
+            self._pending_var += (old_cell**2 - self._cell**2) / 12.0
+            self._diffuse()
 
     def _splat(self, density: np.ndarray, old_centre: np.ndarray, old_cell: float, old_n: int) -> np.ndarray:
         """The old grid's masses moved onto the new cells, each split bilinearly among the four around it.
