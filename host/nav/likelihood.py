@@ -60,6 +60,28 @@ def map_error_estimate(depth_m: np.ndarray) -> float:
     return 0.5 * float(np.sqrt(np.mean(difference**2))) if difference.size else 0.0
 
 
+def _bilinear(values: np.ndarray, valid: np.ndarray, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear interpolation at fractional (row, col), and whether all four nodes around are inside and valid."""
+    if values.shape[0] == 1 or values.shape[1] == 1:
+        # One row (or column) of placements: doubled, a point on it interpolates with a zero far weight.
+        reps = (2 if values.shape[0] == 1 else 1, 2 if values.shape[1] == 1 else 1)
+        values, valid = np.tile(values, reps), np.tile(valid, reps)
+    rows, cols = values.shape
+    r0, c0 = np.floor(row).astype(np.intp), np.floor(col).astype(np.intp)
+    fr, fc = row - r0, col - c0
+    # A point on the last row or column uses the cell before it (its far weight is zero).
+    r0 = np.where((r0 == rows - 1) & (fr == 0.0), r0 - 1, r0)
+    c0 = np.where((c0 == cols - 1) & (fc == 0.0), c0 - 1, c0)
+    fr, fc = row - r0, col - c0
+    inside = (r0 >= 0) & (r0 + 1 < rows) & (c0 >= 0) & (c0 + 1 < cols)
+    r0c, c0c = np.clip(r0, 0, rows - 1), np.clip(c0, 0, cols - 1)
+    r1c, c1c = np.clip(r0 + 1, 0, rows - 1), np.clip(c0 + 1, 0, cols - 1)
+    ok = inside & valid[r0c, c0c] & valid[r0c, c1c] & valid[r1c, c0c] & valid[r1c, c1c]
+    value = ((1 - fr) * ((1 - fc) * values[r0c, c0c] + fc * values[r0c, c1c])
+             + fr * ((1 - fc) * values[r1c, c0c] + fc * values[r1c, c1c]))
+    return value, ok
+
+
 @dataclass(frozen=True)
 class PatchLikelihood:
     """A patch's log-likelihood at a set of candidate vehicle positions.
@@ -177,10 +199,7 @@ class TerrainLikelihood:
             valid = share_of_valid > 0.5
             ell = np.log(np.maximum(mass / np.maximum(share_of_valid, 1e-12), 1e-300)) + top
         neutral = float(np.median(ell[valid]))
-        coords = np.stack([np.ravel(pi - i0), np.ravel(pj - j0)])
-        share = ndimage.map_coordinates(valid.astype(np.float64), coords, order=1, mode="constant", cval=0.0)
-        value = ndimage.map_coordinates(np.where(valid, ell, 0.0), coords, order=1, mode="constant", cval=0.0)
-        informative = share > 1.0 - 1e-9
+        value, informative = _bilinear(np.where(valid, ell, 0.0), valid, np.ravel(pi - i0), np.ravel(pj - j0))
         log_likelihood = np.where(informative, value, neutral).reshape(np.shape(x))
         return PatchLikelihood(log_likelihood, informative.reshape(np.shape(x)), misfit, weight, n)
 
