@@ -53,6 +53,14 @@ class Motion:
     velocity_mps: np.ndarray
     held: bool = False
 
+    def __post_init__(self) -> None:
+        velocity = np.asarray(self.velocity_mps, dtype=float)
+        if velocity.shape != (2,) or not np.isfinite(velocity).all():
+            raise ValueError(f"a motion needs a finite (east, north) velocity; hold the last one when a reading is missing, got {self.velocity_mps!r}")
+        if not (np.isfinite(self.dt_s) and self.dt_s >= 0):
+            raise ValueError(f"a motion's time step must be a non-negative number of seconds, got {self.dt_s!r}")
+        object.__setattr__(self, "velocity_mps", velocity)
+
 
 @dataclass(frozen=True)
 class Observation:

@@ -7,7 +7,7 @@ estimates it beside itself). Motion: ``x += (v_measured - b) dt`` plus the error
 Measurement: the log-likelihood of :mod:`lost.host.nav.likelihood` at each particle, added to its log
 weight. Systematic resampling when the effective sample size falls below half the particles, then
 roughening (Gordon et al. 1993: a jitter of ``K E N^(-1/d)`` per dimension, E the particles' spread
-in it, K = 0.2) so that copies of one particle spread again. Gating, the usable flag and
+in it, K = 0.2; positions only, the bias walking alone) so that copies of one particle spread again. Gating, the usable flag and
 re-initialization follow :mod:`lost.host.nav.trust`, as for the point-mass filter.
 """
 
@@ -60,7 +60,7 @@ class ParticleFilter:
         self._n = int(params.pf_particles)
         self._pending_var = 0.0  # floor variance owed to the cloud, spread in the next prediction
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
-        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2
+        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2 + params.position_floor_m**2
         self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
 
     def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None) -> None:
@@ -198,11 +198,11 @@ class ParticleFilter:
 
     def _resample(self) -> None:
         index = systematic_resample(self._w, self._rng)
-        states = np.column_stack([self._x[index], self._y[index], self._b[index]])
-        spread = states.max(axis=0) - states.min(axis=0)
-        jitter = ROUGHENING_K * spread * self._n ** (-1.0 / states.shape[1])
-        states += self._rng.normal(0.0, 1.0, states.shape) * jitter
-        self._x, self._y, self._b = states[:, 0].copy(), states[:, 1].copy(), states[:, 2:].copy()
+        # Positions are roughened; the bias only walks: jitter on a weakly observed state adds up to a drift.
+        xy = np.column_stack([self._x[index], self._y[index]])
+        jitter = ROUGHENING_K * (xy.max(axis=0) - xy.min(axis=0)) * self._n ** (-1.0 / 2)
+        xy += self._rng.standard_normal(xy.shape) * jitter
+        self._x, self._y, self._b = xy[:, 0].copy(), xy[:, 1].copy(), self._b[index]
         self._w, self._cached = np.full(self._n, 1.0 / self._n), None
         self.counts["resamples"] += 1
 

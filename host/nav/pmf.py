@@ -3,8 +3,8 @@
 The grid
 --------
 ``N x N`` square cells (at most ``pmf_cells`` a side) centred on the estimate, covering
-``pmf_sigmas`` standard deviations each way (at least three map nodes), with cells no smaller than
-``pmf_min_cell_m`` (default a fifth of a map node: a posterior that collapsed into one node-sized
+``pmf_sigmas`` standard deviations each way (at least two map nodes and four floor widths), with cells no smaller than
+``pmf_min_cell_m`` (default a tenth of a map node or half the floor width, the coarser: a posterior that collapsed into one node-sized
 cell would leave an error floor of a node over sqrt 6). The density is kept at least
 ``position_floor_nodes`` wide (see NavParameters): narrower, it is widened by a Gaussian blur. The grid follows the density: it is laid anew
 (the density interpolated onto it) when the estimate drifts a quarter of the way to its edge or the
@@ -44,7 +44,10 @@ from .estimator import Estimate, Motion, Observation
 from .likelihood import TerrainLikelihood
 from .trust import Trust, moments, nis
 
-__all__ = ["PointMassFilter"]
+__all__ = ["PointMassFilter", "PMF_CELLS_PER_NODE"]
+
+#: The finest cells a side of a map node, by default (``pmf_min_cell_m``).
+PMF_CELLS_PER_NODE = 10
 
 
 class PointMassFilter:
@@ -67,9 +70,11 @@ class PointMassFilter:
         self._grid = grid
         self._trust = Trust(params, node_m=grid.node_m)
         self.counts = self._trust.counts
-        self._min_cell = params.pmf_min_cell_m if params.pmf_min_cell_m is not None else grid.node_m / 5.0
-        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2
-        self._min_half = 3.0 * grid.node_m
+        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2 + params.position_floor_m**2
+        floor = math.sqrt(self._floor_var)
+        # Cells fine enough to resolve the floor's width, a grid wide enough for four of it.
+        self._min_cell = params.pmf_min_cell_m if params.pmf_min_cell_m is not None else max(grid.node_m / PMF_CELLS_PER_NODE, floor / 2.0)
+        self._min_half = max(2.0 * grid.node_m, 4.0 * floor)
         self.velocity_bias_mps = np.zeros(2)
         self._pending_var = 0.0
         self._since_bias_update_s = 0.0
