@@ -127,7 +127,11 @@ def trace_for_time(profile: SoundSpeedProfile, launch_angle_rad: float, start_de
         seg_dx, seg_dt, _ = _segments(np.array([top, bottom]), np.interp([top, bottom], depth, speed), p)
         return float(seg_dx[0]), float(seg_dt[0])
 
-    end = brentq(lambda z: part(z)[1] - remaining, top, depth[layer + 1], xtol=1e-10, rtol=1e-14)
+    bottom = depth[layer + 1]
+    if remaining <= 0.0 or part(bottom)[1] <= remaining:  # on a boundary, up to rounding
+        end = top if remaining <= 0.0 else bottom
+    else:
+        end = brentq(lambda z: part(z)[1] - remaining, top, bottom, xtol=1e-10, rtol=1e-14)
     seg_dx, _ = part(end)
     cos_end = np.sqrt(1.0 - (p * np.interp(end, depth, speed)) ** 2)
     return RayEnd(offset + seg_dx, float(end), float(time_s), float(np.arccos(cos_end)))
