@@ -82,8 +82,12 @@ def _read_position(path: Path) -> dict[str, float]:
     return found
 
 
-def read_cast(path: str | Path, *, latitude_deg: float | None = None, longitude_deg: float | None = None) -> Cast:
+def read_cast(path: str | Path, *, latitude_deg: float | None = None, longitude_deg: float | None = None,
+              default_position: tuple[float, float] | None = None) -> Cast:
     """Read a CTD or SVP cast CSV (layout in the module docstring) into a :class:`Cast`.
+
+    The position is ``latitude_deg``/``longitude_deg`` if given, else the file's ``# latitude``/``# longitude``
+    lines, else ``default_position`` (e.g. the ship's first position in the log).
 
     Raises
     ------
@@ -97,8 +101,9 @@ def read_cast(path: str | Path, *, latitude_deg: float | None = None, longitude_
     if not path.exists():
         raise FileNotFoundError(f"cast file {path} does not exist")
     position = _read_position(path)
-    latitude = latitude_deg if latitude_deg is not None else position.get("latitude")
-    longitude = longitude_deg if longitude_deg is not None else position.get("longitude")
+    fallback = default_position or (None, None)
+    latitude = latitude_deg if latitude_deg is not None else position.get("latitude", fallback[0])
+    longitude = longitude_deg if longitude_deg is not None else position.get("longitude", fallback[1])
     try:
         table = pd.read_csv(path, comment="#", skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
