@@ -38,6 +38,9 @@ class UsblArray:
     phase_noise_rad, travel_time_noise_s, tilt_noise_rad, heading_noise_rad, gnss_noise_m, depth_noise_m : float
         One-sigma noise of the phase differences, the one-way travel time, the ship's roll and pitch, its heading,
         the GNSS horizontal position (per axis) and the towfish's pressure depth.
+    direction_noise : float, optional
+        One-sigma noise of a direction cosine, for a USBL that reports directions rather than phases; by default
+        it follows from the phase noise, ``lambda phase_noise / (2 pi d)``.
     """
 
     frequency_hz: float = 20000.0
@@ -50,6 +53,7 @@ class UsblArray:
     heading_noise_rad: float = np.radians(0.05)
     gnss_noise_m: float = 0.5
     depth_noise_m: float = 0.5
+    direction_noise: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("frequency_hz", "baseline_m", "phase_noise_rad", "travel_time_noise_s", "gnss_noise_m", "depth_noise_m"):
@@ -58,6 +62,12 @@ class UsblArray:
 
     def wavelength_m(self, speed_m_s: float) -> float:
         return speed_m_s / self.frequency_hz
+
+    def cosine_noise(self, speed_m_s: float) -> float:
+        """One-sigma noise of a direction cosine at the array (sound speed ``speed_m_s`` there)."""
+        if self.direction_noise is not None:
+            return self.direction_noise
+        return self.wavelength_m(speed_m_s) * self.phase_noise_rad / (2.0 * np.pi * self.baseline_m)
 
 
 @dataclass(frozen=True)
@@ -97,10 +107,10 @@ def _azimuth(cos_x: float, cos_y: float, attitude: np.ndarray) -> tuple[float, f
     return float(np.arctan2(direction[1], direction[0])), float(np.arccos(np.clip(direction[2], -1.0, 1.0)))
 
 
-def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: float, phase_x_rad: float, phase_y_rad: float,
-             roll_rad: float, pitch_rad: float, heading_rad: float, antenna_north_m: float, antenna_east_m: float,
-             target_depth_m: float) -> UsblFix:
-    """One USBL fix of a towfish at a known depth.
+def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: float, roll_rad: float, pitch_rad: float, heading_rad: float,
+             antenna_north_m: float, antenna_east_m: float, target_depth_m: float, phase_x_rad: float | None = None,
+             phase_y_rad: float | None = None, direction_cosines: tuple[float, float] | None = None) -> UsblFix:
+    """One USBL fix of a towfish at a known depth, from the reply's phases or its direction cosines (array frame).
 
     The direction (eqs. 1-2) gives the azimuth, rotated by the ship's attitude into the local frame; the range is
     the ray joining the transducer to the towfish's depth for the travel time (eqs. 3-5, started at the measured
@@ -117,7 +127,13 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     transducer = np.array([antenna_north_m, antenna_east_m, -array.antenna_height_m]) + body_to_ned(*attitude) @ np.asarray(array.lever_arm_m)
     speed = float(profile.speed_at(max(transducer[2], 0.0)))
     wavelength = array.wavelength_m(speed)
-    cos_x, cos_y = direction_cosines_from_phase([phase_x_rad, phase_y_rad], wavelength, array.baseline_m)
+    phases = [phase for phase in (phase_x_rad, phase_y_rad) if phase is not None]
+    if (direction_cosines is None and len(phases) < 2) or (direction_cosines is not None and phases):
+        raise ValueError("a USBL fix needs either both phases (phase_x_rad, phase_y_rad) or direction_cosines, not both or neither")
+    if direction_cosines is None:
+        cos_x, cos_y = direction_cosines_from_phase([phase_x_rad, phase_y_rad], wavelength, array.baseline_m)
+    else:
+        cos_x, cos_y = (float(c) for c in direction_cosines)
     azimuth, angle = _azimuth(cos_x, cos_y, attitude)
     top = max(transducer[2], 0.0)
     ray = solve_ray(profile, top, target_depth_m, travel_time_s, initial_angle_rad=angle)
@@ -130,7 +146,7 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     end_speed = float(profile.speed_at(target_depth_m))
     sine = max(np.sin(end_angle), 1e-3)
     along_var = (end_speed / sine * array.travel_time_noise_s) ** 2 + (np.cos(end_angle) / sine * array.depth_noise_m) ** 2
-    cosine_noise = wavelength * array.phase_noise_rad / (2.0 * np.pi * array.baseline_m)
+    cosine_noise = array.cosine_noise(speed)
     jacobian = _azimuth_jacobian(cos_x, cos_y, attitude)
     azimuth_var = float(jacobian @ np.diag([cosine_noise**2, cosine_noise**2, array.tilt_noise_rad**2,
                                             array.tilt_noise_rad**2, array.heading_noise_rad**2]) @ jacobian)

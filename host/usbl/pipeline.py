@@ -77,18 +77,28 @@ def _numeric(table: pd.DataFrame, column: str, source: str, *, allow_empty: bool
     return values
 
 
+#: A reply's direction: the phase differences (rad) or the direction cosines, across the array's x and y baselines.
+DIRECTION_COLUMNS = (("phase_x_rad", "phase_y_rad"), ("dir_x", "dir_y"))
+REQUIRED_LOG_COLUMNS = [c for c in LOG_COLUMNS if c not in DIRECTION_COLUMNS[0]]
+
+
 def read_log(path: str | Path) -> pd.DataFrame:
-    """Read the USBL log CSV (docs/usbl.md): one row per ping; empty travel time and phases for a ping without a reply.
+    """Read the USBL log CSV (docs/usbl.md): one row per ping; empty travel time and direction for a ping without a reply.
 
     Raises
     ------
     ValueError
         A column is missing, a value is not a number, times do not increase, or a reply is half there.
     """
-    table = _read_table(path, "USBL log", LOG_COLUMNS)
+    table = _read_table(path, "USBL log", REQUIRED_LOG_COLUMNS)
     source = f"USBL log {path}"
-    optional_empty = {"travel_time_s", "phase_x_rad", "phase_y_rad"}
-    for column in LOG_COLUMNS:
+    pairs = [pair for pair in DIRECTION_COLUMNS if set(pair) <= set(table.columns)]
+    if len(pairs) != 1:
+        raise ValueError(f"{source}: needs the reply's direction as phase_x_rad, phase_y_rad or as dir_x, dir_y (exactly one pair); "
+                         f"has {list(table.columns)}")
+    table.attrs["direction_columns"] = pairs[0]
+    optional_empty = {"travel_time_s", *pairs[0]}
+    for column in REQUIRED_LOG_COLUMNS + list(pairs[0]):
         table[column] = _numeric(table, column, source, allow_empty=column in optional_empty)
     for column in ("true_lat_deg", "true_lon_deg", "true_depth_m"):
         if column in table.columns:
@@ -103,7 +113,7 @@ def read_log(path: str | Path) -> pd.DataFrame:
     half = present.any(axis=1) & ~present.all(axis=1)
     if half.any():
         row = int(np.flatnonzero(half.to_numpy())[0]) + 1
-        raise ValueError(f"{source}: row {row} has some of travel_time_s, phase_x_rad, phase_y_rad but not all")
+        raise ValueError(f"{source}: row {row} has some of {', '.join(sorted(optional_empty))} but not all")
     if "injected" in table.columns:
         table["injected"] = table["injected"].fillna("").astype(str)
     return table
@@ -125,12 +135,15 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
     north, east = frame.to_local(log["ship_lat_deg"].to_numpy(), log["ship_lon_deg"].to_numpy())
     fixes: list[UsblFix | None] = []
     failures: dict[int, str] = {}
+    first, second = log.attrs.get("direction_columns", DIRECTION_COLUMNS[0])
     for i, row in enumerate(log.itertuples(index=False)):
         if not np.isfinite(row.travel_time_s):
             fixes.append(None)
             continue
+        a, b = getattr(row, first), getattr(row, second)
+        direction = dict(phase_x_rad=a, phase_y_rad=b) if first == "phase_x_rad" else dict(direction_cosines=(a, b))
         try:
-            fixes.append(usbl_fix(profile, array, travel_time_s=row.travel_time_s, phase_x_rad=row.phase_x_rad, phase_y_rad=row.phase_y_rad,
+            fixes.append(usbl_fix(profile, array, travel_time_s=row.travel_time_s, **direction,
                                   roll_rad=np.radians(row.ship_roll_deg), pitch_rad=np.radians(row.ship_pitch_deg),
                                   heading_rad=np.radians(row.ship_heading_deg), antenna_north_m=float(north[i]), antenna_east_m=float(east[i]),
                                   target_depth_m=row.fish_depth_m))
@@ -140,8 +153,9 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
     return fixes, failures, np.column_stack([north, east])
 
 
-def _align(time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig) -> tuple[int, NavState, np.ndarray]:
-    """Start state and covariance from the first ``align_window_s`` of fixes (robust line fit) and the INS's attitude."""
+def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig) -> tuple[int, NavState, np.ndarray]:
+    """Start state and covariance at the row time of the first fix: position and velocity from a robust line through
+    the first ``align_window_s`` of fixes (at their epochs ``time``), attitude from the INS's columns of that row."""
     valid = [i for i, f in enumerate(fixes) if f is not None]
     if len(valid) < 5:
         raise ValueError(f"alignment needs at least five USBL fixes, the log has {len(valid)}")
@@ -149,7 +163,7 @@ def _align(time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig)
     window = [i for i in valid if time[i] - time[first] <= config.align_window_s]
     if len(window) < 5:
         window = valid[:5]
-    t = time[window] - time[first]
+    t = time[window] - row_time[first]
     points = np.array([[fixes[i].north_m, fixes[i].east_m, fixes[i].depth_m] for i in window])
     # Theil-Sen finds the line despite a bad fix; least squares on the fixes near it gives the estimate whose
     # variance the covariance below states.
@@ -161,7 +175,7 @@ def _align(time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig)
         inliers &= np.abs(residual) <= 4.0 * spread
     velocity, position = np.polyfit(t[inliers], points[inliers], 1)
     horizontal = np.mean([fixes[i].covariance_ne for i in window], axis=0)
-    n, span = int(inliers.sum()), max(float(np.ptp(t[inliers])), 1.0)
+    n, span = int(inliers.sum()), max(float(np.ptp(t[inliers])), 1.0)  # the fit's origin lies within a travel time of its first point
     # Line fit at its first point: intercept variance about 4 sigma^2 / n, slope variance 12 sigma^2 / (n span^2).
     variance = np.array([horizontal[0, 0], horizontal[1, 1], fixes[first].depth_variance_m2])
     covariance = np.zeros((15, 15))
@@ -196,19 +210,28 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
     """
     profile = SoundSpeedProfile.from_cast(cast, tolerance_m_s=0.05)
     frame = LocalFrame(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0]))
-    time = log["time_s"].to_numpy()
+    # A fix places the towfish when it replied, one travel time before the ship heard it.
+    travel = log["travel_time_s"].to_numpy()
+    time = log["time_s"].to_numpy() - np.where(np.isfinite(travel), travel, 0.0)
+    if np.any(np.diff(time) <= 0.0):
+        row = int(np.flatnonzero(np.diff(time) <= 0.0)[0]) + 2
+        raise ValueError(f"USBL log: the reply at row {row} ({time[row - 1]:.3f} s) does not come after the one before; pings overlap")
     fixes, failures, ship = _fixes(log, profile, config.array, frame)
-    start, state, covariance = _align(time, fixes, log, config)
-    if imu.time_s[0] > time[start] or imu.time_s[-1] < time[-1]:
-        raise ValueError(f"the IMU ({imu.time_s[0]:.2f} to {imu.time_s[-1]:.2f} s) must cover the pings from {time[start]:.2f} to {time[-1]:.2f} s")
+    row_time = log["time_s"].to_numpy()
+    first, state, covariance = _align(time, row_time, fixes, log, config)
+    # The filter starts at the first fix's row time and reports from the next ping on.
+    start, begin = first + 1, row_time[first]
+    if start >= time.size:
+        raise ValueError("the log ends at its first fix: nothing to fuse after the alignment")
+    if imu.time_s[0] > begin or imu.time_s[-1] < time[-1]:
+        raise ValueError(f"the IMU ({imu.time_s[0]:.2f} to {imu.time_s[-1]:.2f} s) must cover the pings from {begin:.2f} to {time[-1]:.2f} s")
     gravity = float(gsw.grav(frame.latitude0_deg, 0.0))
-    trimmed = _trim(imu, time[start])
+    trimmed = _trim(imu, begin)
     filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), gravity, config.gate_probability)
-    # The start epoch's fix made the alignment: the filter begins with the next one.
-    fused = fuse(trimmed, time[start:], [None] + fixes[start + 1:], filt)
-    free_position, _, free_attitude = strapdown(trimmed, state, gravity)
+    fused = fuse(trimmed, time[start:], fixes[start:], filt)
+    free_position, _, _ = strapdown(trimmed, state, gravity)
     ins = np.column_stack([np.interp(time[start:], trimmed.time_s, free_position[:, k]) for k in range(3)])
-    dead = _dead_reckoning(time[start:], trimmed, log.iloc[start:], state, gravity)
+    dead = _dead_reckoning(np.concatenate(([begin], time[start:])), trimmed, log.iloc[[first, *range(start, time.size)]], state, gravity)[1:]
     truth = injected = None
     if {"true_lat_deg", "true_lon_deg", "true_depth_m"} <= set(log.columns):
         north, east = frame.to_local(log["true_lat_deg"].to_numpy(), log["true_lon_deg"].to_numpy())

@@ -43,8 +43,8 @@ def _status(run: UsblRun) -> np.ndarray:
     fused = run.fused
     status[s:][fused.had_fix & fused.accepted] = "accepted"
     status[s:][fused.had_fix & ~fused.accepted] = "rejected"
-    status[s] = "alignment"
     status[:s] = np.where(status[:s] == "fix", "before_alignment", status[:s])
+    status[s - 1] = "alignment"
     return status
 
 
@@ -87,7 +87,8 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
     counts = {key: int(np.sum(status == key)) for key in ("accepted", "rejected", "failed", "dropout", "before_alignment", "alignment")}
     summary: dict[str, Any] = {
         "name": name, "pings": int(run.time_s.size), "duration_s": float(run.time_s[-1] - run.time_s[0]), "run_time_s": run_time_s,
-        "fused_epochs": int(fused.time_s.size), "epochs_without_fused_position": int(s + np.sum(~np.all(np.isfinite(fused.position), axis=1))),
+        "fused_epochs": int(fused.time_s.size), "epochs_before_start": s,
+        "epochs_without_fused_position": int(np.sum(~np.all(np.isfinite(fused.position), axis=1))),
         "truth_known": run.truth is not None, "gate_chi2": fused.gate, "gating": counts,
         "frame": {"origin_lat_deg": run.frame.latitude0_deg, "origin_lon_deg": run.frame.longitude0_deg, "utm_crs": run.frame.utm_crs.to_string()},
     }

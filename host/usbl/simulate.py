@@ -127,6 +127,12 @@ def _ping(scenario: UsblScenario, rng: np.random.Generator, profile: SoundSpeedP
 
     travel, phase_x, phase_y, injected = np.nan, np.nan, np.nan, ""
     if rng.random() >= faults.dropout_rate + faults.dropout_rate_turning * turning:
+        # The reply left the towfish one travel time before the ship heard it (the time estimated at the harmonic-mean
+        # speed: within a millisecond, a couple of millimetres of towfish motion).
+        depth_now = position[k, 2]
+        distance = np.hypot(np.hypot(*(ship - position[k, :2])), depth_now - array.lever_arm_m[2] + array.antenna_height_m)
+        before = t - distance / profile.harmonic_mean_m_s(0.0, depth_now)
+        fish = np.array([np.interp(before, time, position[:, axis]) for axis in range(3)])
         travel, phase_x, phase_y = reply_from_geometry(profile, array, roll_rad=ship_roll, pitch_rad=ship_pitch, heading_rad=ship_heading,
                                                        antenna_north_m=ship[0], antenna_east_m=ship[1], target_north_m=fish[0],
                                                        target_east_m=fish[1], target_depth_m=fish[2])

@@ -86,3 +86,17 @@ def test_local_frame_round_trips_and_has_unit_scale():
 def test_euler_round_trip():
     angles = np.radians([[3.0, -2.0, 170.0], [0.0, 10.0, -45.0]])
     np.testing.assert_allclose(euler_from_matrix(body_to_ned(*angles.T)), angles, atol=1e-12)
+
+
+def test_direction_cosines_give_the_same_fix_as_phases(profile):
+    array = UsblArray()
+    time, phase_x, phase_y = reply_from_geometry(profile, array, **SHIP, target_north_m=-500.0, target_east_m=200.0, target_depth_m=900.0)
+    by_phase = usbl_fix(profile, array, travel_time_s=time, phase_x_rad=phase_x, phase_y_rad=phase_y, **SHIP, target_depth_m=900.0)
+    rotation = body_to_ned(SHIP["roll_rad"], SHIP["pitch_rad"], SHIP["heading_rad"])
+    depth = (np.array([100.0, -50.0, -15.0]) + rotation @ np.array(array.lever_arm_m))[2]
+    cosines = direction_cosines_from_phase([phase_x, phase_y], array.wavelength_m(float(profile.speed_at(depth))), array.baseline_m)
+    by_direction = usbl_fix(profile, array, travel_time_s=time, direction_cosines=tuple(cosines), **SHIP, target_depth_m=900.0)
+    assert by_direction.north_m == pytest.approx(by_phase.north_m, abs=1e-9)
+    np.testing.assert_allclose(by_direction.covariance_ne, by_phase.covariance_ne, rtol=1e-6)
+    with pytest.raises(ValueError, match="either both phases"):
+        usbl_fix(profile, array, travel_time_s=time, phase_x_rad=phase_x, direction_cosines=tuple(cosines), **SHIP, target_depth_m=900.0)

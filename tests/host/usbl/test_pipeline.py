@@ -64,7 +64,7 @@ def _edit(source: Path, target: Path, change) -> Path:
     (lambda lines: lines[:3] + [lines[3].replace(lines[3].split(",")[1], "north", 1)] + lines[4:], "column 'ship_lat_deg' row 3: 'north'"),
     (lambda lines: lines[:2] + [lines[1]] + lines[3:], "time_s must increase; row 2"),
     (lambda lines: lines[:4] + [",".join(p if k != 7 else "" for k, p in enumerate(lines[4].split(",")))] + lines[5:],
-     "row 4 has some of travel_time_s"),
+     "row 4 has some of phase_x_rad, phase_y_rad, travel_time_s but not all"),
 ])
 def test_bad_logs_name_the_problem(recording, tmp_path, change, message):
     bad = _edit(recording / "log.csv", tmp_path / "bad.csv", change)
@@ -104,3 +104,11 @@ def test_a_turn_makes_more_dropouts_and_bad_fixes(short_scenario):
     assert np.all(log.travel_time_s[~ship_turning].notna())
     assert log.travel_time_s[ship_turning].isna().mean() > 0.3
     assert (log.injected[ship_turning] != "").mean() > 0.15
+
+
+def test_a_log_gives_the_direction_as_phases_or_cosines_not_both(recording, tmp_path):
+    as_cosines = _edit(recording / "log.csv", tmp_path / "cosines.csv", lambda lines: [lines[0].replace("phase_x_rad,phase_y_rad", "dir_x,dir_y")] + lines[1:])
+    assert read_log(as_cosines).attrs["direction_columns"] == ("dir_x", "dir_y")
+    both = _edit(recording / "log.csv", tmp_path / "both.csv", lambda lines: [lines[0] + ",dir_x,dir_y"] + [l + ",0.1,0.1" for l in lines[1:]])
+    with pytest.raises(ValueError, match="exactly one pair"):
+        read_log(both)
