@@ -3,12 +3,13 @@
 State (eq. 8), 15 errors of the strapdown solution, each "estimate minus truth": position (north, east, down;
 m, on the local plane, where the paper writes latitude, longitude and height), velocity (north, east, down),
 attitude (the small rotation ``phi`` with ``C_estimate = (I - [phi x]) C_true``, rad), gyro drifts (rad/s) and
-accelerometer biases (m/s^2) in the body frame. The error dynamics (eq. 9) on a non-rotating local plane:
+accelerometer biases (m/s^2) in the body frame. The error dynamics (eq. 9) on the Earth-fixed local plane, with
+``Omega`` the Earth's rate there:
 
     d(dp)/dt = dv
-    d(dv)/dt = [f_n x] phi - C db_a + C w_a        (f_n: the specific force in NED)
-    d(phi)/dt = C db_g - C w_g
-    d(db_g)/dt = w_bg,  d(db_a)/dt = w_ba          (random walks)
+    d(dv)/dt = [f_n x] phi - 2 [Omega x] dv - C db_a + C w_a     (f_n: the specific force in NED)
+    d(phi)/dt = -[Omega x] phi + C db_g - C w_g
+    d(db_g)/dt = w_bg,  d(db_a)/dt = w_ba                        (random walks)
 
 discretised as ``Phi = I + F dt + (F dt)^2 / 2`` and ``Q_d = Q dt`` at every IMU sample (eqs. 12, 13, 16).
 A USBL fix gives the measurement of eq. 11, INS minus USBL position, ``H = [I 0 0 0 0]``, with the fix's own
@@ -27,7 +28,7 @@ from scipy.stats import chi2
 
 from .fix import UsblFix
 from .frames import rotation_from_vector, skew
-from .ins import ImuSamples, NavState, strapdown_step
+from .ins import EarthModel, ImuSamples, NavState, strapdown_step
 
 __all__ = ["ImuNoise", "InsUsblFilter", "FusionResult", "fuse"]
 
@@ -73,8 +74,8 @@ class InsUsblFilter:
         15 x 15 covariance of the starting errors.
     noise : ImuNoise
         The IMU's noise model.
-    gravity_m_s2 : float
-        Local gravity.
+    earth : EarthModel
+        Gravity and the Earth's rotation on the local plane.
     gate_probability : float
         Fixes whose innovation lies beyond this chi-square quantile (3 dof) are rejected.
     """
@@ -82,7 +83,7 @@ class InsUsblFilter:
     state: NavState
     covariance: np.ndarray
     noise: ImuNoise
-    gravity_m_s2: float
+    earth: EarthModel
     gate_probability: float = 0.999
     gyro_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -105,11 +106,14 @@ class InsUsblFilter:
         force = specific_force - self.accel_bias
         rate = angular_rate - self.gyro_bias
         attitude = self.state.attitude
-        self.state = strapdown_step(self.state, force, rate, dt, self.gravity_m_s2)
+        self.state = strapdown_step(self.state, force, rate, dt, self.earth)
+        earth = skew(self.earth.rate_ned)
         dynamics = np.zeros((15, 15))
         dynamics[POSITION, VELOCITY] = np.eye(3)
+        dynamics[VELOCITY, VELOCITY] = -2.0 * earth
         dynamics[VELOCITY, ATTITUDE] = skew(attitude @ force)
         dynamics[VELOCITY, ACCEL] = -attitude
+        dynamics[ATTITUDE, ATTITUDE] = -earth
         dynamics[ATTITUDE, GYRO] = attitude
         step = dynamics * dt
         transition = np.eye(15) + step + step @ step / 2.0

@@ -1,9 +1,10 @@
 """The towfish's inertial navigation: the paper's one-point-one-azimuth dead reckoning (eqs. 6-7) and a
 strapdown mechanization of IMU samples in the local north-east-down frame.
 
-The strapdown frame is a local tangent plane on a non-rotating Earth with constant gravity (``gsw.grav`` at the
-latitude): right for the simulator's IMU and for an IMU whose output has the Earth's rate removed, not for raw
-navigation-grade gyros (the Earth's 15 deg/h and the Coriolis term are not modelled; see docs/usbl.md).
+The strapdown frame is the Earth-fixed local tangent plane (north, east, down at the run's origin): the gyros
+sense the Earth's rotation as well as the vehicle's, and the velocity feels the Coriolis acceleration, both
+mechanized; gravity is the constant plumb-line gravity of the origin (``gsw.grav``), whose direction is taken
+as the same over the few kilometres of a run (a 1 km offset tilts it by 0.16 mrad; see docs/usbl.md).
 """
 
 from __future__ import annotations
@@ -14,10 +15,35 @@ import numpy as np
 
 from .frames import rotation_from_vector
 
-__all__ = ["ImuSamples", "NavState", "strapdown", "strapdown_step", "dead_reckon", "MIN_IMU_RATE_HZ"]
+__all__ = ["EarthModel", "ImuSamples", "NavState", "strapdown", "strapdown_step", "dead_reckon", "MIN_IMU_RATE_HZ", "EARTH_RATE_RAD_S"]
 
 #: The slowest IMU the mechanization accepts (the issue's floor).
 MIN_IMU_RATE_HZ = 10.0
+
+#: WGS 84's rotation rate of the Earth.
+EARTH_RATE_RAD_S = 7.292115e-5
+
+
+@dataclass(frozen=True)
+class EarthModel:
+    """Gravity (m/s^2, down) and the Earth's rotation (rad/s, north-east-down) on the local tangent plane."""
+
+    gravity_m_s2: float
+    rate_ned: np.ndarray
+
+    @classmethod
+    def at(cls, latitude_deg: float, *, rotating: bool = True) -> EarthModel:
+        """The Earth at a latitude: ``gsw.grav`` at the surface and ``Omega (cos L, 0, -sin L)``; ``rotating=False``
+        gives a non-rotating Earth (for an IMU whose output has the Earth's rate removed)."""
+        import gsw
+
+        latitude = np.radians(latitude_deg)
+        rate = EARTH_RATE_RAD_S * np.array([np.cos(latitude), 0.0, -np.sin(latitude)]) if rotating else np.zeros(3)
+        return cls(float(gsw.grav(latitude_deg, 0.0)), rate)
+
+    @property
+    def gravity_ned(self) -> np.ndarray:
+        return np.array([0.0, 0.0, self.gravity_m_s2])
 
 
 @dataclass(frozen=True)
@@ -62,17 +88,21 @@ class NavState:
         return NavState(self.position.copy(), self.velocity.copy(), self.attitude.copy())
 
 
-def strapdown_step(state: NavState, specific_force: np.ndarray, angular_rate: np.ndarray, dt: float, gravity_m_s2: float) -> NavState:
-    """One step: attitude by the rotation vector ``w dt``; velocity by the specific force rotated at the interval's
-    mid-attitude plus gravity; position by the trapezoid of the velocities."""
-    half = state.attitude @ rotation_from_vector(angular_rate * (dt / 2.0))
-    attitude = half @ rotation_from_vector(angular_rate * (dt / 2.0))
-    velocity = state.velocity + (half @ specific_force + np.array([0.0, 0.0, gravity_m_s2])) * dt
+def strapdown_step(state: NavState, specific_force: np.ndarray, angular_rate: np.ndarray, dt: float, earth: EarthModel) -> NavState:
+    """One step: attitude by the body rotation ``w dt`` less the Earth's ``Omega dt`` (in halves, so the velocity
+    update sees the interval's mid-attitude); velocity by the rotated specific force, gravity and the Coriolis
+    term at the step's first velocity; position by the trapezoid of the velocities."""
+    body_half = rotation_from_vector(angular_rate * (dt / 2.0))
+    earth_half = rotation_from_vector(-earth.rate_ned * (dt / 2.0))
+    half = earth_half @ state.attitude @ body_half
+    attitude = earth_half @ half @ body_half
+    coriolis = 2.0 * np.cross(earth.rate_ned, state.velocity)
+    velocity = state.velocity + (half @ specific_force + earth.gravity_ned - coriolis) * dt
     position = state.position + (state.velocity + velocity) * (dt / 2.0)
     return NavState(position, velocity, attitude)
 
 
-def strapdown(imu: ImuSamples, initial: NavState, gravity_m_s2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def strapdown(imu: ImuSamples, initial: NavState, earth: EarthModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate IMU samples from ``initial`` (the state at ``imu.time_s[0]``); returns position, velocity (n x 3)
     and attitude (n x 3 x 3) at every sample time."""
     n = imu.time_s.size
@@ -80,7 +110,7 @@ def strapdown(imu: ImuSamples, initial: NavState, gravity_m_s2: float) -> tuple[
     state = initial.copy()
     position[0], velocity[0], attitude[0] = state.position, state.velocity, state.attitude
     for k in range(1, n):
-        state = strapdown_step(state, imu.specific_force[k], imu.angular_rate[k], imu.time_s[k] - imu.time_s[k - 1], gravity_m_s2)
+        state = strapdown_step(state, imu.specific_force[k], imu.angular_rate[k], imu.time_s[k] - imu.time_s[k - 1], earth)
         position[k], velocity[k], attitude[k] = state.position, state.velocity, state.attitude
     return position, velocity, attitude
 

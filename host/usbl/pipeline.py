@@ -7,7 +7,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import gsw
 import numpy as np
 import pandas as pd
 from scipy.stats import theilslopes
@@ -15,7 +14,7 @@ from scipy.stats import theilslopes
 from .filter import FusionResult, InsUsblFilter, fuse
 from .fix import UsblArray, UsblFix, usbl_fix
 from .frames import LocalFrame, body_to_ned
-from .ins import ImuSamples, NavState, dead_reckon, strapdown
+from .ins import EarthModel, ImuSamples, NavState, dead_reckon, strapdown
 from .scenario import DEG_PER_HOUR, MILLI_G, ImuSpec
 from .simulate import IMU_COLUMNS, LOG_COLUMNS
 from .sound import Cast, SoundSpeedProfile
@@ -26,12 +25,14 @@ __all__ = ["UsblConfig", "UsblRun", "read_log", "read_imu", "process"]
 @dataclass(frozen=True)
 class UsblConfig:
     """What processing needs beyond the recordings: the USBL's array and noise, the IMU's error model, the gate,
-    and the alignment window (the first ``align_window_s`` of fixes give the start position and velocity)."""
+    and the alignment window (the first ``align_window_s`` of fixes give the start position and velocity);
+    ``earth_rotation=False`` for an IMU whose rates have the Earth's rotation removed already."""
 
     array: UsblArray = field(default_factory=UsblArray)
     imu: ImuSpec = field(default_factory=ImuSpec)
     gate_probability: float = 0.999
     align_window_s: float = 40.0
+    earth_rotation: bool = True
 
 
 @dataclass(frozen=True)
@@ -225,13 +226,14 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         raise ValueError("the log ends at its first fix: nothing to fuse after the alignment")
     if imu.time_s[0] > begin or imu.time_s[-1] < time[-1]:
         raise ValueError(f"the IMU ({imu.time_s[0]:.2f} to {imu.time_s[-1]:.2f} s) must cover the pings from {begin:.2f} to {time[-1]:.2f} s")
-    gravity = float(gsw.grav(frame.latitude0_deg, 0.0))
+    earth = EarthModel.at(frame.latitude0_deg, rotating=config.earth_rotation)
     trimmed = _trim(imu, begin)
-    filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), gravity, config.gate_probability)
+    filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), earth, config.gate_probability)
     fused = fuse(trimmed, time[start:], fixes[start:], filt)
-    free_position, _, _ = strapdown(trimmed, state, gravity)
+    free_position, _, _ = strapdown(trimmed, state, earth)
     ins = np.column_stack([np.interp(time[start:], trimmed.time_s, free_position[:, k]) for k in range(3)])
-    dead = _dead_reckoning(np.concatenate(([begin], time[start:])), trimmed, log.iloc[[first, *range(start, time.size)]], state, gravity)[1:]
+    dead = _dead_reckoning(np.concatenate(([begin], time[start:])), trimmed, log.iloc[[first, *range(start, time.size)]], state,
+                          earth.gravity_m_s2)[1:]
     truth = injected = None
     if {"true_lat_deg", "true_lon_deg", "true_depth_m"} <= set(log.columns):
         north, east = frame.to_local(log["true_lat_deg"].to_numpy(), log["true_lon_deg"].to_numpy())

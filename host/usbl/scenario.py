@@ -167,7 +167,7 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
 
 def load_processing_config(path: str | Path) -> dict[str, Any]:
     """The processing settings of a recorded tow from TOML: tables ``[usbl]`` (:class:`UsblArray`) and ``[imu]``
-    (:class:`ImuSpec`), keys ``gate_probability`` and ``align_window_s``; returned as keyword arguments of
+    (:class:`ImuSpec`), keys ``gate_probability``, ``align_window_s`` and ``earth_rotation``; returned as keyword arguments of
     :class:`lost.host.usbl.pipeline.UsblConfig`."""
     path = Path(path)
     if not path.exists():
@@ -176,10 +176,10 @@ def load_processing_config(path: str | Path) -> dict[str, Any]:
         table = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"config file {path}: {error}") from error
-    unknown = sorted(set(table) - {"usbl", "imu", "gate_probability", "align_window_s"})
+    unknown = sorted(set(table) - {"usbl", "imu", "gate_probability", "align_window_s", "earth_rotation"})
     if unknown:
-        raise ValueError(f"config file {path}: unknown key(s) {unknown}; known: align_window_s, gate_probability, imu, usbl")
-    settings: dict[str, Any] = {k: table[k] for k in ("gate_probability", "align_window_s") if k in table}
+        raise ValueError(f"config file {path}: unknown key(s) {unknown}; known: align_window_s, earth_rotation, gate_probability, imu, usbl")
+    settings: dict[str, Any] = {k: table[k] for k in ("gate_probability", "align_window_s", "earth_rotation") if k in table}
     if "usbl" in table:
         settings["array"] = _build(UsblArray, table["usbl"], f"{path} [usbl]")
     if "imu" in table:

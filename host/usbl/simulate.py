@@ -3,23 +3,24 @@ replies through the cast's sound-speed layers with range-dependent noise, dropou
 the ship's turns. The output is what a recording would hold (the log and IMU tables of docs/usbl.md) plus the
 truth, so a simulated run goes through the same processing as a recorded one.
 
-The truth is exactly consistent with the strapdown mechanization: at every IMU sample the ideal angular rate is
-the rotation between the true attitudes of the interval's ends, and the ideal specific force the one that
-gives the true velocity change at the interval's mid-attitude; the true position is the trapezoid of the true
-velocities. With an error-free IMU, :func:`lost.host.usbl.ins.strapdown` reproduces the truth to rounding.
+The truth is exactly consistent with the strapdown mechanization on the rotating Earth: at every IMU sample the
+ideal angular rate is the rotation between the true attitudes of the interval's ends with the Earth's turn
+over the interval added, and the ideal specific force the one that gives the true velocity change (gravity and
+Coriolis included) at the interval's mid-attitude; the true position is the trapezoid of the true velocities.
+With an error-free IMU, :func:`lost.host.usbl.ins.strapdown` reproduces the truth to rounding.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import gsw
 import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from .fix import reply_from_geometry
-from .frames import LocalFrame, body_to_ned, euler_from_matrix
+from .frames import LocalFrame, body_to_ned, euler_from_matrix, rotation_from_vector
+from .ins import EarthModel
 from .scenario import DEG_PER_HOUR, MILLI_G, UsblScenario
 from .sound import Cast, SoundSpeedProfile, read_cast
 
@@ -57,7 +58,7 @@ def _course(scenario: UsblScenario, time: np.ndarray) -> tuple[np.ndarray, np.nd
     return np.interp(time, breaks, headings), rate
 
 
-def _true_motion(scenario: UsblScenario, time: np.ndarray, gravity: float) -> tuple[np.ndarray, ...]:
+def _true_motion(scenario: UsblScenario, time: np.ndarray, earth: EarthModel) -> tuple[np.ndarray, ...]:
     tow = scenario.tow
     heading, _ = _course(scenario, time)
     swing = 2 * np.pi / 300.0
@@ -69,10 +70,15 @@ def _true_motion(scenario: UsblScenario, time: np.ndarray, gravity: float) -> tu
     roll = np.radians(tow.roll_swing_deg) * np.sin(2 * np.pi * time / 8.3)
     pitch = np.radians(tow.pitch_swing_deg) * np.sin(2 * np.pi * time / 11.7)
     attitude = body_to_ned(roll, pitch, heading)
-    step = Rotation.from_matrix(np.einsum("kji,kjl->kil", attitude[:-1], attitude[1:])).as_rotvec()
+    # The mechanization's step: C_k = E C_(k-1) R(w dt), E the Earth's turn over dt; so R(w dt) = C_(k-1)' E' C_k.
+    interval = float(dt[0, 0])
+    earth_turn = rotation_from_vector(-earth.rate_ned * interval)
+    earth_half = rotation_from_vector(-earth.rate_ned * interval / 2.0)
+    step = Rotation.from_matrix(np.einsum("kji,mj,kml->kil", attitude[:-1], earth_turn, attitude[1:])).as_rotvec()
     rate = step / dt
-    middle = attitude[:-1] @ Rotation.from_rotvec(step / 2).as_matrix()
-    acceleration = np.diff(velocity, axis=0) / dt - np.array([0.0, 0.0, gravity])
+    middle = earth_half @ attitude[:-1] @ Rotation.from_rotvec(step / 2).as_matrix()
+    coriolis = 2.0 * np.cross(earth.rate_ned, velocity[:-1])
+    acceleration = np.diff(velocity, axis=0) / dt - earth.gravity_ned + coriolis
     force = np.einsum("kji,kj->ki", middle, acceleration)
     # Sample 0 has no interval before it; it repeats sample 1 (the mechanization never uses it).
     return position, velocity, attitude, np.vstack([force[:1], force]), np.vstack([rate[:1], rate])
@@ -96,12 +102,12 @@ def simulate_tow(scenario: UsblScenario) -> SimulatedTow:
     cast = read_cast(scenario.cast_path())
     profile = SoundSpeedProfile.from_cast(cast, tolerance_m_s=0.05)
     latitude, longitude = scenario.origin
-    gravity = float(gsw.grav(latitude, 0.0))
+    earth = EarthModel.at(latitude)
     dt = 1.0 / scenario.imu_rate_hz
     lead = int(round(scenario.tow.layback_m / scenario.tow.speed_m_s / dt))
     samples = int(round(scenario.duration_s / dt)) + 1
     time = np.arange(samples + lead) * dt
-    position, velocity, attitude, force, rate = _true_motion(scenario, time, gravity)
+    position, velocity, attitude, force, rate = _true_motion(scenario, time, earth)
     gyro_error, accel_error = _imu_errors(scenario, rng, samples, dt)
     imu = pd.DataFrame(np.column_stack([time[:samples], force[:samples] + accel_error, rate[:samples] + gyro_error]), columns=IMU_COLUMNS)
 

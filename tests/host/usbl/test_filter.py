@@ -1,24 +1,24 @@
 """The 15-state INS+USBL filter: prediction on a perfect IMU, the update and its gate, and a short tow's NEES."""
 
-import gsw
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
 from lost.host.usbl.filter import ImuNoise, InsUsblFilter
 from lost.host.usbl.fix import UsblFix
-from lost.host.usbl.ins import NavState, strapdown
+from lost.host.usbl.ins import EarthModel, NavState, strapdown
 from lost.host.usbl.pipeline import UsblConfig, process
 from lost.host.usbl.scenario import ImuSpec
 from lost.host.usbl.simulate import simulate_tow
 
 GRAVITY = 9.785
+STILL_EARTH = EarthModel(GRAVITY, np.zeros(3))
 
 
 def _filter(position=(0.0, 0.0, 500.0), sigma_m=5.0) -> InsUsblFilter:
     covariance = np.diag([sigma_m**2] * 3 + [0.01] * 3 + [1e-6] * 3 + [1e-12] * 3 + [1e-8] * 3)
     state = NavState(np.array(position, float), np.array([1.0, 0.0, 0.0]), np.eye(3))
-    return InsUsblFilter(state, covariance, ImuNoise(), GRAVITY, gate_probability=0.999)
+    return InsUsblFilter(state, covariance, ImuNoise(), STILL_EARTH, gate_probability=0.999)
 
 
 def _fix(north, east, depth=500.0, sigma=2.0) -> UsblFix:
@@ -58,7 +58,7 @@ def test_truth_is_the_strapdown_of_an_ideal_imu(short_scenario, imu_samples):
                     gyro_bias_walk_deg_h_sqrt_h=0.0, accel_bias_walk_mg_sqrt_h=0.0)
     sim = simulate_tow(short_scenario(imu=quiet, duration_s=120.0))
     start = NavState(sim.truth_position[0], sim.truth_velocity[0], sim.truth_attitude[0])
-    position, velocity, attitude = strapdown(imu_samples(sim.imu), start, float(gsw.grav(18.0, 0.0)))
+    position, velocity, attitude = strapdown(imu_samples(sim.imu), start, EarthModel.at(18.0))
     np.testing.assert_allclose(attitude, sim.truth_attitude, atol=1e-9)
     np.testing.assert_allclose(velocity, sim.truth_velocity, atol=1e-9)
     np.testing.assert_allclose(position, sim.truth_position, atol=1e-6)
