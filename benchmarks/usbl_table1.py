@@ -34,7 +34,7 @@ def main() -> None:
         horizontal = np.sqrt(distance**2 - depth**2)
         angle = brentq(lambda a, d=depth, h=horizontal: trace_to_depth(profile, a, 0.0, d).horizontal_m - h, 0.0, 1.5)
         s1 = surface * trace_to_depth(profile, angle, 0.0, depth).time_s
-        print(f"| {depth:.2f} | {distance:.2f} | {paper_s1:.2f} | {paper_error:.2f} | {s1:.2f} | {s1 - distance:.2f} |")
+        print(f"| {depth:.2f} | {distance:.2f} | {paper_s1:.2f} | {paper_error:.2f} | {s1:.2f} | {round(s1 - distance, 2) + 0.0:.2f} |")
 
 
 if __name__ == "__main__":

@@ -60,8 +60,8 @@ def run_usbl(args: argparse.Namespace) -> int:
         inputs.mkdir(parents=True, exist_ok=True)
         sim = simulate_tow(scenario)
         log_path, imu_path = inputs / "log.csv", inputs / "imu.csv"
-        sim.log.to_csv(log_path, index=False, float_format="%.10g")
-        sim.imu.to_csv(imu_path, index=False, float_format="%.10g")
+        sim.log.to_csv(log_path, index=False, float_format="%.12g")
+        sim.imu.to_csv(imu_path, index=False, float_format="%.12g")
         cast_path = inputs / "cast.csv"
         cast_path.write_text(Path(sim.cast.source).read_text())
         args.svp = cast_path
