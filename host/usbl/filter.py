@@ -15,7 +15,8 @@ discretised as ``Phi = I + F dt + (F dt)^2 / 2`` and ``Q_d = Q dt`` at every IMU
 A USBL fix gives the measurement of eq. 11, INS minus USBL position, ``H = [I 0 0 0 0]``, with the fix's own
 covariance as ``R``; eqs. 14, 15 and 17 (in Joseph form) update. Before an update the innovation's normalised
 square ``nu' S^-1 nu`` is compared with the chi-square quantile of 3 degrees of freedom at ``gate_probability``;
-a fix beyond it is rejected and the INS carries on (as it does through dropouts). After an update the errors
+a fix beyond it is rejected and the INS carries on (as it does through dropouts), its depth still held by the
+towfish's pressure depth (a one-dimensional update gated at 1 dof). After an update the errors
 are fed back into the strapdown solution and the bias estimates, and reset to zero.
 """
 
@@ -94,6 +95,7 @@ class InsUsblFilter:
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must lie in (0, 1), got {self.gate_probability}")
         self._gate = float(chi2.ppf(self.gate_probability, 3))
+        self._depth_gate = float(chi2.ppf(self.gate_probability, 1))
         self._density = self.noise.density()
 
     @property
@@ -138,6 +140,21 @@ class InsUsblFilter:
         self._feed_back(error)
         return True, nis
 
+    def update_depth(self, depth_m: float, variance_m2: float) -> tuple[bool, float]:
+        """A pressure depth alone (between fixes, or with a rejected one): the same update on the down axis, gated at
+        the chi-square quantile of 1 dof."""
+        innovation = self.state.position[2] - depth_m
+        innovation_var = self.covariance[2, 2] + variance_m2
+        nis = innovation**2 / innovation_var
+        if nis > self._depth_gate:
+            return False, float(nis)
+        gain = self.covariance[:, 2] / innovation_var
+        keep = np.eye(15)
+        keep[:, 2] -= gain
+        self.covariance = keep @ self.covariance @ keep.T + variance_m2 * np.outer(gain, gain)
+        self._feed_back(gain * innovation)
+        return True, float(nis)
+
     def _feed_back(self, error: np.ndarray) -> None:
         self.state = NavState(self.state.position - error[POSITION], self.state.velocity - error[VELOCITY],
                               rotation_from_vector(error[ATTITUDE]) @ self.state.attitude)
@@ -165,11 +182,13 @@ class FusionResult:
     gate: float
 
 
-def fuse(imu: ImuSamples, epochs_s: np.ndarray, fixes: list[UsblFix | None], filt: InsUsblFilter) -> FusionResult:
+def fuse(imu: ImuSamples, epochs_s: np.ndarray, fixes: list[UsblFix | None], filt: InsUsblFilter, *,
+         depths_m: np.ndarray | None = None, depth_variance_m2: float | None = None) -> FusionResult:
     """Run the filter over the IMU samples, updating at each epoch's fix (``None``: a dropout).
 
     The filter's state must be at ``imu.time_s[0]``; an epoch between two samples is reached by a partial step
-    with the later sample's rates. Epochs must increase and lie within the IMU's time span.
+    with the later sample's rates. Epochs must increase and lie within the IMU's time span. With ``depths_m`` (the
+    towfish's pressure depth at every epoch), an epoch without an accepted fix still updates the depth.
     """
     epochs = np.asarray(epochs_s, dtype=float)
     if len(fixes) != epochs.size:
@@ -192,6 +211,8 @@ def fuse(imu: ImuSamples, epochs_s: np.ndarray, fixes: list[UsblFix | None], fil
         if fixes[e] is not None:
             had_fix[e] = True
             accepted[e], nis[e] = filt.update(fixes[e])
+        if not accepted[e] and depths_m is not None and np.isfinite(depths_m[e]):
+            filt.update_depth(float(depths_m[e]), depth_variance_m2)
         position[e], velocity[e], attitude[e] = filt.state.position, filt.state.velocity, filt.state.attitude
         covariance[e] = filt.position_covariance()
     return FusionResult(epochs, position, covariance, velocity, attitude, had_fix, accepted, nis, filt.gate)

@@ -229,7 +229,8 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
     earth = EarthModel.at(frame.latitude0_deg, rotating=config.earth_rotation)
     trimmed = _trim(imu, begin)
     filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), earth, config.gate_probability)
-    fused = fuse(trimmed, time[start:], fixes[start:], filt)
+    fused = fuse(trimmed, time[start:], fixes[start:], filt, depths_m=log["fish_depth_m"].to_numpy()[start:],
+                 depth_variance_m2=config.array.depth_noise_m**2)
     free_position, _, _ = strapdown(trimmed, state, earth)
     ins = np.column_stack([np.interp(time[start:], trimmed.time_s, free_position[:, k]) for k in range(3)])
     dead = _dead_reckoning(np.concatenate(([begin], time[start:])), trimmed, log.iloc[[first, *range(start, time.size)]], state,

@@ -73,3 +73,14 @@ def test_short_tow_is_consistent(short_tow, short_scenario, imu_samples):
     assert np.all(np.isfinite(run.fused.position))
     raw = np.array([[f.north_m - t[0], f.east_m - t[1]] for f, t in zip(run.fixes, run.truth) if f is not None])
     assert np.sqrt(np.mean(np.sum(error[:, :2] ** 2, axis=1))) < 0.5 * np.sqrt(np.mean(np.sum(raw**2, axis=1)))
+
+
+def test_a_depth_alone_updates_only_through_its_correlations():
+    filt = _filter(sigma_m=5.0)
+    filt.covariance[2, 2] = 1.0
+    accepted, nis = filt.update_depth(501.0, 1.0)
+    assert accepted and nis == pytest.approx(0.5)
+    assert filt.state.position[2] == pytest.approx(500.5)
+    np.testing.assert_allclose(filt.state.position[:2], [0.0, 0.0], atol=1e-12)  # no correlation yet: north and east stay
+    assert filt.covariance[2, 2] == pytest.approx(0.5)
+    assert not filt.update_depth(520.0, 0.01)[0]  # 28 sigma: gated
