@@ -92,6 +92,8 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
         "truth_known": run.truth is not None, "gate_chi2": fused.gate, "gating": counts,
         "frame": {"origin_lat_deg": run.frame.latitude0_deg, "origin_lon_deg": run.frame.longitude0_deg, "utm_crs": run.frame.utm_crs.to_string()},
     }
+    if run.fix_failures:
+        summary["gating"]["failed_examples"] = [{"row": row + 1, "reason": reason} for row, reason in sorted(run.fix_failures.items())[:5]]
     methods: dict[str, Any] = {}
     if run.truth is not None:
         truth = run.truth[s:]

@@ -112,3 +112,24 @@ def test_a_log_gives_the_direction_as_phases_or_cosines_not_both(recording, tmp_
     both = _edit(recording / "log.csv", tmp_path / "both.csv", lambda lines: [lines[0] + ",dir_x,dir_y"] + [l + ",0.1,0.1" for l in lines[1:]])
     with pytest.raises(ValueError, match="exactly one pair"):
         read_log(both)
+
+
+def test_an_imu_that_stops_early_is_refused(recording, tmp_path, capsys):
+    short = _edit(recording / "imu.csv", tmp_path / "imu.csv", lambda lines: lines[: len(lines) // 2])
+    assert main(["usbl", str(recording / "log.csv"), "--svp", str(recording / "cast.csv"), "--imu", str(short), "--out", str(tmp_path / "o")]) == 2
+    assert "must cover the pings" in capsys.readouterr().err
+    assert not (tmp_path / "o" / "summary.json").exists()
+
+
+def test_fixes_that_cannot_be_computed_are_counted_and_named(recording, tmp_path):
+    def wrap_phases(lines):
+        parts = lines[6].split(",")
+        parts[7], parts[8] = "3.0", "3.0"  # no downward direction
+        return lines[:6] + [",".join(parts)] + lines[7:]
+
+    log = _edit(recording / "log.csv", tmp_path / "log.csv", wrap_phases)
+    out = tmp_path / "out"
+    assert main(["usbl", str(log), "--svp", str(recording / "cast.csv"), "--imu", str(recording / "imu.csv"), "--out", str(out)]) == 0
+    gating = json.loads((out / "summary.json").read_text())["gating"]
+    assert gating["failed"] == 1
+    assert gating["failed_examples"][0]["row"] == 6 and "no downward component" in gating["failed_examples"][0]["reason"]
