@@ -23,7 +23,8 @@ __all__ = ["UsblArray", "UsblFix", "direction_cosines_from_phase", "phase_from_d
 
 @dataclass(frozen=True)
 class UsblArray:
-    """The USBL's array, mounting and noise (the fix's covariance is built from the noise terms).
+    """The USBL's array, mounting and noise (the fix's covariance is built from the noise terms, the simulator's
+    replies draw from them).
 
     Parameters
     ----------
@@ -41,6 +42,9 @@ class UsblArray:
     direction_noise : float, optional
         One-sigma noise of a direction cosine, for a USBL that reports directions rather than phases; by default
         it follows from the phase noise, ``lambda phase_noise / (2 pi d)``.
+    noise_growth_per_km : float
+        The reply's signal weakens with range: the phase (or direction) noise is multiplied by
+        ``1 + noise_growth_per_km * slant range in km``.
     """
 
     frequency_hz: float = 20000.0
@@ -54,6 +58,7 @@ class UsblArray:
     gnss_noise_m: float = 0.5
     depth_noise_m: float = 0.5
     direction_noise: float | None = None
+    noise_growth_per_km: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("frequency_hz", "baseline_m", "phase_noise_rad", "travel_time_noise_s", "gnss_noise_m", "depth_noise_m"):
@@ -63,11 +68,19 @@ class UsblArray:
     def wavelength_m(self, speed_m_s: float) -> float:
         return speed_m_s / self.frequency_hz
 
-    def cosine_noise(self, speed_m_s: float) -> float:
-        """One-sigma noise of a direction cosine at the array (sound speed ``speed_m_s`` there)."""
+    def range_factor(self, slant_range_m: float) -> float:
+        """How much the phase (or direction) noise grows at a slant range."""
+        return 1.0 + self.noise_growth_per_km * slant_range_m / 1000.0
+
+    def phase_noise_at(self, slant_range_m: float) -> float:
+        """One-sigma phase noise (rad) of a reply from a slant range."""
+        return self.phase_noise_rad * self.range_factor(slant_range_m)
+
+    def cosine_noise(self, speed_m_s: float, slant_range_m: float = 0.0) -> float:
+        """One-sigma noise of a direction cosine at the array (sound speed ``speed_m_s`` there) from a slant range."""
         if self.direction_noise is not None:
-            return self.direction_noise
-        return self.wavelength_m(speed_m_s) * self.phase_noise_rad / (2.0 * np.pi * self.baseline_m)
+            return self.direction_noise * self.range_factor(slant_range_m)
+        return self.wavelength_m(speed_m_s) * self.phase_noise_at(slant_range_m) / (2.0 * np.pi * self.baseline_m)
 
 
 @dataclass(frozen=True)
@@ -146,7 +159,7 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     end_speed = float(profile.speed_at(target_depth_m))
     sine = max(np.sin(end_angle), 1e-3)
     along_var = (end_speed / sine * array.travel_time_noise_s) ** 2 + (np.cos(end_angle) / sine * array.depth_noise_m) ** 2
-    cosine_noise = array.cosine_noise(speed)
+    cosine_noise = array.cosine_noise(speed, ray.slant_range_m)
     jacobian = _azimuth_jacobian(cos_x, cos_y, attitude)
     azimuth_var = float(jacobian @ np.diag([cosine_noise**2, cosine_noise**2, array.tilt_noise_rad**2,
                                             array.tilt_noise_rad**2, array.heading_noise_rad**2]) @ jacobian)

@@ -143,8 +143,9 @@ def _ping(scenario: UsblScenario, rng: np.random.Generator, profile: SoundSpeedP
                                                        antenna_north_m=ship[0], antenna_east_m=ship[1], target_north_m=fish[0],
                                                        target_east_m=fish[1], target_depth_m=fish[2])
         travel += rng.normal(0.0, array.travel_time_noise_s)
-        phase_x += rng.normal(0.0, array.phase_noise_rad)
-        phase_y += rng.normal(0.0, array.phase_noise_rad)
+        phase_noise = array.phase_noise_at(float(distance))
+        phase_x += rng.normal(0.0, phase_noise)
+        phase_y += rng.normal(0.0, phase_noise)
         if rng.random() < faults.bad_fix_rate + faults.bad_fix_rate_turning * turning:
             if rng.random() < 0.5:
                 injected = "phase"

@@ -42,9 +42,10 @@ def test_noise_free_reply_gives_the_target_back(profile, bearing_deg, offset_m, 
 
 
 def test_fix_covariance_matches_monte_carlo(profile):
-    array = UsblArray(phase_noise_rad=0.02, travel_time_noise_s=1e-4, gnss_noise_m=0.3, depth_noise_m=1.0)
+    array = UsblArray(phase_noise_rad=0.015, travel_time_noise_s=1e-4, gnss_noise_m=0.3, depth_noise_m=1.0, noise_growth_per_km=0.5)
     truth = dict(target_north_m=-600.0, target_east_m=-400.0, target_depth_m=1000.0)
     time, phase_x, phase_y = reply_from_geometry(profile, array, **SHIP, **truth)
+    slant = usbl_fix(profile, array, travel_time_s=time, phase_x_rad=phase_x, phase_y_rad=phase_y, **SHIP, target_depth_m=1000.0).slant_range_m
     rng = np.random.default_rng(1)
     errors, nees = [], []
     for _ in range(300):
@@ -52,8 +53,9 @@ def test_fix_covariance_matches_monte_carlo(profile):
                      heading_rad=SHIP["heading_rad"] + rng.normal(0, array.heading_noise_rad),
                      antenna_north_m=SHIP["antenna_north_m"] + rng.normal(0, array.gnss_noise_m),
                      antenna_east_m=SHIP["antenna_east_m"] + rng.normal(0, array.gnss_noise_m))
+        phase_noise = array.phase_noise_at(slant)
         fix = usbl_fix(profile, array, travel_time_s=time + rng.normal(0, array.travel_time_noise_s),
-                       phase_x_rad=phase_x + rng.normal(0, array.phase_noise_rad), phase_y_rad=phase_y + rng.normal(0, array.phase_noise_rad),
+                       phase_x_rad=phase_x + rng.normal(0, phase_noise), phase_y_rad=phase_y + rng.normal(0, phase_noise),
                        target_depth_m=truth["target_depth_m"] + rng.normal(0, array.depth_noise_m), **noisy)
         error = np.array([fix.north_m - truth["target_north_m"], fix.east_m - truth["target_east_m"]])
         errors.append(error)
@@ -100,3 +102,9 @@ def test_direction_cosines_give_the_same_fix_as_phases(profile):
     np.testing.assert_allclose(by_direction.covariance_ne, by_phase.covariance_ne, rtol=1e-6)
     with pytest.raises(ValueError, match="either both phases"):
         usbl_fix(profile, array, travel_time_s=time, phase_x_rad=phase_x, direction_cosines=tuple(cosines), **SHIP, target_depth_m=900.0)
+
+
+def test_phase_noise_grows_with_range():
+    array = UsblArray(phase_noise_rad=0.01, noise_growth_per_km=1.0)
+    assert array.phase_noise_at(2000.0) == pytest.approx(0.03)
+    assert array.cosine_noise(1500.0, 2000.0) == pytest.approx(3 * array.cosine_noise(1500.0, 0.0))
