@@ -13,10 +13,11 @@ accelerometer biases (m/s^2) in the body frame. The error dynamics (eq. 9) on th
 
 discretised as ``Phi = I + F dt + (F dt)^2 / 2`` and ``Q_d = Q dt`` at every IMU sample (eqs. 12, 13, 16).
 A USBL fix gives the measurement of eq. 11, INS minus USBL position, ``H = [I 0 0 0 0]``, with the fix's own
-covariance as ``R``; eqs. 14, 15 and 17 (in Joseph form) update. Before an update the innovation's normalised
-square ``nu' S^-1 nu`` is compared with the chi-square quantile of 3 degrees of freedom at ``gate_probability``;
-a fix beyond it is rejected and the INS carries on (as it does through dropouts), its depth still held by the
-towfish's pressure depth (a one-dimensional update gated at 1 dof). After an update the errors
+covariance (3 x 3: its horizontal error and its depth are correlated) as ``R``; eqs. 14, 15 and 17 (in Joseph
+form) update. Before an update the innovation's normalised square ``nu' S^-1 nu`` is compared with the
+chi-square quantile of 3 degrees of freedom at ``gate_probability``; a fix beyond it is rejected and the INS
+carries on (as it does through dropouts), its depth still held by the towfish's pressure depth (a
+one-dimensional update gated at 1 dof). After an update the errors
 are fed back into the strapdown solution and the bias estimates, and reset to zero.
 """
 
@@ -125,9 +126,7 @@ class InsUsblFilter:
         """Eqs. 14, 15, 17 with a USBL fix, after the chi-square gate; returns (accepted, normalised innovation squared)."""
         measured = np.array([fix.north_m, fix.east_m, fix.depth_m])
         innovation = self.state.position - measured  # eq. 11: INS minus USBL; the predicted error state is zero
-        noise = np.zeros((3, 3))
-        noise[:2, :2] = fix.covariance_ne
-        noise[2, 2] = fix.depth_variance_m2
+        noise = fix.covariance_ned
         innovation_cov = self.covariance[POSITION, POSITION] + noise
         nis = float(innovation @ np.linalg.solve(innovation_cov, innovation))
         if nis > self._gate:

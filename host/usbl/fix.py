@@ -10,7 +10,7 @@ transponder's turnaround, halved).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -87,7 +87,9 @@ class UsblArray:
 class UsblFix:
     """A towfish position from one USBL reply, in the local frame, with its covariance.
 
-    ``covariance_ne`` is the 2 x 2 covariance of (north, east) in m^2; ``depth_variance_m2`` that of the depth.
+    ``covariance_ne`` is the 2 x 2 covariance of (north, east) in m^2; ``depth_variance_m2`` that of the depth;
+    ``cross_ne_depth`` the covariances of north and east with the depth: the horizontal range comes from the ray to
+    the measured depth, so a depth error moves the fix along the line of sight (by ``-cot(theta_end)`` per metre).
     """
 
     north_m: float
@@ -99,6 +101,16 @@ class UsblFix:
     horizontal_range_m: float
     azimuth_rad: float
     iterations: int
+    cross_ne_depth: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    @property
+    def covariance_ned(self) -> np.ndarray:
+        """The 3 x 3 covariance of (north, east, depth)."""
+        covariance = np.empty((3, 3))
+        covariance[:2, :2] = self.covariance_ne
+        covariance[:2, 2] = covariance[2, :2] = self.cross_ne_depth
+        covariance[2, 2] = self.depth_variance_m2
+        return covariance
 
 
 def direction_cosines_from_phase(phase_rad, wavelength_m: float, baseline_m: float) -> np.ndarray:
@@ -166,8 +178,9 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     along = np.array([np.cos(azimuth), np.sin(azimuth)])
     across = np.array([-np.sin(azimuth), np.cos(azimuth)])
     covariance = along_var * np.outer(along, along) + horizontal**2 * azimuth_var * np.outer(across, across) + array.gnss_noise_m**2 * np.eye(2)
+    cross = -np.cos(end_angle) / sine * array.depth_noise_m**2 * along
     return UsblFix(float(north), float(east), float(target_depth_m), covariance, array.depth_noise_m**2, ray.slant_range_m, horizontal,
-                  azimuth, ray.iterations)
+                  azimuth, ray.iterations, cross)
 
 
 def _azimuth_jacobian(cos_x: float, cos_y: float, attitude: np.ndarray, step: float = 1e-6) -> np.ndarray:

@@ -47,7 +47,7 @@ def test_fix_covariance_matches_monte_carlo(profile):
     time, phase_x, phase_y = reply_from_geometry(profile, array, **SHIP, **truth)
     slant = usbl_fix(profile, array, travel_time_s=time, phase_x_rad=phase_x, phase_y_rad=phase_y, **SHIP, target_depth_m=1000.0).slant_range_m
     rng = np.random.default_rng(1)
-    errors, nees = [], []
+    errors, nees, errors3 = [], [], []
     for _ in range(300):
         noisy = dict(roll_rad=SHIP["roll_rad"] + rng.normal(0, array.tilt_noise_rad), pitch_rad=SHIP["pitch_rad"] + rng.normal(0, array.tilt_noise_rad),
                      heading_rad=SHIP["heading_rad"] + rng.normal(0, array.heading_noise_rad),
@@ -60,10 +60,15 @@ def test_fix_covariance_matches_monte_carlo(profile):
         error = np.array([fix.north_m - truth["target_north_m"], fix.east_m - truth["target_east_m"]])
         errors.append(error)
         nees.append(error @ np.linalg.solve(fix.covariance_ne, error))
+        errors3.append([*error, fix.depth_m - truth["target_depth_m"]])
     errors = np.array(errors)
     assert np.all(np.abs(errors.mean(axis=0)) < 3 * np.sqrt(np.diag(fix.covariance_ne) / len(errors)) + 0.05)
     assert 1.7 < np.mean(nees) < 2.3  # chi-square with 2 dof: mean 2, standard error 0.115 over 300 draws
     np.testing.assert_allclose(np.cov(errors.T), fix.covariance_ne, rtol=0.25, atol=0.05 * np.trace(fix.covariance_ne))
+    # The depth error moves the fix along the line of sight: the 3 x 3 covariance holds the correlation.
+    empirical = np.cov(np.array(errors3).T)
+    np.testing.assert_allclose(empirical[:2, 2], fix.covariance_ned[:2, 2], rtol=0.3, atol=0.05)
+    assert np.all(np.linalg.eigvalsh(fix.covariance_ned) > 0.0)
 
 
 def test_wrapped_phases_are_refused(profile):
