@@ -28,6 +28,7 @@ from .grid import Grid
 from .nav import ESTIMATORS, NavParameters, PreparedMap, navigate
 from .navlog import PATCH_CENTRES
 from .records import NavRecords
+from .usbl.cli import add_usbl_command
 
 __all__ = ["main"]
 
@@ -260,6 +261,8 @@ def build_parser() -> argparse.ArgumentParser:
     corr.add_argument("--lsb-m", type=float, default=None, help="depth word step (default: chosen from the map)")
     corr.add_argument("--json", action="store_true", help="print one JSON object")
     corr.set_defaults(handler=_cmd_correlate)
+
+    add_usbl_command(commands)  # lost usbl: INS+USBL positioning (host/usbl/cli.py)
     return parser
 
 

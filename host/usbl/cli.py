@@ -1,0 +1,94 @@
+"""``lost usbl``: INS+USBL positioning of a recorded or simulated tow.
+
+::
+
+    lost usbl LOG.csv --svp CAST.csv [--imu IMU.csv] [--config USBL.toml] [--out DIR]
+    lost usbl SCENARIO.toml [--out DIR]        (or a shipped scenario's name: lost usbl usbl_turns)
+
+writes ``track.csv``, ``summary.json``, ``track.png``, ``error.png`` (with truth) and ``profile.png`` into
+``--out``; a scenario run also writes the simulated recording it processed (``inputs/log.csv``, ``imu.csv``,
+``cast.csv``), in the layouts a recorded tow uses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from .pipeline import UsblConfig, process, read_imu, read_log
+from .report import summarize, write_outputs
+from .scenario import load_processing_config, load_usbl_scenario
+from .simulate import simulate_tow
+from .sound import read_cast
+
+__all__ = ["add_usbl_command", "run_usbl"]
+
+
+def add_usbl_command(commands) -> None:
+    """Register ``lost usbl`` on the ``lost`` command's subparsers."""
+    usbl = commands.add_parser("usbl", help="INS+USBL positioning of a recorded log or a simulated scenario")
+    usbl.add_argument("source", help="USBL log CSV, or a scenario TOML file, or a shipped scenario's name (usbl_turns)")
+    usbl.add_argument("--svp", type=Path, help="CTD or SVP cast CSV (required with a log)")
+    usbl.add_argument("--imu", type=Path, help="IMU CSV (default: imu.csv beside the log)")
+    usbl.add_argument("--config", type=Path, help="processing settings TOML: [usbl], [imu], gate_probability, align_window_s")
+    usbl.add_argument("--out", type=Path, default=None, help="output folder (default runs/usbl-NAME)")
+    usbl.set_defaults(handler=run_usbl)
+
+
+def _is_log(source: str) -> bool:
+    return source.lower().endswith(".csv")
+
+
+def run_usbl(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    if _is_log(args.source):
+        log_path = Path(args.source)
+        if args.svp is None:
+            raise ValueError("a log needs its sound-speed cast: --svp CAST.csv")
+        imu_path = args.imu or log_path.with_name("imu.csv")
+        config = UsblConfig(**load_processing_config(args.config)) if args.config else UsblConfig()
+        name = log_path.stem
+        out = args.out or Path("runs") / f"usbl-{name}"
+    else:
+        if args.svp or args.imu or args.config:
+            raise ValueError("--svp, --imu and --config are for a recorded log; a scenario names its own cast and settings")
+        scenario = load_usbl_scenario(args.source)
+        name = scenario.name
+        out = args.out or Path("runs") / f"usbl-{name}"
+        inputs = out / "inputs"
+        inputs.mkdir(parents=True, exist_ok=True)
+        sim = simulate_tow(scenario)
+        log_path, imu_path = inputs / "log.csv", inputs / "imu.csv"
+        sim.log.to_csv(log_path, index=False, float_format="%.12g")
+        sim.imu.to_csv(imu_path, index=False, float_format="%.12g")
+        cast_path = inputs / "cast.csv"
+        cast_path.write_text(Path(sim.cast.source).read_text())
+        args.svp = cast_path
+        config = UsblConfig(array=scenario.usbl, imu=scenario.imu, gate_probability=scenario.gate_probability)
+    log = read_log(log_path)
+    imu = read_imu(imu_path)
+    cast = read_cast(args.svp, default_position=(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0])))
+    run = process(log, imu, cast, config)
+    summary = summarize(run, name=name, run_time_s=time.perf_counter() - start)
+    write_outputs(out, run, summary)
+    _print(summary, out)
+    return 0
+
+
+def _print(summary: dict, out: Path) -> None:
+    gating = summary["gating"]
+    print(f"{summary['name']}: {summary['pings']} pings over {summary['duration_s']:.0f} s, processed in {summary['run_time_s']:.1f} s; "
+          f"fixes accepted {gating['accepted']}, rejected {gating['rejected']}, failed {gating['failed']}, dropouts {gating['dropout']}")
+    if summary["truth_known"]:
+        print(f"{'method':16s} {'rms_m':>9s} {'p95_m':>9s} {'max_m':>9s}")
+        for method, stats in summary["methods"].items():
+            cells = ["-" if stats[k] is None else f"{stats[k]:.2f}" for k in ("rms_m", "p95_m", "max_m")]
+            print(f"{method:16s} {cells[0]:>9s} {cells[1]:>9s} {cells[2]:>9s}")
+        if "injected_bad" in gating:
+            caught = gating["injected_bad_caught_fraction"]
+            print(f"bad fixes caught {caught:.1%} of {gating['injected_bad']}; good fixes rejected {gating['good_rejected_fraction']:.2%} of {gating['good']}")
+        nees = summary["nees"]
+        print(f"NEES (3 dof) inside its 95 % band at {nees['fraction_inside']:.1%} of epochs (mean {nees['mean']:.2f})")
+    print(f"wrote {out}/track.csv, summary.json and plots")
+

@@ -1,0 +1,258 @@
+"""A recorded (or simulated) INS+USBL tow from its tables to the fused track: the log and IMU readers, the USBL
+fixes, the alignment, the filter, and the comparison methods (raw USBL, free INS, eqs. 6-7 dead reckoning).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.stats import theilslopes
+
+from .filter import FusionResult, InsUsblFilter, fuse
+from .fix import UsblArray, UsblFix, usbl_fix
+from .frames import LocalFrame, body_to_ned
+from .ins import EarthModel, ImuSamples, NavState, dead_reckon, strapdown
+from .scenario import DEG_PER_HOUR, MILLI_G, ImuSpec
+from .simulate import IMU_COLUMNS, LOG_COLUMNS
+from .sound import Cast, SoundSpeedProfile
+
+__all__ = ["UsblConfig", "UsblRun", "read_log", "read_imu", "process"]
+
+
+@dataclass(frozen=True)
+class UsblConfig:
+    """What processing needs beyond the recordings: the USBL's array and noise, the IMU's error model, the gate,
+    and the alignment window (the first ``align_window_s`` of fixes give the start position and velocity);
+    ``earth_rotation=False`` for an IMU whose rates have the Earth's rotation removed already."""
+
+    array: UsblArray = field(default_factory=UsblArray)
+    imu: ImuSpec = field(default_factory=ImuSpec)
+    gate_probability: float = 0.999
+    align_window_s: float = 40.0
+    earth_rotation: bool = True
+
+
+@dataclass(frozen=True)
+class UsblRun:
+    """Everything a run produces, in the local frame of ``frame`` (north, east, down)."""
+
+    frame: LocalFrame
+    profile: SoundSpeedProfile
+    time_s: np.ndarray
+    fixes: list[UsblFix | None]
+    fix_failures: dict[int, str]
+    fused: FusionResult
+    start_index: int
+    ins_position: np.ndarray
+    dead_reckoning: np.ndarray
+    truth: np.ndarray | None
+    injected: np.ndarray | None
+    ship: np.ndarray
+
+
+def _read_table(path: str | Path, kind: str, required: list[str]) -> pd.DataFrame:
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{kind} file {path} does not exist")
+    try:
+        table = pd.read_csv(path, comment="#", skipinitialspace=True, keep_default_na=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
+        raise ValueError(f"{kind} file {path}: not a readable CSV ({error})") from error
+    table.columns = [str(c).strip().lower() for c in table.columns]
+    missing = [c for c in required if c not in table.columns]
+    if missing:
+        raise ValueError(f"{kind} file {path}: missing column(s) {missing}; has {list(table.columns)}")
+    return table
+
+
+def _numeric(table: pd.DataFrame, column: str, source: str, *, allow_empty: bool = False) -> np.ndarray:
+    raw = table[column]
+    values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(values) & (raw.notna().to_numpy() if allow_empty else True)
+    if np.any(bad):
+        row = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{source}: column {column!r} row {row + 1}: {raw.iloc[row]!r} is not a number")
+    return values
+
+
+#: A reply's direction: the phase differences (rad) or the direction cosines, across the array's x and y baselines.
+DIRECTION_COLUMNS = (("phase_x_rad", "phase_y_rad"), ("dir_x", "dir_y"))
+REQUIRED_LOG_COLUMNS = [c for c in LOG_COLUMNS if c not in DIRECTION_COLUMNS[0]]
+
+
+def read_log(path: str | Path) -> pd.DataFrame:
+    """Read the USBL log CSV (docs/usbl.md): one row per ping; empty travel time and direction for a ping without a reply.
+
+    Raises
+    ------
+    ValueError
+        A column is missing, a value is not a number, times do not increase, or a reply is half there.
+    """
+    table = _read_table(path, "USBL log", REQUIRED_LOG_COLUMNS)
+    source = f"USBL log {path}"
+    pairs = [pair for pair in DIRECTION_COLUMNS if set(pair) <= set(table.columns)]
+    if len(pairs) != 1:
+        raise ValueError(f"{source}: needs the reply's direction as phase_x_rad, phase_y_rad or as dir_x, dir_y (exactly one pair); "
+                         f"has {list(table.columns)}")
+    table.attrs["direction_columns"] = pairs[0]
+    optional_empty = {"travel_time_s", *pairs[0]}
+    for column in REQUIRED_LOG_COLUMNS + list(pairs[0]):
+        table[column] = _numeric(table, column, source, allow_empty=column in optional_empty)
+    for column in ("true_lat_deg", "true_lon_deg", "true_depth_m"):
+        if column in table.columns:
+            table[column] = _numeric(table, column, source, allow_empty=True)
+    if len(table) < 2:
+        raise ValueError(f"{source}: needs at least two pings, has {len(table)}")
+    steps = np.diff(table["time_s"].to_numpy())
+    if np.any(steps <= 0.0):
+        row = int(np.flatnonzero(steps <= 0.0)[0]) + 2
+        raise ValueError(f"{source}: time_s must increase; row {row} does not")
+    present = table[sorted(optional_empty)].notna()
+    half = present.any(axis=1) & ~present.all(axis=1)
+    if half.any():
+        row = int(np.flatnonzero(half.to_numpy())[0]) + 1
+        raise ValueError(f"{source}: row {row} has some of {', '.join(sorted(optional_empty))} but not all")
+    if "injected" in table.columns:
+        table["injected"] = table["injected"].fillna("").astype(str)
+    return table
+
+
+def read_imu(path: str | Path) -> ImuSamples:
+    """Read the IMU CSV (docs/usbl.md): time, specific force (m/s^2) and angular rate (rad/s), body frame."""
+    table = _read_table(path, "IMU", IMU_COLUMNS)
+    source = f"IMU file {path}"
+    values = {c: _numeric(table, c, source) for c in IMU_COLUMNS}
+    try:
+        return ImuSamples(values["time_s"], np.column_stack([values[c] for c in IMU_COLUMNS[1:4]]),
+                          np.column_stack([values[c] for c in IMU_COLUMNS[4:7]]))
+    except ValueError as error:
+        raise ValueError(f"{source}: {error}") from error
+
+
+def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, frame: LocalFrame) -> tuple[list, dict, np.ndarray]:
+    north, east = frame.to_local(log["ship_lat_deg"].to_numpy(), log["ship_lon_deg"].to_numpy())
+    fixes: list[UsblFix | None] = []
+    failures: dict[int, str] = {}
+    first, second = log.attrs.get("direction_columns", DIRECTION_COLUMNS[0])
+    for i, row in enumerate(log.itertuples(index=False)):
+        if not np.isfinite(row.travel_time_s):
+            fixes.append(None)
+            continue
+        a, b = getattr(row, first), getattr(row, second)
+        direction = dict(phase_x_rad=a, phase_y_rad=b) if first == "phase_x_rad" else dict(direction_cosines=(a, b))
+        try:
+            fixes.append(usbl_fix(profile, array, travel_time_s=row.travel_time_s, **direction,
+                                  roll_rad=np.radians(row.ship_roll_deg), pitch_rad=np.radians(row.ship_pitch_deg),
+                                  heading_rad=np.radians(row.ship_heading_deg), antenna_north_m=float(north[i]), antenna_east_m=float(east[i]),
+                                  target_depth_m=row.fish_depth_m))
+        except ValueError as error:
+            fixes.append(None)
+            failures[i] = str(error)
+    return fixes, failures, np.column_stack([north, east])
+
+
+def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig) -> tuple[int, NavState, np.ndarray]:
+    """Start state and covariance at the row time of the first fix: position and velocity from a robust line through
+    the first ``align_window_s`` of fixes (at their epochs ``time``), attitude from the INS's columns of that row."""
+    valid = [i for i, f in enumerate(fixes) if f is not None]
+    if len(valid) < 5:
+        raise ValueError(f"alignment needs at least five USBL fixes, the log has {len(valid)}")
+    first = valid[0]
+    window = [i for i in valid if time[i] - time[first] <= config.align_window_s]
+    if len(window) < 5:
+        window = valid[:5]
+    t = time[window] - row_time[first]
+    points = np.array([[fixes[i].north_m, fixes[i].east_m, fixes[i].depth_m] for i in window])
+    # Theil-Sen finds the line despite a bad fix; least squares on the fixes near it gives the estimate whose
+    # variance the covariance below states.
+    inliers = np.ones(t.size, dtype=bool)
+    for axis in range(3):
+        slope, intercept, _, _ = theilslopes(points[:, axis], t)
+        residual = points[:, axis] - intercept - slope * t
+        spread = 1.4826 * np.median(np.abs(residual)) + 1e-6
+        inliers &= np.abs(residual) <= 4.0 * spread
+    velocity, position = np.polyfit(t[inliers], points[inliers], 1)
+    horizontal = np.mean([fixes[i].covariance_ne for i in window], axis=0)
+    n, span = int(inliers.sum()), max(float(np.ptp(t[inliers])), 1.0)  # the fit's origin lies within a travel time of its first point
+    # Line fit at its first point: intercept variance about 4 sigma^2 / n, slope variance 12 sigma^2 / (n span^2).
+    variance = np.array([horizontal[0, 0], horizontal[1, 1], fixes[first].depth_variance_m2])
+    covariance = np.zeros((15, 15))
+    covariance[0:3, 0:3] = np.diag(4.0 * variance / n)
+    covariance[0:2, 0:2] = 4.0 * horizontal / n
+    covariance[3:6, 3:6] = np.diag(12.0 * variance / (n * span**2))
+    spec = config.imu
+    covariance[6:8, 6:8] = np.eye(2) * np.radians(spec.alignment_tilt_deg) ** 2
+    covariance[8, 8] = np.radians(spec.alignment_heading_deg) ** 2
+    covariance[9:12, 9:12] = np.eye(3) * (spec.gyro_bias_deg_h * DEG_PER_HOUR) ** 2
+    covariance[12:15, 12:15] = np.eye(3) * (spec.accel_bias_mg * MILLI_G) ** 2
+    row = log.iloc[first]
+    attitude = body_to_ned(np.radians(row.fish_roll_deg), np.radians(row.fish_pitch_deg), np.radians(row.fish_heading_deg))
+    return first, NavState(position, velocity, attitude), covariance
+
+
+def _trim(imu: ImuSamples, start_s: float) -> ImuSamples:
+    """The IMU from the sample at or just before ``start_s`` (whose time becomes the start)."""
+    first = max(int(np.searchsorted(imu.time_s, start_s, side="right")) - 1, 0)
+    time = imu.time_s[first:].copy()
+    time[0] = start_s
+    return ImuSamples(time, imu.specific_force[first:], imu.angular_rate[first:])
+
+
+def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) -> UsblRun:
+    """Fixes, alignment, the fused track and the comparison methods of one tow.
+
+    Raises
+    ------
+    ValueError
+        The IMU does not cover the log's pings after alignment, or too few fixes to align.
+    """
+    profile = SoundSpeedProfile.from_cast(cast, tolerance_m_s=0.05)
+    frame = LocalFrame(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0]))
+    # A fix places the towfish when it replied, one travel time before the ship heard it.
+    travel = log["travel_time_s"].to_numpy()
+    time = log["time_s"].to_numpy() - np.where(np.isfinite(travel), travel, 0.0)
+    if np.any(np.diff(time) <= 0.0):
+        row = int(np.flatnonzero(np.diff(time) <= 0.0)[0]) + 2
+        raise ValueError(f"USBL log: the reply at row {row} ({time[row - 1]:.3f} s) does not come after the one before; pings overlap")
+    fixes, failures, ship = _fixes(log, profile, config.array, frame)
+    row_time = log["time_s"].to_numpy()
+    first, state, covariance = _align(time, row_time, fixes, log, config)
+    # The filter starts at the first fix's row time and reports from the next ping on.
+    start, begin = first + 1, row_time[first]
+    if start >= time.size:
+        raise ValueError("the log ends at its first fix: nothing to fuse after the alignment")
+    if imu.time_s[0] > begin or imu.time_s[-1] < time[-1]:
+        raise ValueError(f"the IMU ({imu.time_s[0]:.2f} to {imu.time_s[-1]:.2f} s) must cover the pings from {begin:.2f} to {time[-1]:.2f} s")
+    earth = EarthModel.at(frame.latitude0_deg, rotating=config.earth_rotation)
+    trimmed = _trim(imu, begin)
+    filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), earth, config.gate_probability)
+    fused = fuse(trimmed, time[start:], fixes[start:], filt, depths_m=log["fish_depth_m"].to_numpy()[start:],
+                 depth_variance_m2=config.array.depth_noise_m**2)
+    free_position, _, _ = strapdown(trimmed, state, earth)
+    ins = np.column_stack([np.interp(time[start:], trimmed.time_s, free_position[:, k]) for k in range(3)])
+    dead = _dead_reckoning(np.concatenate(([begin], time[start:])), trimmed, log.iloc[[first, *range(start, time.size)]], state,
+                          earth.gravity_m_s2)[1:]
+    truth = injected = None
+    if {"true_lat_deg", "true_lon_deg", "true_depth_m"} <= set(log.columns):
+        north, east = frame.to_local(log["true_lat_deg"].to_numpy(), log["true_lon_deg"].to_numpy())
+        truth = np.column_stack([north, east, log["true_depth_m"].to_numpy()])
+    if "injected" in log.columns:
+        injected = log["injected"].to_numpy() != ""
+    return UsblRun(frame, profile, time, fixes, failures, fused, start, ins, dead, truth, injected, ship)
+
+
+def _dead_reckoning(time: np.ndarray, imu: ImuSamples, log: pd.DataFrame, start: NavState, gravity: float) -> np.ndarray:
+    """Eqs. 6-7 at the pings: the along-track acceleration is the IMU's forward specific force plus gravity's share at
+    the logged pitch, averaged over each ping interval; the azimuth is the logged compass heading."""
+    pitch = np.radians(log["fish_pitch_deg"].to_numpy())
+    forward = np.interp(time, imu.time_s, imu.specific_force[:, 0]) - gravity * np.sin(pitch)
+    sums = np.concatenate(([0.0], np.cumsum(imu.specific_force[1:, 0] * np.diff(imu.time_s))))
+    mean = np.diff(np.interp(time, imu.time_s, sums)) / np.diff(time) - gravity * np.sin(pitch[1:])
+    along = np.concatenate(([forward[0]], mean))
+    speed0 = float(np.hypot(start.velocity[0], start.velocity[1]))
+    north, east, _ = dead_reckon(time, along, np.radians(log["fish_heading_deg"].to_numpy()), north0_m=start.position[0],
+                                 east0_m=start.position[1], speed0_m_s=speed0)
+    return np.column_stack([north, east, log["fish_depth_m"].to_numpy()])

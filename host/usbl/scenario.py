@@ -1,0 +1,192 @@
+"""A simulated INS+USBL tow described in TOML: the tow's course, the IMU's errors, the USBL's array, noise and
+faults, the sound-speed cast. Unknown keys are errors; the shipped scenarios live in ``lost/host/usbl/scenarios``.
+
+Layout (every table and key optional except ``name``; the defaults are the dataclasses' below)::
+
+    name = "usbl_turns"
+    seed = 14
+    duration_s = 1800.0
+    ping_interval_s = 2.0
+    imu_rate_hz = 10.0
+    origin = [18.0, 115.5]              # latitude, longitude of the start (deg)
+    cast = "scs_june"                   # a shipped cast's name, or a CSV path (relative to the TOML)
+    [tow]     speed_m_s, depth_m, depth_swing_m, layback_m, heading_deg, course = [[seconds, turn rate deg/s], ...]
+    [imu]     gyro_bias_deg_h, accel_bias_mg, angle_random_walk_deg_sqrt_h, velocity_random_walk_mg_sqrt_hz, ...
+    [usbl]    frequency_hz, baseline_m, lever_arm_m, phase_noise_rad, travel_time_noise_s, ...
+    [faults]  dropout_rate, dropout_rate_turning, bad_fix_rate, bad_fix_rate_turning, ...
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .filter import ImuNoise
+from .fix import UsblArray
+
+__all__ = ["TowSpec", "ImuSpec", "FaultSpec", "UsblScenario", "load_usbl_scenario", "load_processing_config", "builtin_usbl_scenarios",
+           "shipped_cast_path"]
+
+DEG_PER_HOUR = np.radians(1.0) / 3600.0
+MILLI_G = 9.80665e-3
+
+
+@dataclass(frozen=True)
+class TowSpec:
+    """The towfish's course: constant speed, depth with a slow swing, the ship ``layback_m`` ahead on the same
+    track; ``course`` is a program of (seconds, turn rate in deg/s) segments (positive turns to starboard)."""
+
+    speed_m_s: float = 1.5
+    depth_m: float = 1000.0
+    depth_swing_m: float = 2.0
+    layback_m: float = 700.0
+    heading_deg: float = 90.0
+    course: tuple[tuple[float, float], ...] = ((600.0, 0.0), (600.0, 0.3), (300.0, 0.0), (300.0, -0.3), (300.0, 0.0))
+    roll_swing_deg: float = 1.0
+    pitch_swing_deg: float = 0.5
+    ship_roll_swing_deg: float = 3.0
+    ship_pitch_swing_deg: float = 2.0
+
+
+@dataclass(frozen=True)
+class ImuSpec:
+    """The towfish IMU's errors: turn-on biases (one sigma, drawn per run), white noise, bias random walks."""
+
+    gyro_bias_deg_h: float = 0.05
+    accel_bias_mg: float = 0.1
+    angle_random_walk_deg_sqrt_h: float = 0.005
+    velocity_random_walk_mg_sqrt_hz: float = 0.03
+    gyro_bias_walk_deg_h_sqrt_h: float = 0.002
+    accel_bias_walk_mg_sqrt_h: float = 0.005
+    alignment_tilt_deg: float = 0.02
+    alignment_heading_deg: float = 0.1
+
+    def noise(self) -> ImuNoise:
+        """The same errors as the filter's continuous-time densities (SI units)."""
+        return ImuNoise(velocity_random_walk=self.velocity_random_walk_mg_sqrt_hz * MILLI_G,
+                        angle_random_walk=np.radians(self.angle_random_walk_deg_sqrt_h) / 60.0,
+                        gyro_bias_walk=self.gyro_bias_walk_deg_h_sqrt_h * DEG_PER_HOUR / 60.0,
+                        accel_bias_walk=self.accel_bias_walk_mg_sqrt_h * MILLI_G / 60.0)
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """USBL dropouts and bad fixes per ping; the ``*_turning`` rates are added in proportion to the ship's turn
+    rate over ``turn_rate_full_deg_s``. A bad fix is either a phase outlier (one channel off by
+    ``bad_phase_rad``, a uniform range) or a multipath delay (``bad_delay_s``)."""
+
+    dropout_rate: float = 0.03
+    dropout_rate_turning: float = 0.25
+    bad_fix_rate: float = 0.02
+    bad_fix_rate_turning: float = 0.2
+    turn_rate_full_deg_s: float = 0.3
+    bad_phase_rad: tuple[float, float] = (0.15, 0.8)
+    bad_delay_s: tuple[float, float] = (0.015, 0.1)
+
+
+@dataclass(frozen=True)
+class UsblScenario:
+    name: str
+    description: str = ""
+    seed: int = 0
+    duration_s: float = 1800.0
+    ping_interval_s: float = 2.0
+    imu_rate_hz: float = 10.0
+    origin: tuple[float, float] = (18.0, 115.5)
+    cast: str = "scs_june"
+    gate_probability: float = 0.999
+    tow: TowSpec = field(default_factory=TowSpec)
+    imu: ImuSpec = field(default_factory=ImuSpec)
+    usbl: UsblArray = field(default_factory=UsblArray)
+    faults: FaultSpec = field(default_factory=FaultSpec)
+    folder: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not self.duration_s > 0.0 or not self.ping_interval_s > 0.0:
+            raise ValueError(f"scenario {self.name}: duration_s and ping_interval_s must be positive")
+        if self.imu_rate_hz < 10.0:
+            raise ValueError(f"scenario {self.name}: imu_rate_hz {self.imu_rate_hz} is below 10 Hz")
+        steps = self.ping_interval_s * self.imu_rate_hz
+        if abs(steps - round(steps)) > 1e-9:
+            raise ValueError(f"scenario {self.name}: ping_interval_s must be a whole number of IMU samples")
+
+    def cast_path(self) -> Path:
+        if self.cast.endswith(".csv"):
+            path = Path(self.cast)
+            return path if path.is_absolute() or self.folder is None else self.folder / path
+        return shipped_cast_path(self.cast)
+
+
+def shipped_cast_path(name: str) -> Path:
+    path = Path(str(resources.files("lost.host.usbl") / "data" / f"{name}.csv"))
+    if not path.exists():
+        raise ValueError(f"no shipped cast {name!r}; give a CSV path instead")
+    return path
+
+
+def _tuples(value: Any) -> Any:
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+
+
+def _build(cls: type, table: Any, where: str) -> Any:
+    if not isinstance(table, dict):
+        raise ValueError(f"{where}: expected a table, got {table!r}")
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {unknown}; known: {sorted(known)}")
+    return cls(**{k: _tuples(v) for k, v in table.items()})
+
+
+def load_usbl_scenario(path: str | Path) -> UsblScenario:
+    """Read a scenario TOML (a file, or the name of a shipped scenario such as ``usbl_turns``)."""
+    path = Path(path)
+    if not path.exists() and path.suffix == "":
+        shipped = Path(str(resources.files("lost.host.usbl") / "scenarios" / f"{path.name}.toml"))
+        if not shipped.exists():
+            raise ValueError(f"no scenario file {path} and no shipped scenario of that name; shipped: {builtin_usbl_scenarios()}")
+        path = shipped
+    if not path.exists():
+        raise FileNotFoundError(f"scenario file {path} does not exist")
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"scenario file {path}: {error}") from error
+    parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": FaultSpec}
+    built = {key: _build(cls, table.pop(key), f"{path} [{key}]") for key, cls in parts.items() if key in table}
+    scenario = _build(UsblScenario, {**table, "folder": None}, str(path))
+    from dataclasses import replace
+
+    return replace(scenario, folder=path.parent, **built)
+
+
+def load_processing_config(path: str | Path) -> dict[str, Any]:
+    """The processing settings of a recorded tow from TOML: tables ``[usbl]`` (:class:`UsblArray`) and ``[imu]``
+    (:class:`ImuSpec`), keys ``gate_probability``, ``align_window_s`` and ``earth_rotation``; returned as keyword arguments of
+    :class:`lost.host.usbl.pipeline.UsblConfig`."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"config file {path} does not exist")
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"config file {path}: {error}") from error
+    unknown = sorted(set(table) - {"usbl", "imu", "gate_probability", "align_window_s", "earth_rotation"})
+    if unknown:
+        raise ValueError(f"config file {path}: unknown key(s) {unknown}; known: align_window_s, earth_rotation, gate_probability, imu, usbl")
+    settings: dict[str, Any] = {k: table[k] for k in ("gate_probability", "align_window_s", "earth_rotation") if k in table}
+    if "usbl" in table:
+        settings["array"] = _build(UsblArray, table["usbl"], f"{path} [usbl]")
+    if "imu" in table:
+        settings["imu"] = _build(ImuSpec, table["imu"], f"{path} [imu]")
+    return settings
+
+
+def builtin_usbl_scenarios() -> list[str]:
+    folder = resources.files("lost.host.usbl") / "scenarios"
+    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
