@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench synth clean verilog lint sim-full cycles
+.PHONY: setup demo test bench bench-track synth clean verilog lint sim-full cycles
 
 setup: $(STAMP)
 
@@ -29,6 +29,11 @@ test: setup
 
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+# Every goal of the contact-tracking issue on seeded simulated runs, the Stone Soup GM-PHD baseline
+# included (about 5 minutes here): a table on stdout and build/track/goals.json.
+bench-track: setup
+	$(BIN)/python benchmarks/track_goals.py --out build/track $(TRACK_ARGS)
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)
