@@ -133,7 +133,8 @@ class DiverParticleFilter:
     def parameters(self) -> PaperParameters:
         return self._parameters
 
-    def _draw(self, n: int, ping: Ping) -> np.ndarray:
+    def draw(self, n: int, ping: Ping) -> np.ndarray:
+        """``n`` world positions at random range and bearing across the sector at ``ping`` (step 1)."""
         r = self._rng.uniform(0.0, self._sonar.max_range_m, n)
         b = self._rng.uniform(-self._sonar.half_fov_deg, self._sonar.half_fov_deg, n)
         return polar_to_world(ping.platform_xy, ping.heading_deg, r, b)
@@ -142,7 +143,7 @@ class DiverParticleFilter:
         """Steps 1-3: the particles' range and bearing from the sonar at ``ping``, diffused."""
         p = self._parameters
         if self.xy is None:
-            self.xy = self._draw(p.particles, ping)
+            self.xy = self.draw(p.particles, ping)
         r, b = world_to_polar(ping.platform_xy, ping.heading_deg, self.xy)
         r = r + self._rng.normal(0.0, p.range_noise_m, r.size)
         b = b + self._rng.normal(0.0, p.bearing_noise_deg, b.size)

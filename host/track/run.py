@@ -54,4 +54,4 @@ def run_tracker(pings: Sequence[Ping], *, sonar: Sonar, parameters: TrackerParam
     for ping in (progress or iter)(pings):
         reports.append(tracker.step(ping))
         clouds.append(tracker.cloud_sample(cloud_points).astype(np.float32) if cloud_points else np.empty((0, 2), np.float32))
-    return TrackerRun(reports, clouds, np.array(tracker.step_ms), tracker._next_id - 1)
+    return TrackerRun(reports, clouds, np.array(tracker.step_ms), tracker.tracks_born)

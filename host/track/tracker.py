@@ -174,6 +174,11 @@ class MultiTargetTracker:
     def parameters(self) -> TrackerParameters:
         return self._p
 
+    @property
+    def tracks_born(self) -> int:
+        """Tentative tracks started so far (identities handed out)."""
+        return self._next_id - 1
+
     def _in_sector(self, x: np.ndarray, ping: Ping) -> bool:
         r = math.hypot(x[0] - ping.platform_xy[0], x[1] - ping.platform_xy[1])
         b = (math.degrees(math.atan2(x[0] - ping.platform_xy[0], x[1] - ping.platform_xy[1])) - ping.heading_deg + 180) % 360 - 180
@@ -264,7 +269,7 @@ class MultiTargetTracker:
         n = int(self._p.reseed_fraction * self.cloud.xy.shape[0])
         if n:
             which = self._rng.choice(self.cloud.xy.shape[0], size=n, replace=False)
-            self.cloud.xy[which] = self.cloud._draw(n, ping)
+            self.cloud.xy[which] = self.cloud.draw(n, ping)
 
     def step(self, ping: Ping) -> list[TrackReport]:
         """One ping through the tracker; a report of every live track (tentative ones included)."""
