@@ -4,7 +4,8 @@
 
     lost track DETECTIONS.csv [--out DIR]            recorded detections (layout: lost.host.track.detections)
     lost track SCENARIO.toml|NAME [--out DIR]        a simulated run (built-in: one_diver, two_divers, clutter_hour)
-        [--baseline] [--particles N] [--seed S] [--pd P] [--clutter RATE] [--no-animation] [--write-detections]
+        [--baseline] [--particles N] [--seed S] [--pd P] [--clutter RATE] [--set NAME=VALUE ...]
+        [--max-range M] [--half-fov DEG] [--no-animation] [--write-detections]
 
 Writes ``tracks.csv``, ``sector.png`` (the paper's Figure 5 at the last ping), ``tracks.gif`` (the pings
 animated) and, last, ``summary.json`` into ``--out`` (default ``runs/track/NAME``). With a scenario the truth is
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -44,23 +46,40 @@ def _progress(total: int):
     return lambda iterable: track(iterable, total=total, description="tracking", console=console, transient=True)
 
 
+def _setting(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` of ``--set``, VALUE read as a TOML value (``0.8``, ``6``)."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), tomllib.loads(f"value = {value}")["value"]
+    except tomllib.TOMLDecodeError:
+        raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a number or TOML value") from None
+
+
+def _parameters(base: dict, overrides: dict, where: str) -> TrackerParameters:
+    known = set(TrackerParameters.__dataclass_fields__)
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"{where} names no tracker parameter: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+    return TrackerParameters(**{**base, **overrides})
+
+
 def _load(source: str, args: argparse.Namespace):
     """Pings, sonar, tracker parameters, truth (or None), a name and notes, from a CSV or a scenario."""
     path = Path(source)
     overrides = {k: v for k, v in (("particles", args.particles), ("pd", args.pd), ("clutter_per_ping", args.clutter)) if v is not None}
+    overrides.update(dict(args.settings or ()))
     if path.suffix.lower() == ".csv":
-        sonar = Sonar()
+        sonar = Sonar(max_range_m=args.max_range, half_fov_deg=args.half_fov)
         pings, report = read_detections(path, sonar=sonar)
-        return pings, sonar, TrackerParameters(**overrides), None, path.stem, report.summary(), None
+        return pings, sonar, _parameters({}, overrides, "--set"), None, path.stem, report.summary(), None
     scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.exists() else builtin_scenario_path(source))
     sim = simulate(scenario)
     model = scenario.sonar
     base = {"pd": max(model.pd, 1e-3), "clutter_per_ping": max(model.clutter_per_ping, 1e-3), "range_sigma_m": model.range_sigma_m,
             "bearing_sigma_deg": model.bearing_sigma_deg}
-    try:
-        params = TrackerParameters(**{**base, **scenario.tracker, **overrides})
-    except TypeError as error:
-        raise ValueError(f"[tracker] of {scenario.name} has a field TrackerParameters does not know: {error}") from None
+    params = _parameters(base, {**scenario.tracker, **overrides}, f"[tracker] of {scenario.name} or --set")
     note = f"{scenario.name}: {len(sim.pings)} pings simulated, {sim.target_detections} target detections, {sim.false_alarms} false alarms"
     return sim.pings, model.sonar, params, sim.truth, scenario.name, note, sim
 
@@ -139,6 +158,10 @@ def add_track_command(commands: argparse._SubParsersAction) -> None:
     sub.add_argument("--seed", type=int, default=0, help="the tracker's random seed (default 0)")
     sub.add_argument("--pd", type=float, default=None, help="detection probability the tracker assumes (default the scenario's, or 0.9)")
     sub.add_argument("--clutter", type=float, default=None, help="false alarms per ping the tracker assumes (default the scenario's, or 5)")
+    sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
+                     help="a tracker parameter (TrackerParameters, e.g. --set confirm_m=5 --set bearing_sigma_deg=1.0); repeatable")
+    sub.add_argument("--max-range", type=float, default=500.0, help="with a CSV: the sonar's range, m (default 500)")
+    sub.add_argument("--half-fov", type=float, default=45.0, help="with a CSV: half the field of view, degrees (default 45)")
     sub.add_argument("--no-animation", action="store_true", help="skip tracks.gif (the slowest output)")
     sub.add_argument("--write-detections", action="store_true", help="with a scenario: also write its pings as detections.csv")
     sub.set_defaults(handler=run_track)

@@ -76,3 +76,14 @@ def test_bad_detections_exit_2_naming_the_line(tmp_path, capsys):
 def test_unknown_scenario_name_exits_2(tmp_path, capsys):
     assert main(["track", "no_such_scenario", "--out", str(tmp_path / "o")]) == 2
     assert "no built-in tracking scenario 'no_such_scenario'" in capsys.readouterr().err
+
+
+def test_set_reaches_the_tracker_and_unknown_names_are_refused(scenario_run, tmp_path, capsys):
+    out = tmp_path / "strict"
+    detections = str(scenario_run / "detections.csv")
+    assert main(["track", detections, "--out", str(out), "--particles", "2000", "--no-animation", "--set", "confirm_m=5",
+                 "--set", "confirm_n=5", "--max-range", "600"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["tracker"]["confirm_m"], summary["tracker"]["confirm_n"]) == (5, 5)
+    assert main(["track", detections, "--out", str(out), "--set", "confirm=3"]) == 2
+    assert "--set names no tracker parameter: confirm" in capsys.readouterr().err
