@@ -38,7 +38,7 @@ import numpy as np
 
 from .cluster import fit_mixture
 from .detections import Ping
-from .geometry import Sonar
+from .geometry import Sonar, polar_to_world, world_to_polar
 from .kalman import GATE_CHI2, ContactState, pda_update, predict
 from .particle import DiverParticleFilter, PaperParameters, clutter_floor
 
@@ -180,9 +180,8 @@ class MultiTargetTracker:
         return self._next_id - 1
 
     def _in_sector(self, x: np.ndarray, ping: Ping) -> bool:
-        r = math.hypot(x[0] - ping.platform_xy[0], x[1] - ping.platform_xy[1])
-        b = (math.degrees(math.atan2(x[0] - ping.platform_xy[0], x[1] - ping.platform_xy[1])) - ping.heading_deg + 180) % 360 - 180
-        return r <= self._sonar.max_range_m and abs(b) <= self._sonar.half_fov_deg
+        r, b = world_to_polar(ping.platform_xy, ping.heading_deg, x[None, :2])
+        return bool(self._sonar.inside(r, b)[0])
 
     def _update_tracks(self, ping: Ping, dt: float) -> np.ndarray:
         """Predict and PDA-update every track; the detections claimed by some track's gate."""
@@ -249,9 +248,9 @@ class MultiTargetTracker:
 
     def _newborn(self, ping: Ping, detection: int) -> ContactState:
         """A track's start at one detection: its position and the measurement's covariance, velocity unknown."""
-        r, b = ping.range_m[detection], math.radians(ping.bearing_deg[detection])
-        azimuth = math.radians(ping.heading_deg) + b
-        x = np.array([ping.platform_xy[0] + r * math.sin(azimuth), ping.platform_xy[1] + r * math.cos(azimuth), 0.0, 0.0])
+        r = ping.range_m[detection]
+        azimuth = math.radians(ping.heading_deg + ping.bearing_deg[detection])
+        x = np.concatenate((polar_to_world(ping.platform_xy, ping.heading_deg, ping.range_m[[detection]], ping.bearing_deg[[detection]])[0], [0.0, 0.0]))
         J = np.array([[math.sin(azimuth), r * math.cos(azimuth)], [math.cos(azimuth), -r * math.sin(azimuth)]])  # d(x, y)/d(r, b)
         P = np.zeros((4, 4))
         P[:2, :2] = J @ self._R @ J.T
@@ -275,6 +274,8 @@ class MultiTargetTracker:
         """One ping through the tracker; a report of every live track (tentative ones included)."""
         start = time.perf_counter()
         dt = 0.0 if self._last is None else ping.t_s - self._last.t_s
+        if self._last is not None and dt <= 0:
+            raise ValueError(f"Ping {ping.index} at t = {ping.t_s!r} s does not come after ping {self._last.index} at {self._last.t_s!r} s.")
         claimed = self._update_tracks(ping, dt)
         self.cloud.step(ping, range_m=ping.range_m[~claimed], bearing_deg=ping.bearing_deg[~claimed])
         self._births(ping, ~claimed)

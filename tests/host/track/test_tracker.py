@@ -169,3 +169,10 @@ def test_track_covariance_is_consistent_with_the_truth():
     assert len(e) > 600
     assert 2.5 < nees(e, P).mean() < 6.0
     assert np.mean(nees(e[:, :2], P[:, :2, :2]) < 9.21) > 0.93  # the 99 % position ellipse holds the diver
+
+
+def test_pings_out_of_time_order_are_refused():
+    tracker = MultiTargetTracker(sonar=Sonar(), parameters=TrackerParameters(particles=100), rng=np.random.default_rng(0))
+    tracker.step(Ping(0, 5.0, (0.0, 0.0), 0.0, [], []))
+    with pytest.raises(ValueError, match="Ping 1 at t = 5.0 s does not come after ping 0 at 5.0 s"):
+        tracker.step(Ping(1, 5.0, (0.0, 0.0), 0.0, [], []))
