@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-nav synth clean verilog lint sim-full cycles
+.PHONY: setup demo test bench bench-nav bench-track synth clean verilog lint sim-full cycles
 
 setup: $(STAMP)
 
@@ -34,6 +34,11 @@ bench: setup
 # build/bench/nav_filters.json.
 bench-nav: setup
 	$(BIN)/python benchmarks/nav_filters.py
+
+# Every goal of the contact-tracking issue on seeded simulated runs, the Stone Soup GM-PHD baseline
+# included (about 5 minutes here): a table on stdout and build/track/goals.json.
+bench-track: setup
+	$(BIN)/python benchmarks/track_goals.py --out build/track $(TRACK_ARGS)
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

@@ -6,6 +6,7 @@
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--out DIR]
     lost demo [--out runs/demo]                         the built-in scenario "demo"
     lost correlate MAP PATCH                            best fit and runner-up of a patch on a map
+    lost track DETECTIONS.csv|SCENARIO [--out DIR]      sonar contact tracking (lost.host.track.cli)
 
 ``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``.
 """
@@ -263,6 +264,9 @@ def build_parser() -> argparse.ArgumentParser:
     corr.set_defaults(handler=_cmd_correlate)
 
     add_usbl_command(commands)  # lost usbl: INS+USBL positioning (host/usbl/cli.py)
+    from .track.cli import add_track_command
+
+    add_track_command(commands)
     return parser
 
 

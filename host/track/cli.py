@@ -1,0 +1,169 @@
+"""``lost track``: contact tracking on recorded detections or a simulated scenario.
+
+::
+
+    lost track DETECTIONS.csv [--out DIR]            recorded detections (layout: lost.host.track.detections)
+    lost track SCENARIO.toml|NAME [--out DIR]        a simulated run (built-in: one_diver, two_divers, clutter_hour)
+        [--baseline] [--particles N] [--seed S] [--pd P] [--clutter RATE] [--set NAME=VALUE ...]
+        [--max-range M] [--half-fov DEG] [--no-animation] [--write-detections]
+
+Writes ``tracks.csv``, ``sector.png`` (the paper's Figure 5 at the last ping), ``tracks.gif`` (the pings
+animated) and, last, ``summary.json`` into ``--out`` (default ``runs/track/NAME``). With a scenario the truth is
+known, so the summary holds the lock, false tracks and Stone Soup's GOSPA/OSPA/SIAP; ``--baseline`` runs Stone
+Soup's GM-PHD on the same pings and adds its figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from .detections import read_detections, write_detections
+from .evaluate import score
+from .geometry import Sonar
+from .output import track_table, write_summary, write_tracks_csv
+from .run import run_tracker
+from .simulate import builtin_scenario_path, load_scenario, simulate
+from .tracker import TrackerParameters
+
+__all__ = ["add_track_command", "run_track"]
+
+#: Runs longer than this many pings show a progress bar.
+PROGRESS_PINGS = 1000
+
+
+def _progress(total: int):
+    if total <= PROGRESS_PINGS:
+        return None
+    from rich.console import Console
+    from rich.progress import track
+
+    console = Console(stderr=True)
+    return lambda iterable: track(iterable, total=total, description="tracking", console=console, transient=True)
+
+
+def _setting(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` of ``--set``, VALUE read as a TOML value (``0.8``, ``6``)."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), tomllib.loads(f"value = {value}")["value"]
+    except tomllib.TOMLDecodeError:
+        raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a number or TOML value") from None
+
+
+def _parameters(base: dict, overrides: dict, where: str) -> TrackerParameters:
+    known = set(TrackerParameters.__dataclass_fields__)
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"{where} names no tracker parameter: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+    return TrackerParameters(**{**base, **overrides})
+
+
+def _load(source: str, args: argparse.Namespace):
+    """Pings, sonar, tracker parameters, truth (or None), a name and notes, from a CSV or a scenario."""
+    path = Path(source)
+    overrides = {k: v for k, v in (("particles", args.particles), ("pd", args.pd), ("clutter_per_ping", args.clutter)) if v is not None}
+    overrides.update(dict(args.settings or ()))
+    if path.suffix.lower() == ".csv":
+        sonar = Sonar(max_range_m=args.max_range, half_fov_deg=args.half_fov)
+        pings, report = read_detections(path, sonar=sonar)
+        return pings, sonar, _parameters({}, overrides, "--set"), None, path.stem, report.summary(), None
+    scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.exists() else builtin_scenario_path(source))
+    sim = simulate(scenario)
+    model = scenario.sonar
+    base = {"pd": max(model.pd, 1e-3), "clutter_per_ping": max(model.clutter_per_ping, 1e-3), "range_sigma_m": model.range_sigma_m,
+            "bearing_sigma_deg": model.bearing_sigma_deg}
+    params = _parameters(base, {**scenario.tracker, **overrides}, f"[tracker] of {scenario.name} or --set")
+    note = f"{scenario.name}: {len(sim.pings)} pings simulated, {sim.target_detections} target detections, {sim.false_alarms} false alarms"
+    return sim.pings, model.sonar, params, sim.truth, scenario.name, note, sim
+
+
+def run_track(args: argparse.Namespace) -> int:
+    """The handler of ``lost track``."""
+    pings, sonar, params, truth, name, note, sim = _load(args.input, args)
+    print(note)
+    out = args.out or Path("runs") / "track" / name
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").unlink(missing_ok=True)  # no stale summary beside a run that fails half-way
+    if args.write_detections and sim is not None:
+        write_detections(out / "detections.csv", pings)
+    run = run_tracker(pings, sonar=sonar, parameters=params, seed=args.seed, progress=_progress(len(pings)))
+    summary: dict = {
+        "name": name, "input": str(args.input), "pings": len(pings), "detections": int(sum(p.detections for p in pings)),
+        "tracker": params.as_dict(), "seed": args.seed, "truth_known": truth is not None,
+        "ms_per_ping": float(run.step_ms.mean()), "ms_per_ping_p95": float(np.percentile(run.step_ms, 95)),
+        "tentative_tracks": run.tracks_born, "tracks": track_table(run.reports),
+        "confirmed_tracks": len({e.track_id for ping in run.estimates for e in ping}),
+        "pings_to_lock": None, "false_tracks": None, "gospa_mean": None,
+    }
+    if truth is not None:
+        s = score(run.estimates, truth)
+        summary.update(pings_to_lock=s.pings_to_lock, false_tracks=s.false_tracks, gospa_mean=s.gospa_mean,
+                       gospa={"localisation": s.gospa_localisation_mean, "missed": s.gospa_missed_mean, "false": s.gospa_false_mean},
+                       ospa_mean=s.ospa_mean, siap=s.siap)
+    if args.baseline:
+        from .baseline import run_gm_phd
+
+        start = time.perf_counter()
+        phd = run_gm_phd(pings, sonar=sonar, tracker=params)
+        baseline = {"tracker": "Stone Soup GM-PHD (PointProcessMultiTargetTracker)",
+                    "ms_per_ping": (time.perf_counter() - start) / len(pings) * 1e3,
+                    "confirmed_tracks": len({e.track_id for ping in phd for e in ping})}
+        if truth is not None:
+            b = score(phd, truth)
+            baseline.update(pings_to_lock=b.pings_to_lock, false_tracks=b.false_tracks, gospa_mean=b.gospa_mean, ospa_mean=b.ospa_mean, siap=b.siap)
+        summary["baseline"] = baseline
+    write_tracks_csv(out / "tracks.csv", run.reports)
+    from .plots import animate, plot_sector
+
+    truth_xy = None if truth is None else truth.xy
+    plot_sector(out / "sector.png", sonar, pings, run.reports, run.clouds, truth_xy=truth_xy)
+    if not args.no_animation:
+        animate(out / "tracks.gif", sonar, pings, run.reports, run.clouds, truth_xy=truth_xy)
+    write_summary(out / "summary.json", summary)
+    _print(summary, out, args)
+    return 0
+
+
+def _print(summary: dict, out: Path, args: argparse.Namespace) -> None:
+    print(f"{summary['confirmed_tracks']} confirmed track(s) of {summary['tentative_tracks']} tentative; "
+          f"{summary['ms_per_ping']:.2f} ms per ping (p95 {summary['ms_per_ping_p95']:.2f}) with {summary['tracker']['particles']} particles")
+    for t in summary["tracks"]:
+        reach = "-" if t["last_time_to_reach_s"] is None else f"{t['last_time_to_reach_s']:.0f} s"
+        print(f"  track {t['track_id']:4d}: pings {t['first_ping']}-{t['last_ping']}, {t['class']}, {t['last_speed_mps']:.2f} m/s, "
+              f"range {t['last_range_m']:.0f} m, CPA {t['last_cpa_m']:.0f} m, reaches the sonar in {reach}")
+    if summary["truth_known"]:
+        print(f"pings to lock {summary['pings_to_lock']}, false tracks {summary['false_tracks']}, mean GOSPA {summary['gospa_mean']:.2f} m")
+    if "baseline" in summary:
+        b = summary["baseline"]
+        extra = f", pings to lock {b['pings_to_lock']}, false tracks {b['false_tracks']}, mean GOSPA {b['gospa_mean']:.2f} m" if "gospa_mean" in b else ""
+        print(f"baseline (Stone Soup GM-PHD): {b['confirmed_tracks']} track(s), {b['ms_per_ping']:.1f} ms per ping{extra}")
+    files = "tracks.csv, sector.png" + ("" if args.no_animation else ", tracks.gif") + ", summary.json"
+    print(f"wrote {out}/{files}")
+
+
+def add_track_command(commands: argparse._SubParsersAction) -> None:
+    """Register ``lost track`` on the ``lost`` command's subparsers."""
+    sub = commands.add_parser("track", help="track sonar contacts (divers) in recorded detections or a simulated scenario")
+    sub.add_argument("input", help="detections CSV, scenario TOML, or a built-in scenario's name (one_diver, two_divers, clutter_hour)")
+    sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/track/NAME)")
+    sub.add_argument("--baseline", action="store_true", help="also run Stone Soup's GM-PHD on the same pings (slow: ~0.1 s a ping)")
+    sub.add_argument("--particles", type=int, default=None, help="search-cloud particles (default 10000)")
+    sub.add_argument("--seed", type=int, default=0, help="the tracker's random seed (default 0)")
+    sub.add_argument("--pd", type=float, default=None, help="detection probability the tracker assumes (default the scenario's, or 0.9)")
+    sub.add_argument("--clutter", type=float, default=None, help="false alarms per ping the tracker assumes (default the scenario's, or 5)")
+    sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
+                     help="a tracker parameter (TrackerParameters, e.g. --set confirm_m=5 --set bearing_sigma_deg=1.0); repeatable")
+    sub.add_argument("--max-range", type=float, default=500.0, help="with a CSV: the sonar's range, m (default 500)")
+    sub.add_argument("--half-fov", type=float, default=45.0, help="with a CSV: half the field of view, degrees (default 45)")
+    sub.add_argument("--no-animation", action="store_true", help="skip tracks.gif (the slowest output)")
+    sub.add_argument("--write-detections", action="store_true", help="with a scenario: also write its pings as detections.csv")
+    sub.set_defaults(handler=run_track)
+
+

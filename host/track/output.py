@@ -1,0 +1,92 @@
+"""What ``lost track`` leaves in its folder: ``tracks.csv`` and ``summary.json``, each written whole or not at all.
+
+Each file is written under a temporary name in the folder and moved into place (an atomic rename), and
+``summary.json`` comes last: a folder with a summary is a finished run. (Kept here, not in ``host/report.py``,
+until the shared outputs are one module every system uses.)
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+
+from .tracker import TrackReport
+
+__all__ = ["TRACK_COLUMNS", "write_tracks_csv", "write_summary", "track_table", "atomic_write"]
+
+TRACK_COLUMNS = ("ping", "t_s", "track_id", "status", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "speed_mps",
+                 "heading_deg", "range_m", "bearing_deg", "class", "cpa_m", "t_cpa_s", "time_to_reach_s")
+
+
+def atomic_write(path: Path, write) -> Path:
+    """Call ``write(handle)`` on a temporary file beside ``path``, then move it onto ``path``."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
+    try:
+        with os.fdopen(fd, "w", newline="") as handle:
+            write(handle)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; the result is an ordinary file
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _cell(value: float) -> str:
+    return "" if isinstance(value, float) and math.isnan(value) else f"{value:.3f}" if isinstance(value, float) else str(value)
+
+
+def write_tracks_csv(path: Path, reports: Sequence[Sequence[TrackReport]]) -> Path:
+    """One row per ping and live track (tentative ones marked so); empty cells where a figure is undefined
+    (``time_to_reach_s`` when the track passes wide of the sonar)."""
+    def write(handle) -> None:
+        writer = csv.writer(handle)
+        writer.writerow(TRACK_COLUMNS)
+        for ping in reports:
+            for r in ping:
+                writer.writerow([r.ping, _cell(r.t_s), r.track_id, r.status, *(_cell(v) for v in (
+                    r.x_m, r.y_m, r.vx_mps, r.vy_mps, r.sd_x_m, r.sd_y_m, r.speed_mps, r.heading_deg, r.range_m, r.bearing_deg)),
+                    r.classification, _cell(r.cpa_m), _cell(r.t_cpa_s), _cell(r.time_to_reach_s)])
+    return atomic_write(path, write)
+
+
+def track_table(reports: Sequence[Sequence[TrackReport]]) -> list[dict]:
+    """Each confirmed track once: its pings, its most frequent class, and its last speed, CPA and time to reach."""
+    seen: dict[int, list[TrackReport]] = {}
+    for ping in reports:
+        for r in ping:
+            if r.status == "confirmed":
+                seen.setdefault(r.track_id, []).append(r)
+    table = []
+    for track_id, rows in sorted(seen.items()):
+        last = rows[-1]
+        classes = Counter(r.classification for r in rows if r.classification != "unknown")
+        table.append({
+            "track_id": track_id, "first_ping": rows[0].ping, "last_ping": last.ping, "pings": len(rows),
+            "class": classes.most_common(1)[0][0] if classes else "unknown",
+            "last_speed_mps": round(last.speed_mps, 3), "last_range_m": round(last.range_m, 1), "last_cpa_m": round(last.cpa_m, 1),
+            "last_time_to_reach_s": None if math.isnan(last.time_to_reach_s) else round(last.time_to_reach_s, 1),
+        })
+    return table
+
+
+def write_summary(path: Path, summary: dict) -> Path:
+    """``summary.json``, NaN written as null."""
+    def clean(value):
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        if isinstance(value, dict):
+            return {k: clean(v) for k, v in value.items()}
+        if isinstance(value, list | tuple):
+            return [clean(v) for v in value]
+        return value
+
+    return atomic_write(path, lambda handle: json.dump(clean(summary), handle, indent=2))
