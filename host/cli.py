@@ -7,7 +7,12 @@
     lost demo [--out runs/demo]                         the built-in scenario "demo"
     lost correlate MAP PATCH                            best fit and runner-up of a patch on a map
 
-``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``.
+``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at
+all (``lost.host.runfolder``): an earlier run there is replaced only with ``--replace``.
+
+Exit codes: 0 done; 1 an error in the inputs or the outputs (one line on stderr naming the file or
+field; ``--debug`` adds the traceback); 2 a usage error (options); 130 interrupted (Ctrl-C), the
+output folder left as it was.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import json
 import sys
 import time
 import tomllib
+import traceback
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +34,15 @@ from .grid import Grid
 from .nav import NavParameters, PreparedMap, run_lost
 from .navlog import PATCH_CENTRES
 from .records import NavRecords
+from .runfolder import describe_untouched, run_folder
 
-__all__ = ["main"]
+__all__ = ["main", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_USAGE", "EXIT_INTERRUPTED"]
+
+EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class UsageError(ValueError):
+    """The options contradict each other or name nothing known: exit code 2, like argparse's own errors."""
 
 #: Runs longer than this many records show a progress bar.
 PROGRESS_RECORDS = 1000
@@ -48,7 +61,6 @@ def _progress(total: int):
 def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path) -> dict:
     from .report import plot_run, summarize, write_summary, write_track_csv
 
-    out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     result = run_lost(records, grid, params, progress=_progress(len(records)))
     elapsed = time.perf_counter() - start
@@ -95,7 +107,7 @@ def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
     fields = set(NavParameters.__dataclass_fields__)
     unknown = sorted(set(settings) - fields)
     if unknown:
-        raise ValueError(f"--set names no navigation parameter: {', '.join(unknown)} (known: {', '.join(sorted(fields))})")
+        raise UsageError(f"--set names no navigation parameter: {', '.join(unknown)} (known: {', '.join(sorted(fields))})")
     try:
         return NavParameters(**{**base, **settings, **overrides})
     except TypeError as error:
@@ -113,9 +125,11 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     from .scenario import load_scenario, simulate
 
     scenario = load_scenario(path)
-    grid, records = simulate(scenario)
-    out = out or Path("runs") / scenario.name
-    summary = _navigate(records, grid, _parameters(args, scenario.navigation), name=scenario.name, out=out)
+    params = _parameters(args, scenario.navigation)
+    out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
+    with run_folder(out, replace=args.replace) as folder:
+        grid, records = simulate(scenario)
+        summary = _navigate(records, grid, params, name=scenario.name, out=folder)
     _print_summary(summary, out)
     return 0
 
@@ -123,21 +137,23 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
 def _cmd_run(args: argparse.Namespace) -> int:
     if args.scenario is not None:
         if args.log or args.bathy:
-            raise ValueError("give either a scenario or --log and --bathy, not both")
+            raise UsageError("give either a scenario or --log and --bathy, not both")
         return _run_scenario(_scenario_path(args.scenario), args, args.out)
     if not (args.log and args.bathy):
-        raise ValueError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
+        raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
     try:
         from .io import read_grid
         from .navlog import read_navlog
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
-    grid = read_grid(args.bathy)
-    records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
-                                  patch_shape=args.patch_shape, patch_centre=args.patch_centre)
-    print(report.summary())
-    out = args.out or Path("runs") / Path(args.log).stem
-    summary = _navigate(records, grid, _parameters(args, {}), name=Path(args.log).stem, out=out)
+    params = _parameters(args, {})
+    out = args.out = args.out or Path("runs") / Path(args.log).stem
+    with run_folder(out, replace=args.replace) as folder:
+        grid = read_grid(args.bathy)
+        records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
+                                      patch_shape=args.patch_shape, patch_centre=args.patch_centre)
+        print(report.summary())
+        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder)
     _print_summary(summary, out)
     return 0
 
@@ -214,17 +230,23 @@ def _cmd_correlate(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="lost", description=__doc__.splitlines()[0].replace("``", ""))
+    # SUPPRESS on both levels, so `lost --debug run` and `lost run --debug` both work (a subparser's
+    # default would otherwise overwrite the top level's value).
+    debug = argparse.ArgumentParser(add_help=False)
+    debug.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an error")
+    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an error")
     commands = parser.add_subparsers(dest="command", required=True)
 
     def navigation_options(sub: argparse.ArgumentParser) -> None:
-        sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME)")
+        sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME), written whole or not at all")
+        sub.add_argument("--replace", action="store_true", help="replace an earlier run in --out (whole); without it such a folder is refused")
         sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
         sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
                          help="a navigation parameter (NavParameters), over the scenario's [navigation]; repeatable; "
                               "VALUE is TOML, or none for the patent's default (e.g. --set u=0.005 --set cross_damping_per_s=none)")
 
-    run = commands.add_parser("run", help="navigate a simulated or recorded tow")
+    run = commands.add_parser("run", parents=[debug], help="navigate a simulated or recorded tow")
     run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
@@ -237,11 +259,11 @@ def build_parser() -> argparse.ArgumentParser:
     navigation_options(run)
     run.set_defaults(handler=_cmd_run)
 
-    demo = commands.add_parser("demo", help="run the built-in scenario into runs/demo")
+    demo = commands.add_parser("demo", parents=[debug], help="run the built-in scenario into runs/demo")
     navigation_options(demo)
     demo.set_defaults(handler=_cmd_demo, out=None)
 
-    corr = commands.add_parser("correlate", help="correlate a sonar patch against a map file")
+    corr = commands.add_parser("correlate", parents=[debug], help="correlate a sonar patch against a map file")
     corr.add_argument("map", type=Path, help="map: .npz (write_npz) or any grid read_grid reads")
     corr.add_argument("patch", type=Path, help="patch of depths in metres: .npy, .npz or .csv (empty cell = no beam)")
     corr.add_argument("--backend", choices=sorted(BACKENDS), default="software")
@@ -253,15 +275,40 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _exit_code(error: BaseException) -> int:
+    if isinstance(error, KeyboardInterrupt):
+        return EXIT_INTERRUPTED
+    return EXIT_USAGE if isinstance(error, UsageError) else EXIT_ERROR
+
+
+def _one_line(error: BaseException) -> str:
+    """The error as one line: the message itself for the errors a user causes, with the class for the others."""
+    text = " ".join(str(error).split()) or type(error).__name__
+    if isinstance(error, (ValueError, OSError)):
+        return text
+    return f"internal error ({type(error).__name__}: {text}); please report it with the output of --debug"
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``lost`` command; returns the exit code (argparse's own usage errors raise ``SystemExit(2)``)."""
     args = build_parser().parse_args(argv)
     if args.command == "demo" and args.out is None:
-        args.out = Path("runs") / "demo"
+        # The demo's own folder holds only the demo: running it again replaces it.
+        args.out, args.replace = Path("runs") / "demo", True
     try:
         return args.handler(args)
-    except (ValueError, FileNotFoundError) as error:
-        print(f"lost {args.command}: {error}", file=sys.stderr)
-        return 2
+    except (Exception, KeyboardInterrupt) as error:
+        if getattr(args, "debug", False):
+            traceback.print_exc(file=sys.stderr)
+        if isinstance(error, KeyboardInterrupt):
+            message = "interrupted"
+        else:
+            message = _one_line(error)
+        out = getattr(args, "out", None)
+        if out is not None and args.command in ("run", "demo") and not isinstance(error, UsageError):
+            message += f"; {describe_untouched(Path(out))}"
+        print(f"lost {args.command}: {message}", file=sys.stderr)
+        return _exit_code(error)
 
 
 if __name__ == "__main__":
