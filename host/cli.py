@@ -18,7 +18,9 @@ output folder left as it was.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import logging
 import sys
 import time
 import tomllib
@@ -58,13 +60,36 @@ def _progress(total: int):
     return lambda iterable: track(iterable, total=total, description="navigating", console=console, transient=True)
 
 
-def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path) -> dict:
+class _Collector(logging.Handler):
+    """Keeps the warnings of ``lost.host`` (a grid's sign guessed from its data, ...) for the run's report."""
+
+    def __init__(self) -> None:
+        super().__init__(level=logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def _warnings_collected():
+    """Yield the list the warnings of the run go to (instead of stderr: the report shows them)."""
+    collector, logger = _Collector(), logging.getLogger("lost.host")
+    logger.addHandler(collector)
+    try:
+        yield collector.messages
+    finally:
+        logger.removeHandler(collector)
+
+
+def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str]) -> dict:
     from .report import plot_run, summarize, write_summary, write_track_csv
 
     start = time.perf_counter()
     result = run_lost(records, grid, params, progress=_progress(len(records)))
     elapsed = time.perf_counter() - start
     summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
+    summary["warnings"] = list(warnings)
     write_track_csv(out / "track.csv", result)
     write_summary(out / "summary.json", summary)
     plot_run(out, result, grid, summary)
@@ -84,6 +109,8 @@ def _print_summary(summary: dict, out: Path) -> None:
             cells = ["-" if stats[k] is None else f"{stats[k]:.2f}" for k in ("rms_m", "p95_m", "max_m")]
             print(f"{method:16s} {cells[0]:>9s} {cells[1]:>9s} {cells[2]:>9s}")
     print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    for warning in summary.get("warnings", ()):
+        print(f"warning: {warning}")
     print(f"wrote {out}/track.csv, summary.json, map.png" + (", error.png" if summary["truth_known"] else ""))
 
 
@@ -114,6 +141,16 @@ def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
         raise ValueError(f"[navigation] has a field NavParameters does not know: {error}") from None
 
 
+def _positive_metres(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number of metres, got {text!r}")
+    return value
+
+
 def _scenario_path(text: str) -> Path:
     from .scenario import builtin_scenario_path
 
@@ -127,17 +164,24 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     scenario = load_scenario(path)
     params = _parameters(args, scenario.navigation)
     out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
-    with run_folder(out, replace=args.replace) as folder:
+    with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
         grid, records = simulate(scenario)
-        summary = _navigate(records, grid, params, name=scenario.name, out=folder)
+        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings)
     _print_summary(summary, out)
     return 0
+
+
+#: Options of `lost run` that describe recorded files, meaningless with a scenario.
+_RECORDED_ONLY = ("sonar", "node_m", "crs", "source_crs", "positive", "nodata")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     if args.scenario is not None:
         if args.log or args.bathy:
             raise UsageError("give either a scenario or --log and --bathy, not both")
+        grid_options = [f"--{name.replace('_', '-')}" for name in _RECORDED_ONLY if getattr(args, name) is not None]
+        if grid_options:
+            raise UsageError(f"{', '.join(grid_options)} apply to a recorded tow (--log, --bathy); a scenario sets its map in [terrain]")
         return _run_scenario(_scenario_path(args.scenario), args, args.out)
     if not (args.log and args.bathy):
         raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
@@ -148,12 +192,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
     params = _parameters(args, {})
     out = args.out = args.out or Path("runs") / Path(args.log).stem
-    with run_folder(out, replace=args.replace) as folder:
-        grid = read_grid(args.bathy)
+    with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
+        grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
         records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
                                       patch_shape=args.patch_shape, patch_centre=args.patch_centre)
         print(report.summary())
-        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder)
+        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings)
     _print_summary(summary, out)
     return 0
 
@@ -251,6 +295,14 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
     run.add_argument("--sonar", help="sonar soundings side file of the log")
+    run.add_argument("--node-m", type=_positive_metres, default=None, metavar="METRES",
+                     help="node spacing of the map (and of the sonar patches), metres (default: the grid file's)")
+    run.add_argument("--crs", default=None, help="projected CRS to navigate in (default: the grid's own, or its UTM zone)")
+    run.add_argument("--source-crs", default=None, help="CRS of the grid file's coordinates when it declares none")
+    run.add_argument("--positive", choices=("up", "down"), default=None,
+                     help="the grid holds elevation (up, as GEBCO) or depth (down); default: its metadata, else its data's sign")
+    run.add_argument("--nodata", type=float, default=None, metavar="VALUE",
+                     help="a value of the grid file that marks a hole, when the file declares none (e.g. -32768)")
     run.add_argument("--patch-shape", type=shape_argument, default=(10, 10), metavar="ROWSxCOLS",
                      help="nodes of the sonar patch the soundings are gridded into (default 10x10)")
     run.add_argument("--patch-centre", choices=PATCH_CENTRES, default="vehicle",
