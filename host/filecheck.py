@@ -159,10 +159,18 @@ def native_format(path: Path) -> str | None:
         return None
     nodes = header["nx"] * header["ny"]
     payload = path.stat().st_size - GMT_NATIVE_HEADER_BYTES
-    for code, dtype in _GMT_NATIVE.items():
-        if payload == nodes * np.dtype(dtype).itemsize:
-            return f"gmt:{code}"
-    return None
+    fitting = [code for code, dtype in _GMT_NATIVE.items() if payload == nodes * np.dtype(dtype).itemsize]
+    if len(fitting) > 1:
+        # =bf and =bi are both 4 bytes a node: the one whose values span the header's z range is the format.
+        fitting = [code for code in fitting if _spans_header_range(path, code, header)] or fitting
+    return f"gmt:{fitting[0]}" if fitting else None
+
+
+def _spans_header_range(path: Path, code: str, header: dict) -> bool:
+    values = np.fromfile(path, dtype=np.dtype(_GMT_NATIVE[code]).newbyteorder("<"), offset=GMT_NATIVE_HEADER_BYTES)
+    values = values.astype(np.float64) * header["scale"] + header["offset"]
+    finite = values[np.isfinite(values)]
+    return bool(finite.size) and np.allclose([finite.min(), finite.max()], [header["z_min"], header["z_max"]], rtol=1e-5, atol=1e-6)
 
 
 def _gmt_header(head: bytes) -> dict | None:
@@ -178,7 +186,7 @@ def _gmt_header(head: bytes) -> dict | None:
     if not sane:
         return None
     text = [head[a:b].split(b"\0")[0].decode("latin-1").strip() for a, b in ((92, 172), (172, 252), (252, 332))]
-    return dict(nx=nx, ny=ny, registration=registration, w=w, e=e, s=s, n=n, x_inc=x_inc, y_inc=y_inc,
+    return dict(nx=nx, ny=ny, registration=registration, w=w, e=e, s=s, n=n, x_inc=x_inc, y_inc=y_inc, z_min=z_min, z_max=z_max,
                 scale=scale or 1.0, offset=offset, x_units=text[0], y_units=text[1], z_units=text[2])
 
 

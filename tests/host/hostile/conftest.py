@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from lost.host.cli import main
@@ -47,3 +48,22 @@ def run_cli(capsys):
         return code, out, err
 
     return run
+
+
+@pytest.fixture
+def recorded(tmp_path, tiny):
+    """The tiny scenario written as recorded files: nav.csv, sonar.csv, map.npz and map.nc (elevation, no sign metadata)."""
+    import xarray as xr
+
+    from lost.host.io import write_npz
+    from lost.host.navlog import write_navlog
+    from lost.host.scenario import load_scenario, simulate
+
+    grid, records = simulate(load_scenario(tiny))
+    files = {"nav": tmp_path / "nav.csv", "sonar": tmp_path / "sonar.csv", "npz": write_npz(grid, tmp_path / "map.npz"),
+             "nc": tmp_path / "map.nc"}
+    write_navlog(records, files["nav"], sonar=files["sonar"])
+    rows, cols = grid.shape
+    xr.Dataset({"z": (("y", "x"), -grid.depth_m)},
+               coords={"x": grid.x0_m + grid.node_m * np.arange(cols), "y": grid.y0_m + grid.node_m * np.arange(rows)}).to_netcdf(files["nc"])
+    return files
