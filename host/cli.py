@@ -129,16 +129,28 @@ def _setting(text: str) -> tuple[str, object]:
 
 
 def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
+    """The navigation parameters: ``base`` (a scenario's [navigation]), then --config's, --set, --backend/--matching; strictly validated."""
+    from .config import ConfigError, navigation_parameters, read_navigation_table
+
     overrides = {key: value for key, value in (("backend", args.backend), ("matching", args.matching)) if value is not None}
     settings = dict(args.settings or ())
     fields = set(NavParameters.__dataclass_fields__)
     unknown = sorted(set(settings) - fields)
     if unknown:
         raise UsageError(f"--set names no navigation parameter: {', '.join(unknown)} (known: {', '.join(sorted(fields))})")
-    try:
-        return NavParameters(**{**base, **settings, **overrides})
-    except TypeError as error:
-        raise ValueError(f"[navigation] has a field NavParameters does not know: {error}") from None
+    layers = [("navigation", base)]
+    if getattr(args, "config", None) is not None:
+        layers.append((f"{args.config} [navigation]", read_navigation_table(args.config)))
+    layers += [("--set", settings), ("--backend/--matching", overrides)]
+    merged: dict = {}
+    for where, table in layers:
+        # Each layer alone first, so an error names where its value came from; a bad option value is a usage error.
+        try:
+            navigation_parameters(table, where)
+        except ConfigError as error:
+            raise (UsageError(str(error)) if where.startswith("--") else error) from None
+        merged.update(table)
+    return navigation_parameters(merged)
 
 
 def _positive_metres(text: str) -> float:
@@ -187,7 +199,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
     try:
         from .io import read_grid
-        from .navlog import read_navlog
+        from .navlog import check_against_map, read_navlog
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
     params = _parameters(args, {})
@@ -197,6 +209,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
                                       patch_shape=args.patch_shape, patch_centre=args.patch_centre)
         print(report.summary())
+        warnings += [*report.warnings, *check_against_map(records, grid)]
         summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings)
     _print_summary(summary, out)
     return 0
@@ -308,6 +321,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--patch-centre", choices=PATCH_CENTRES, default="vehicle",
                      help="centre of a record's patch when the log has no patch_east_m/patch_north_m: the vehicle "
                           "(default) or the middle of its soundings (a swath gathered in real time, behind the vehicle)")
+    run.add_argument("--config", type=Path, default=None, metavar="FILE",
+                     help="navigation parameters from the [navigation] table of FILE (a scenario file), over a scenario's own; --set wins")
     navigation_options(run)
     run.set_defaults(handler=_cmd_run)
 
