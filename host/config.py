@@ -131,24 +131,25 @@ def validate_fields(cls: type, table: Any, where: str, constraints: Mapping[str,
     """
     if not isinstance(table, Mapping):
         raise ConfigError(f"[{where}] must be a table of settings, got {table!r}")
+    known = sorted(f.name for f in dataclasses.fields(cls) if f.init)
+    unknown = sorted(set(table) - set(known))
+    if unknown:
+        raise ConfigError(f"[{where or 'top level'}] has unknown field(s) {unknown}; known fields are {known}")
     schema = _schema(cls, tuple(sorted((constraints or {}).items(), key=lambda item: item[0])))
     data = {key: _tuples(value) for key, value in table.items()}
     try:
         validated = schema.model_validate(data)
     except ValidationError as error:
-        raise ConfigError("; ".join(_describe(problem, where, cls) for problem in error.errors())) from None
+        raise ConfigError("; ".join(_describe(problem, where) for problem in error.errors())) from None
     return {key: getattr(validated, key) for key in data}
 
 
-def _describe(problem: Mapping[str, Any], where: str, cls: type) -> str:
+def _describe(problem: Mapping[str, Any], where: str) -> str:
     loc = [str(part) for part in problem["loc"]]
     field = loc[0] if loc else ""
     path = ".".join([where, *loc] if where else loc)
     unit = unit_of(field)
     message = problem["msg"]
-    if problem["type"] == "extra_forbidden":
-        known = sorted(f.name for f in dataclasses.fields(cls) if f.init)
-        return f"{path}: no such setting (known in [{where or 'top level'}]: {', '.join(known)})"
     got = problem.get("input")
     shown = f"{got!r} ({type(got).__name__})" if isinstance(got, str | bool) or got is None else repr(got)
     return f"{path}{f' ({unit})' if unit else ''}: {message}, got {shown}"
