@@ -714,9 +714,11 @@ def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time
     step = np.hypot(np.diff(x[known]), np.diff(y[known]))
     speed = step / dt
     logged = np.hypot(records.vel_x_mps, records.vel_y_mps)
-    moving = np.isfinite(logged[known[1:]]) & (logged[known[1:]] > 0.3)
+    logged = logged[known[1:]]
+    # Moving by either measure (a unit error makes one of them tiny); a zero velocity is a dropout, not a ratio.
+    moving = np.isfinite(logged) & np.isfinite(speed) & (logged > 0) & (np.maximum(logged, speed) > 0.3)
     if moving.sum() >= 3:
-        ratio = float(np.median(speed[moving] / logged[known[1:]][moving]))
+        ratio = float(np.median(speed[moving] / logged[moving]))
         if not 1e-2 < ratio < 1e2:
             raise ValueError(_unit_suspect(ratio, float(np.median(dt)), time_column, geographic, path))
     warnings = []
