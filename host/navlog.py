@@ -283,6 +283,7 @@ def read_navlog(
         values["slant_range_m"] = np.full(keep.sum(), np.nan)
         notes.append("no slant_range_m column: slant range is NaN (not measured) for every record")
 
+    impossible = _impossible_readings(values, kept_rows, lines, path)
     geographic = position == ("lat", "lon")
     if geographic:
         if crs is None:
@@ -341,7 +342,7 @@ def read_navlog(
         truth_x_m=truth_x,
         truth_y_m=truth_y,
     )
-    warnings = zone_warnings + _check_motion(records, kept_rows, lines, path, time_column, geographic)
+    warnings = zone_warnings + impossible + _check_motion(records, kept_rows, lines, path, time_column, geographic)
     report = LoadReport(
         path=str(path),
         warnings=tuple(warnings),
@@ -702,6 +703,40 @@ def _check_zones(column, lines, notes: list) -> list[str]:
             "a bare time is read as UTC, check that it is"
         ]
     return []
+
+
+#: Readings no tow can give: (column, test of the impossible values, why). Such a reading is set to missing and counted.
+_IMPOSSIBLE = (
+    ("altitude_m", lambda v: v < 0, "a negative height above the floor"),
+    ("vehicle_depth_m", lambda v: v < -1.0, "the vehicle more than 1 m above the surface"),
+    ("cable_out_m", lambda v: v < 0, "a negative cable length"),
+    ("slant_range_m", lambda v: v < 0, "a negative range"),
+)
+
+
+def _impossible_readings(values: dict, rows: np.ndarray, lines, path: Path) -> list[str]:
+    """Set physically impossible readings to missing (NaN) and say how many; refuse a cable always shorter than the depth."""
+    warnings = []
+    for column, test, why in _IMPOSSIBLE:
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(test(values[column]))
+        if bad.size:
+            values[column] = values[column].copy()
+            values[column][bad] = np.nan
+            warnings.append(f"{bad.size} {column} reading(s) set to missing, {why} (the first at {_where(int(rows[bad[0]]), lines)})")
+    cable, depth = values["cable_out_m"], values["vehicle_depth_m"]
+    both = np.isfinite(cable) & np.isfinite(depth)
+    short = both & (cable < depth)
+    if both.any() and short.sum() == both.sum():
+        raise ValueError(
+            f"{path.name}: cable_out_m is shorter than vehicle_depth_m in every record (e.g. {cable[short][0]:g} m of cable at "
+            f"{depth[short][0]:g} m depth): a cable in another unit, or the wrong column?"
+        )
+    if short.any():
+        first = int(rows[np.flatnonzero(short)[0]])
+        warnings.append(f"{int(short.sum())} record(s) with less cable out than the vehicle's depth, the first at {_where(first, lines)}: "
+                        "their lay-back is taken as zero")
+    return warnings
 
 
 def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time_column: str, geographic: bool) -> list[str]:

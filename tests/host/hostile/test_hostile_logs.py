@@ -199,3 +199,42 @@ def test_a_recorded_run_reports_log_warnings_in_its_summary(recorded, tmp_path, 
     code, _, _ = run_cli("run", "--log", recorded["nav"], "--bathy", recorded["npz"], "--sonar", recorded["sonar"], "--out", tmp_path / "o")
     assert code == 0
     assert any("faster than any ship" in w for w in json.loads((tmp_path / "o" / "summary.json").read_text())["warnings"])
+
+
+# ------------------------------------------------------------------ physically impossible readings
+
+
+@pytest.mark.parametrize("column, value, why", [
+    ("altitude_m", -3.0, "a negative height above the floor"),
+    ("vehicle_depth_m", -20.0, "the vehicle more than 1 m above the surface"),
+    ("cable_out_m", -600.0, "a negative cable length"),
+])
+def test_an_impossible_reading_is_set_to_missing_and_counted(tmp_path, column, value, why):
+    table = _log()
+    table.loc[[10, 11, 40], column] = value
+    records, report = read_navlog(_write(tmp_path, table))
+    attribute = {"altitude_m": "altitude_m", "vehicle_depth_m": "vehicle_depth_m", "cable_out_m": "cable_out_m"}[column]
+    assert np.isnan(getattr(records, attribute)[[10, 11, 40]]).all() and np.isfinite(getattr(records, attribute)[12])
+    assert any(w.startswith(f"3 {column} reading(s) set to missing, {why} (the first at data row 10") for w in report.warnings)
+
+
+def test_a_negative_slant_range_is_set_to_missing(tmp_path):
+    table = _log()
+    table["slant_range_m"] = 700.0
+    table.loc[5, "slant_range_m"] = -700.0
+    records, report = read_navlog(_write(tmp_path, table))
+    assert np.isnan(records.slant_range_m[5]) and any("1 slant_range_m reading(s)" in w for w in report.warnings)
+
+
+def test_a_cable_shorter_than_the_depth_in_every_record_is_refused(tmp_path):
+    table = _log()
+    table["cable_out_m"] = 0.6  # kilometres
+    with pytest.raises(ValueError, match=r"cable_out_m is shorter than vehicle_depth_m in every record \(e.g. 0.6 m of cable at 300 m"):
+        read_navlog(_write(tmp_path, table))
+
+
+def test_a_cable_shorter_than_the_depth_in_some_records_is_reported(tmp_path):
+    table = _log()
+    table.loc[3:4, "cable_out_m"] = 200.0
+    _, report = read_navlog(_write(tmp_path, table))
+    assert any("2 record(s) with less cable out than the vehicle's depth, the first at data row 3" in w for w in report.warnings)
