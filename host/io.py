@@ -14,6 +14,9 @@ file                      how it is read
 ``.tif .tiff``            GeoTIFF through rasterio, band 1, with its CRS, transform and nodata.
 ``.asc``                  ESRI ASCII grid (EMODnet ships these) through rasterio, with a ``.prj``
                           beside it for the CRS.
+GMT native (any name)     GMT's ``=bf``/``=bd`` binary grids (892-byte header, then the values,
+                          north row first); the integer ones (``=bs``, ``=bi``, ``=bb``) and Surfer
+                          grids are refused with the command that converts them (:mod:`~lost.host.filecheck`).
 ``.npz``                  LOST's own cache, written by :func:`write_npz`; keys ``depth_m`` (2-D,
                           row 0 south), ``x0_m``, ``y0_m``, ``node_m`` and ``crs`` (a CRS string,
                           empty for a local frame).
@@ -22,8 +25,15 @@ file                      how it is read
 ``bounds=(west, south, east, north)``, in the file's own coordinates, reads only a window (from
 NetCDF and GeoTIFF without loading the rest), so a region can be cut from a global GEBCO grid.
 
-Binary files are recognised by content (NetCDF, HDF5, TIFF and zip signatures), so a GMT ``.grd``
-that is really NetCDF reads whatever its name; text files by extension.
+Binary files are recognised by content (NetCDF, HDF5, TIFF and zip signatures, GMT's native
+header), so a GMT ``.grd`` that is really NetCDF reads whatever its name; text files by extension.
+
+Damaged files
+    A NetCDF file shorter than its header says (classic: every variable's extent; NetCDF-4: the HDF5
+    superblock's end of file) is refused as truncated, naming both sizes; a NetCDF or GeoTIFF the
+    library cannot read is named with the library's reason. Values farther from sea level than any
+    sea floor (:data:`lost.host.filecheck.DEEPEST_M`) are refused, with a hint when they look like an
+    undeclared nodata value (``nodata=``).
 
 Coordinates
     A grid in geographic coordinates (longitude/latitude: CF ``degrees_east`` units, ``lon``/``lat``
@@ -39,7 +49,10 @@ Depth sign
     variable's name, standard name or long name (``depth`` means down; ``elevation``, ``height``,
     ``altitude``, ``topo`` mean up); and last the data itself (a negative median means elevation of a
     sea floor). Elevations are negated to depth. The ``lost.host.io`` logger says which: at INFO when
-    metadata decided, at WARNING when the data's sign did (a guess the user should see).
+    metadata decided, at WARNING when the data's sign did (a guess the user should see; ``lost run``
+    puts it in the run's summary). Data holding both signs in earnest (a median of zero or more
+    with at least ``MIXED_SIGN_SHARE`` below zero: mostly land with some sea) are refused without
+    metadata or ``positive``: the data cannot tell.
 
 Holes
     Holes stay holes: NaN in ``Grid.depth_m`` (nodata values, NaN cells, nodes outside a reprojected

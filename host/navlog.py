@@ -60,8 +60,20 @@ Writing
     value: an example survey to run the command line on.
 
 Errors
-    A missing file, a missing required column, a non-numeric cell, latitude/longitude out of range or
-    time not increasing raise ``ValueError`` naming the column, data row and file line.
+    A missing file, a missing required column, a column named twice (compared without case), a file
+    that is not UTF-8 text, a non-numeric cell, latitude/longitude out of range or time not
+    increasing raise ``ValueError`` naming the column, data row and file line. So do positions and
+    logged velocities that disagree by more than a factor of 100 (times in milliseconds, positions in
+    kilometres, a velocity in another unit) and a cable shorter than the depth in every record.
+
+Plausibility
+    Comma, semicolon and tab separated files are read (the separator splits the header). Readings no
+    tow can give (a negative altitude, cable or range; the vehicle more than 1 m above the surface)
+    are set to missing and counted; ship position steps faster than any ship (``MAX_SHIP_SPEED_MPS``),
+    records with less cable than depth and ``time_utc`` columns mixing zoned and bare times are
+    reported: each is a line of :attr:`LoadReport.warnings`. :func:`check_against_map` checks records
+    against the map they are to be navigated on (patch node spacing, positions near the map, with a
+    diagnosis of swapped or kilometre positions).
 """
 
 from __future__ import annotations
