@@ -2,7 +2,8 @@
 
 - :func:`check_whole` compares a file's size with what its header says it holds: classic NetCDF
   (CDF-1, CDF-2, CDF-5: the netCDF library reads a cut-off classic file as zeros, without an
-  error) and HDF5 / NetCDF-4 (the superblock's end-of-file address). A short file is refused with
+  error), HDF5 / NetCDF-4 (the superblock's end-of-file address) and TIFF / BigTIFF (the end of the
+  last strip or tile of every image). A short file is refused with
   its name, both sizes and the likely cause.
 - :func:`native_format` recognises the binary grid formats LOST does not read through a library:
   GMT's native binary grids (``=bf``, ``=bd``, ``=bs``, ``=bi``, ``=bb``: a 892-byte header, then
@@ -39,7 +40,7 @@ _NC_TYPE_SIZE = {1: 1, 2: 1, 3: 2, 4: 4, 5: 4, 6: 8, 7: 1, 8: 2, 9: 4, 10: 8, 11
 
 
 def check_whole(path: Path) -> None:
-    """Refuse a NetCDF (classic or NetCDF-4/HDF5) file shorter than its header says.
+    """Refuse a NetCDF (classic or NetCDF-4/HDF5) or (Big)TIFF file shorter than its header says.
 
     Raises
     ------
@@ -53,6 +54,8 @@ def check_whole(path: Path) -> None:
             expected = _classic_netcdf_size(stream, head[3], path)
         elif head.startswith(b"\x89HDF\r\n\x1a\n"):
             expected = _hdf5_size(stream)
+        elif head[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+            expected = _tiff_size(stream, head, path)
         else:
             return
     if expected is not None and size < expected:
@@ -146,6 +149,64 @@ def _hdf5_size(stream) -> int | None:
         base = int.from_bytes(addresses[:offset_size], "little")
         return base + int.from_bytes(addresses[2 * offset_size:], "little")
     return None
+
+
+# TIFF tags holding where each strip or tile of an image lies, and how long it is.
+_TIFF_OFFSETS, _TIFF_COUNTS = {273: "strip", 324: "tile"}, {279: "strip", 325: "tile"}
+_TIFF_TYPES = {3: "H", 4: "I", 16: "Q"}  # SHORT, LONG, LONG8: the types these tags use
+
+
+def _tiff_size(stream, head: bytes, path: Path) -> int | None:
+    """The end of the last strip or tile of every image (IFD) of a TIFF or BigTIFF file."""
+    order = "<" if head[:2] == b"II" else ">"
+    big = head[2:4] in (b"+\x00", b"\x00+")
+    stream.seek(8 if big else 4)
+    raw = stream.read(8 if big else 4)
+    if len(raw) < (8 if big else 4):
+        return None
+    ifd = struct.unpack(order + ("Q" if big else "I"), raw)[0]
+    end, seen = 0, set()
+    while ifd and ifd not in seen and len(seen) < 1000:
+        seen.add(ifd)
+        tags, ifd = _tiff_ifd(stream, ifd, order, big, path)
+        for kind in ("strip", "tile"):
+            offsets = next((v for t, v in tags.items() if _TIFF_OFFSETS.get(t) == kind), None)
+            counts = next((v for t, v in tags.items() if _TIFF_COUNTS.get(t) == kind), None)
+            if offsets and counts and len(offsets) == len(counts):
+                end = max(end, max(o + c for o, c in zip(offsets, counts)))
+    return end or None
+
+
+def _tiff_ifd(stream, at: int, order: str, big: bool, path: Path) -> tuple[dict[int, list[int]], int]:
+    """The strip and tile tags of the IFD at ``at``, and the offset of the next IFD."""
+    count_fmt, entry_size = ("Q", 20) if big else ("H", 12)
+    stream.seek(at)
+    raw = stream.read(struct.calcsize(count_fmt))
+    if len(raw) < struct.calcsize(count_fmt):
+        raise ValueError(f"{path.name} is truncated: its TIFF directory at byte {at:,} lies past the end of the file")
+    entries = struct.unpack(order + count_fmt, raw)[0]
+    table = stream.read(entries * entry_size)
+    link = stream.read(8 if big else 4)
+    if len(table) < entries * entry_size or len(link) < (8 if big else 4):
+        raise ValueError(f"{path.name} is truncated: its TIFF directory at byte {at:,} ends early")
+    tags = {}
+    for k in range(entries):
+        entry = table[k * entry_size:(k + 1) * entry_size]
+        tag, kind = struct.unpack(order + "HH", entry[:4])
+        if (tag not in _TIFF_OFFSETS and tag not in _TIFF_COUNTS) or kind not in _TIFF_TYPES:
+            continue
+        n = struct.unpack(order + ("Q" if big else "I"), entry[4:12] if big else entry[4:8])[0]
+        inline = entry[12:20] if big else entry[8:12]
+        size = n * struct.calcsize(_TIFF_TYPES[kind])
+        if size <= len(inline):
+            data = inline[:size]
+        else:
+            stream.seek(struct.unpack(order + ("Q" if big else "I"), inline)[0])
+            data = stream.read(size)
+            if len(data) < size:
+                raise ValueError(f"{path.name} is truncated: its list of {_TIFF_OFFSETS.get(tag) or _TIFF_COUNTS[tag]} offsets lies past the end")
+        tags[tag] = list(struct.unpack(order + _TIFF_TYPES[kind] * n, data))
+    return tags, struct.unpack(order + ("Q" if big else "I"), link)[0]
 
 
 def native_format(path: Path) -> str | None:

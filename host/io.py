@@ -280,6 +280,7 @@ def _format_of(path: Path) -> str:
         check_whole(path)
         return "netcdf"
     if magic[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+        check_whole(path)
         return "raster"
     if magic.startswith(b"PK"):
         if path.suffix.lower() != ".npz":

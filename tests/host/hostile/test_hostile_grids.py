@@ -29,10 +29,10 @@ def _netcdf(path, z, *, fmt="NETCDF3_CLASSIC", attrs=None):
     return path
 
 
-def _geotiff(path, band, *, dtype, nodata=None):
+def _geotiff(path, band, *, dtype, nodata=None, **options):
     rows, cols = band.shape
     with rasterio.open(path, "w", driver="GTiff", height=rows, width=cols, count=1, dtype=dtype, crs="EPSG:32631",
-                       transform=Affine(NODE, 0, X0, 0, -NODE, Y0 + rows * NODE), nodata=nodata) as dst:
+                       transform=Affine(NODE, 0, X0, 0, -NODE, Y0 + rows * NODE), nodata=nodata, **options) as dst:
         dst.write(band.astype(dtype), 1)
     return path
 
@@ -96,10 +96,23 @@ def test_a_damaged_netcdf4_is_named_not_a_raw_oserror(tmp_path):
         read_grid(path)
 
 
+@pytest.mark.parametrize("layout", [{}, {"tiled": True, "blockxsize": 16, "blockysize": 16}, {"BIGTIFF": "YES"}, {"compress": "deflate"}],
+                         ids=["strips", "tiles", "bigtiff", "deflate"])
 @pytest.mark.parametrize("keep", [0.3, 0.8])
-def test_a_truncated_geotiff_is_named_not_a_raw_rasterio_error(tmp_path, keep):
-    path = _cut(_geotiff(tmp_path / "cut.tif", _depths(), dtype="float32"), keep)
-    with pytest.raises(ValueError, match="cut.tif cannot be read as a raster, it is truncated or damaged"):
+def test_a_truncated_geotiff_is_refused_by_its_header(tmp_path, keep, layout):
+    path = _cut(_geotiff(tmp_path / "cut.tif", _depths(), dtype="float32", **layout), keep)
+    with pytest.raises(ValueError, match=r"cut.tif is truncated"):
+        read_grid(path, positive="down")
+
+
+def test_a_geotiff_with_damaged_compressed_data_is_named_not_a_raw_rasterio_error(tmp_path):
+    path = _geotiff(tmp_path / "bad.tif", _depths(), dtype="float32", compress="deflate")
+    with rasterio.open(path) as src:
+        offset = int(src.get_tag_item("BLOCK_OFFSET_0_0", "TIFF", bidx=1))
+    data = bytearray(path.read_bytes())
+    data[offset:offset + 64] = b"\xff" * 64  # the first strip's deflate stream scrambled
+    path.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="bad.tif cannot be read as a raster, it is truncated or damaged"):
         read_grid(path, positive="down")
 
 
