@@ -11,8 +11,8 @@
 all (``lost.host.runfolder``): an earlier run there is replaced only with ``--replace``.
 
 Exit codes: 0 done; 1 an error in the inputs or the outputs (one line on stderr naming the file or
-field; ``--debug`` adds the traceback); 2 a usage error (options); 130 interrupted (Ctrl-C), the
-output folder left as it was.
+field; ``--debug`` adds the traceback); 2 a usage error (options); 130 interrupted (Ctrl-C or
+SIGTERM), the output folder left as it was.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import argparse
 import contextlib
 import json
 import logging
+import signal
 import sys
 import time
 import tomllib
@@ -342,6 +343,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def _sigterm_interrupts():
+    """SIGTERM (a job scheduler's stop, ``kill``) unwinds like Ctrl-C, so a run's temporary folder is cleaned up."""
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave the signal alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _exit_code(error: BaseException) -> int:
     if isinstance(error, KeyboardInterrupt):
         return EXIT_INTERRUPTED
@@ -363,7 +381,8 @@ def main(argv: list[str] | None = None) -> int:
         # The demo's own folder holds only the demo: running it again replaces it.
         args.out, args.replace = Path("runs") / "demo", True
     try:
-        return args.handler(args)
+        with _sigterm_interrupts():
+            return args.handler(args)
     except (Exception, KeyboardInterrupt) as error:
         if getattr(args, "debug", False):
             traceback.print_exc(file=sys.stderr)

@@ -21,7 +21,8 @@
 
 The replacement is two renames (old run aside, new run in): between them, for microseconds, ``out``
 does not exist; were the machine to stop there, the previous run is still whole in
-``.NAME.old-XXXX``.
+``.NAME.old-XXXX/run``, and the next run on ``out`` puts it back before anything else. A run killed
+outright (SIGKILL) leaves its ``.NAME.partial-XXXX``; the next run on ``out`` deletes it.
 """
 
 from __future__ import annotations
@@ -121,6 +122,20 @@ def _lock(parent: Path, out: Path) -> Iterator[None]:
         handle.close()
 
 
+def _recover(parent: Path, out: Path) -> None:
+    """Clear what a killed run left beside ``out`` (we hold its lock, so nobody else is using it).
+
+    A partial run is deleted. A previous run set aside for a replacement is put back when the
+    machine stopped between the two renames (``out`` missing), else deleted.
+    """
+    for partial in parent.glob(f".{out.name}.partial-*"):
+        shutil.rmtree(partial, ignore_errors=True)
+    for old in parent.glob(f".{out.name}.old-*"):
+        if not out.exists() and (old / "run").is_dir():
+            os.replace(old / "run", out)
+        shutil.rmtree(old, ignore_errors=True)
+
+
 def _install(partial: Path, out: Path, parent: Path) -> None:
     """Move the finished run into place, replacing (whole) an earlier run or an empty folder."""
     if out.is_dir() and any(out.iterdir()):
@@ -165,6 +180,7 @@ def run_folder(out: str | os.PathLike, *, replace: bool = False) -> Iterator[Pat
     _check_target(out, replace)
     parent = _parent(out)
     with _lock(parent, out):
+        _recover(parent, out)
         _check_target(out, replace)  # again, now that no other run can be installing one
         try:
             partial = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out.name}.partial-"))

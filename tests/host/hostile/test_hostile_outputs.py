@@ -192,3 +192,32 @@ def test_the_demo_replaces_its_own_folder(tmp_path, run_cli, monkeypatch):
 
 def _must_not_run(*args, **kwargs):
     raise AssertionError("the work started before the output folder was checked")
+
+
+def test_sigterm_unwinds_like_ctrl_c(tiny, tmp_path, run_cli, monkeypatch):
+    import signal
+
+    def terminated(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr("lost.host.report.plot_run", terminated)
+    code, _, err = run_cli("run", tiny, "--out", tmp_path / "a")
+    assert code == EXIT_INTERRUPTED and "interrupted; nothing was written to" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.toml"]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+
+
+def test_a_killed_runs_leftovers_are_cleared_by_the_next_run(tiny, tmp_path, run_cli):
+    (tmp_path / ".a.partial-dead").mkdir()
+    (tmp_path / ".a.partial-dead" / "track.csv").write_text("t_s\n0,")
+    assert run_cli("run", tiny, "--out", tmp_path / "a")[0] == EXIT_OK
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "tiny.toml"]
+
+
+def test_a_run_set_aside_by_a_replacement_that_died_is_put_back(tiny, tmp_path, run_cli):
+    aside = tmp_path / ".a.old-dead" / "run"
+    aside.mkdir(parents=True)
+    (aside / "summary.json").write_text('{"name": "the previous run"}')
+    code, _, err = run_cli("run", tiny, "--out", tmp_path / "a")
+    assert code == EXIT_ERROR and "already holds a run" in err  # it is back, and not overwritten without --replace
+    assert json.loads((tmp_path / "a" / "summary.json").read_text())["name"] == "the previous run"
