@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from lost.host.cli import EXIT_ERROR, EXIT_USAGE, main
+
+from .test_hostile_config import BAD_SETTINGS, _with
+from .test_hostile_grids import _cut, _depths, _geotiff, _gmt_native, _land_and_sea, _netcdf
 
 
 def _argparse_exit(argv, capsys):
@@ -109,3 +113,44 @@ def test_a_bad_patch_file_for_correlate_exits_1(recorded, tmp_path, run_cli):
     (tmp_path / "patch.npy").write_bytes(b"not numpy")
     code, _, err = run_cli("correlate", recorded["npz"], tmp_path / "patch.npy")
     assert code == EXIT_ERROR and err.startswith("lost correlate: ")
+
+
+# Every bad setting of the settings suite, through the command line: exit 1, one line naming file and path.
+@pytest.mark.parametrize("table, line, message", BAD_SETTINGS.values(), ids=BAD_SETTINGS.keys())
+def test_every_bad_setting_is_one_line_from_the_command_line(tmp_path, run_cli, table, line, message):
+    code, _, err = run_cli("run", _with(tmp_path, table, line), "--out", tmp_path / "o")
+    assert code == EXIT_ERROR and err.startswith("lost run: s.toml: ") and message in err
+    assert not (tmp_path / "o").exists()
+
+
+def _bad_grids(tmp_path):
+    band = -_depths()
+    band[3, 3] = -32768
+    return {
+        "truncated_classic": (_cut(_netcdf(tmp_path / "a.grd", _depths()), 0.5), "a.grd is truncated"),
+        "truncated_netcdf4": (_cut(_netcdf(tmp_path / "b.nc", _depths(), fmt="NETCDF4"), 0.5), "b.nc is truncated"),
+        "truncated_geotiff": (_cut(_geotiff(tmp_path / "c.tif", _depths(), dtype="float32"), 0.5), "c.tif is truncated"),
+        "untagged_nodata": (_geotiff(tmp_path / "d.tif", band, dtype="int16"), "pass nodata=-32768 (lost run --nodata)"),
+        "mostly_land": (_netcdf(tmp_path / "e.nc", _land_and_sea()), "--positive on the command line"),
+        "gmt_native_int16": (_gmt_native(tmp_path / "f.grd", np.round(_depths()), code="bs"), "gmt grdconvert"),
+        "surfer": (_write(tmp_path / "g.grd", b"DSBB" + bytes(900)), "Surfer 6 binary grid"),
+        "not_a_grid": (_write(tmp_path / "h.nc", b"hello"), "h.nc has a .nc name but its content is not nc"),
+        "unknown_suffix": (_write(tmp_path / "i.dem", b"hello"), "unknown grid format '.dem'"),
+        "empty_xyz": (_write(tmp_path / "j.xyz", b"# nothing\n"), "j.xyz holds no data lines"),
+    }
+
+
+def _write(path, data):
+    path.write_bytes(data)
+    return path
+
+
+GRID_CASES = ["truncated_classic", "truncated_netcdf4", "truncated_geotiff", "untagged_nodata", "mostly_land", "gmt_native_int16", "surfer",
+              "not_a_grid", "unknown_suffix", "empty_xyz"]
+
+
+@pytest.mark.parametrize("case", GRID_CASES)
+def test_every_bad_grid_is_one_line_from_the_command_line(recorded, tmp_path, run_cli, case):
+    path, message = _bad_grids(tmp_path)[case]
+    code, _, err = run_cli("run", "--log", recorded["nav"], "--bathy", path, "--out", tmp_path / "o")
+    assert code == EXIT_ERROR and message in err and "nothing was written to" in err
