@@ -107,20 +107,24 @@ def _classic_netcdf_size(stream, version: int, path: Path) -> int | None:
         dims.append(header.read(header.count))
     header.skip_attributes()
     tag, n = header.read(">i"), header.read(header.count)
-    ends, record_size, record_begins = [], 0, []
+    ends, records_vars = [], []
     for _ in range(n if tag else 0):
         header.skip_name()
         ids = [header.read(header.count) for _ in range(header.read(header.count))]
         header.skip_attributes()
         kind, vsize, begin = header.read(">i"), header.read(header.count), header.read(header.offset)
         shape = [dims[i] for i in ids if 0 <= i < len(dims)]
-        if shape and shape[0] == 0:  # the record dimension
-            record_size += vsize
-            record_begins.append(begin)
+        is_record = bool(shape) and shape[0] == 0  # the record (unlimited) dimension
+        # The unpadded size: the least the file must hold (padding after the last value may be cut by a writer).
+        size = int(np.prod(shape[1:] if is_record else shape, dtype=np.int64)) * _NC_TYPE_SIZE.get(kind, 1)
+        if is_record:
+            records_vars.append((begin, vsize, size))
         else:
-            ends.append(begin + int(np.prod(shape, dtype=np.int64)) * _NC_TYPE_SIZE.get(kind, 1))
-    if record_begins and records:
-        ends.append(min(record_begins) + records * record_size)
+            ends.append(begin + size)
+    if records_vars and records:
+        # A record holds every record variable's slab (padded), except that a lone record variable is not padded.
+        record_size = records_vars[0][2] if len(records_vars) == 1 else sum(vsize for _, vsize, _ in records_vars)
+        ends += [begin + (records - 1) * record_size + size for begin, _, size in records_vars]
     return max(ends, default=None)
 
 

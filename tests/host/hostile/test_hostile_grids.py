@@ -307,3 +307,23 @@ def test_repeated_soundings_of_a_lattice_node_are_averaged(tmp_path):
     path = _xyz(tmp_path / "rep.xyz", z)
     path.write_text(path.read_text() + f"500000.0 5700000.0 {z[0, 0] + 2.0:.3f}\n")
     assert read_grid(path, positive="down").depth_m[0, 0] == pytest.approx(z[0, 0] + 1.0, abs=1e-3)
+
+
+@pytest.mark.parametrize("fmt", ["NETCDF3_64BIT_OFFSET", "NETCDF3_64BIT_DATA"], ids=["cdf2", "cdf5"])
+@pytest.mark.parametrize("record", [False, True], ids=["fixed", "record"])
+def test_cdf2_and_cdf5_grids_are_read_whole_and_refused_cut(tmp_path, fmt, record):
+    import netCDF4
+
+    z = _depths(12, 9)
+    path = tmp_path / "g.nc"
+    with netCDF4.Dataset(path, "w", format=fmt) as ds:
+        ds.createDimension("y", None if record else 12)
+        ds.createDimension("x", 9)
+        ds.createVariable("y", "f8", ("y",))[:] = Y0 + NODE * np.arange(12)
+        ds.createVariable("x", "f8", ("x",))[:] = X0 + NODE * np.arange(9)
+        variable = ds.createVariable("z", "f4", ("y", "x"))
+        variable.positive = "down"
+        variable[:] = z
+    np.testing.assert_allclose(read_grid(path).depth_m, z.astype(np.float32))
+    with pytest.raises(ValueError, match="g.nc is truncated"):
+        read_grid(_cut(path, path.stat().st_size - 40))
