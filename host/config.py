@@ -9,8 +9,9 @@ fields and type hints, so a new field is validated the moment it is declared):
   count, a string no number; an integer is a float (TOML writes ``600`` for ``600.0``); NaN and
   infinities are refused;
 - ranges: a field's type may carry pydantic constraints, e.g. ``speed_kn: PositiveFloat``
-  (``Annotated[float, Field(gt=0)]``); the navigation parameters, whose class lives elsewhere, get
-  theirs from :data:`NAV_CONSTRAINTS`;
+  (``Annotated[float, Field(gt=0)]``), as the scenario tables' do; the navigation parameters keep
+  their ranges in ``NavParameters.__post_init__`` (one place), whose message is prefixed with where
+  the value came from;
 - unknown fields are errors, so a typo never falls back to a default;
 - errors name the field's path and its unit, on one line: ``sensors.sonar.noise (metres): Input
   should be greater than or equal to 0, got -1``.
@@ -34,7 +35,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 __all__ = [
-    "ConfigError", "validate_fields", "navigation_parameters", "read_navigation_table", "NAV_CONSTRAINTS",
+    "ConfigError", "validate_fields", "navigation_parameters", "read_navigation_table",
     "PositiveFloat", "NonNegativeFloat", "PositiveInt", "NonNegativeInt", "Fraction", "FiniteFloat",
 ]
 
@@ -47,22 +48,6 @@ PositiveInt = Annotated[int, Field(gt=0)]
 NonNegativeInt = Annotated[int, Field(ge=0)]
 Fraction = Annotated[float, Field(ge=0, le=1)]
 FiniteFloat = float  # strict mode already refuses NaN and infinities (allow_inf_nan=False)
-
-#: Ranges of :class:`lost.host.nav.NavParameters`' fields (a field not named here is checked for its type only).
-NAV_CONSTRAINTS: dict[str, Any] = {
-    "k": Field(gt=0),
-    "u": Field(gt=0, le=1),
-    "max_cross_accel_mps2": Field(gt=0),
-    "max_cross_speed_mps": Field(gt=0),
-    "cross_damping_per_s": Field(ge=0),
-    "cat_restart_s": Field(gt=0),
-    "search_half_width_m": Field(gt=0),
-    "min_valid_fraction": Field(ge=0, le=1),
-    "min_distinctness": Field(ge=0),
-    "slant_range_gate_m": Field(gt=0),
-    "layback_depth_ratio": Field(gt=0),
-    "lsb_m": Field(gt=0),
-}
 
 # Unit of a field, from the ending of its name: the house names every quantity with its unit.
 _UNITS = (("_mps2", "m/s^2"), ("_mps", "m/s"), ("_per_s", "1/s"), ("_dps", "degrees/s"), ("_deg", "degrees"), ("_kn", "knots"),
@@ -156,17 +141,17 @@ def _describe(problem: Mapping[str, Any], where: str) -> str:
 
 
 def navigation_parameters(table: Mapping[str, Any], where: str = "navigation"):
-    """A :class:`lost.host.nav.NavParameters` from settings validated strictly (types, ranges, names).
+    """A :class:`lost.host.nav.NavParameters` from settings validated strictly (names and types here, ranges by the class).
 
     Raises
     ------
     ConfigError
-        A setting is unknown, of the wrong type or out of range (named by path), or NavParameters
-        itself refuses the combination.
+        A setting is unknown or of the wrong type (named by path), or NavParameters refuses its
+        value or range (its message, prefixed with ``where``).
     """
     from .nav import NavParameters
 
-    values = validate_fields(NavParameters, table, where, NAV_CONSTRAINTS)
+    values = validate_fields(NavParameters, table, where)
     try:
         return NavParameters(**values)
     except (TypeError, ValueError) as error:

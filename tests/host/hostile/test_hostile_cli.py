@@ -37,7 +37,7 @@ def test_bad_options_exit_2_through_argparse(argv, message, capsys):
 @pytest.mark.parametrize("extra, message", [
     (["--set", "k=true"], "--set.k: Input should be a valid number, got True"),
     (["--set", "use_slant_range=yes"], "--set.use_slant_range: Input should be a valid boolean, got 'yes' (str)"),
-    (["--set", "u=-1"], "--set.u: Input should be greater than 0, got -1"),
+    (["--set", "u=-1"], "[--set]: The adaptive constant u must lie in (0, 1)"),
     (["--set", "kay=3"], "--set names no navigation parameter: kay"),
     (["--node-m", "20"], "--node-m apply to a recorded tow"),
     (["--bathy", "map.nc"], "give either a scenario or --log and --bathy, not both"),
