@@ -86,6 +86,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .filecheck import DEEPEST_M
 from .grid import Grid
 from .records import NavRecords, SonarPatch
 from .sonar import _check_shape, grid_soundings, soundings_centre
@@ -139,6 +140,9 @@ class LoadReport:
         Rows of the sonar file.
     soundings_used : int
         Soundings gridded into a patch.
+    soundings_implausible : int
+        Soundings whose depth no sea floor has (more than ``SOUNDING_ABOVE_SURFACE_M`` above the
+        surface, deeper than ``lost.host.filecheck.DEEPEST_M``).
     soundings_without_value : int
         Soundings with an empty or NaN time/record, offset or depth.
     soundings_unmatched : int
@@ -163,6 +167,7 @@ class LoadReport:
     soundings: int = 0
     soundings_used: int = 0
     soundings_without_value: int = 0
+    soundings_implausible: int = 0
     soundings_unmatched: int = 0
     soundings_of_skipped_records: int = 0
     soundings_outside_patch: int = 0
@@ -191,6 +196,7 @@ class LoadReport:
             )
             for label, count in (
                 ("without a value (empty or NaN)", self.soundings_without_value),
+                ("with a depth no sea floor has", self.soundings_implausible),
                 ("matching no record", self.soundings_unmatched),
                 ("of skipped records", self.soundings_of_skipped_records),
                 ("beyond the patch", self.soundings_outside_patch),
@@ -623,6 +629,9 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
         v["t_s"], _ = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=epoch)
         key = "t_s"
     finite = np.isfinite(v[key]) & np.isfinite(v["east_m"]) & np.isfinite(v["north_m"]) & np.isfinite(v["depth_m"])
+    # A sounding above the surface or deeper than any sea is no sounding: counted, not gridded.
+    implausible = finite & ((v["depth_m"] < -SOUNDING_ABOVE_SURFACE_M) | (v["depth_m"] > DEEPEST_M))
+    finite &= ~implausible
 
     # Which kept record (index into record_times) each sounding belongs to; -1 none, -2 a skipped row.
     owner = np.full(len(table), -1, dtype=np.int64)
@@ -679,19 +688,23 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
         sonar_path=str(path),
         soundings=len(table),
         soundings_used=used,
-        soundings_without_value=int((~finite).sum()),
+        soundings_without_value=int((~finite).sum()) - int(implausible.sum()),
+        soundings_implausible=int(implausible.sum()),
         soundings_unmatched=int((finite & (owner == -1)).sum()),
         soundings_of_skipped_records=int((finite & (owner == -2)).sum()),
         soundings_outside_patch=outside,
         records_with_sonar=sum(p is not None for p in patches),
     )
-    assert used + outside + sum(stats[k] for k in ("soundings_without_value", "soundings_unmatched", "soundings_of_skipped_records")) == len(table)
+    assert used + outside + sum(stats[k] for k in ("soundings_without_value", "soundings_implausible", "soundings_unmatched",
+                                                   "soundings_of_skipped_records")) == len(table)
     return tuple(patches), stats
 
 
 # --------------------------------------------------------------------------------------------
 # plausibility
 
+#: A sounding more than this far above the sea surface (a negative depth) is not of the sea floor (drying banks are a few metres).
+SOUNDING_ABOVE_SURFACE_M = 20.0
 #: Faster than any ship that tows a vehicle (about 50 kn): a position step this fast is a bad fix.
 MAX_SHIP_SPEED_MPS = 25.0
 _ZONE = r"(Z|[+-]\d{2}(?::?\d{2})?)$"
@@ -720,7 +733,9 @@ def _check_zones(column, lines, notes: list) -> list[str]:
 #: Readings no tow can give: (column, test of the impossible values, why). Such a reading is set to missing and counted.
 _IMPOSSIBLE = (
     ("altitude_m", lambda v: v < 0, "a negative height above the floor"),
+    ("altitude_m", lambda v: v > DEEPEST_M, "higher above the floor than any sea is deep"),
     ("vehicle_depth_m", lambda v: v < -1.0, "the vehicle more than 1 m above the surface"),
+    ("vehicle_depth_m", lambda v: v > DEEPEST_M, "deeper than any sea"),
     ("cable_out_m", lambda v: v < 0, "a negative cable length"),
     ("slant_range_m", lambda v: v < 0, "a negative range"),
 )
@@ -768,7 +783,7 @@ def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time
         ratio = float(np.median(speed[moving] / logged[moving]))
         if not 1e-2 < ratio < 1e2:
             raise ValueError(_unit_suspect(ratio, float(np.median(dt)), time_column, geographic, path))
-    warnings = []
+    warnings = _check_time_gaps(t, rows, lines) + _check_heading_unit(records)
     fast = np.flatnonzero(speed > MAX_SHIP_SPEED_MPS)
     if fast.size:
         k = int(fast[0])
@@ -777,6 +792,38 @@ def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time
             f"{_where(int(rows[known[k + 1]]), lines)}: {step[k]:.0f} m in {dt[k]:g} s; bad GPS fixes?"
         )
     return warnings
+
+
+#: A gap between records longer than this many typical steps (and a minute) is reported.
+GAP_STEPS = 60
+
+
+def _check_time_gaps(t: np.ndarray, rows: np.ndarray, lines) -> list[str]:
+    steps = np.diff(t)
+    if steps.size < 2:
+        return []
+    limit = max(GAP_STEPS * float(np.median(steps)), 60.0)
+    gaps = np.flatnonzero(steps > limit)
+    if not gaps.size:
+        return []
+    k = int(gaps[0])
+    return [f"{gaps.size} gap(s) in time longer than {limit:g} s, the first {steps[k]:g} s before {_where(int(rows[k + 1]), lines)}: "
+            "the navigation dead-reckons across them"]
+
+
+def _check_heading_unit(records: NavRecords) -> list[str]:
+    """Headings all within [0, 2 pi] while the ship's course turns through more than 20 degrees: radians."""
+    heading = records.ship_heading_deg[np.isfinite(records.ship_heading_deg)]
+    course = np.degrees(np.arctan2(records.vel_x_mps, records.vel_y_mps))
+    course = course[np.isfinite(course) & (np.hypot(records.vel_x_mps, records.vel_y_mps) > 0.3)]
+    if heading.size < 3 or course.size < 3 or np.max(np.abs(heading)) > 2 * np.pi:
+        return []
+    # The spread of the course about its circular mean.
+    mean = np.angle(np.mean(np.exp(1j * np.radians(course))), deg=True)
+    if np.max(np.abs((course - mean + 180.0) % 360.0 - 180.0)) > 20.0 or abs(mean) > 20.0:
+        return [f"ship_heading_deg stays within 0 to {2 * np.pi:.2f} while the ship's course is not near north: "
+                "are the headings in radians? give degrees"]
+    return []
 
 
 def _unit_suspect(ratio: float, median_step: float, time_column: str, geographic: bool, path: Path) -> str:

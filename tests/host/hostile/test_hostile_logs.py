@@ -238,3 +238,39 @@ def test_a_cable_shorter_than_the_depth_in_some_records_is_reported(tmp_path):
     table.loc[3:4, "cable_out_m"] = 200.0
     _, report = read_navlog(_write(tmp_path, table))
     assert any("2 record(s) with less cable out than the vehicle's depth, the first at data row 3" in w for w in report.warnings)
+
+
+def test_a_vehicle_deeper_than_any_sea_is_set_to_missing(tmp_path):
+    table = _log()
+    table.loc[7, "vehicle_depth_m"] = 30000.0  # feet? centimetres? not metres
+    records, report = read_navlog(_write(tmp_path, table))
+    assert np.isnan(records.vehicle_depth_m[7]) and any("1 vehicle_depth_m reading(s) set to missing, deeper than any sea" in w for w in report.warnings)
+
+
+def test_a_long_gap_in_time_is_reported(tmp_path):
+    table = _log()
+    table.loc[30:, "t_s"] += 7200.0  # two hours without a record
+    _, report = read_navlog(_write(tmp_path, table))
+    assert any("1 gap(s) in time longer than 60 s, the first 7201 s before data row 30" in w for w in report.warnings)
+
+
+def test_headings_in_radians_are_reported(tmp_path):
+    table = _log()
+    table["ship_heading_deg"] = np.pi / 2  # east, in radians
+    _, report = read_navlog(_write(tmp_path, table))
+    assert any("are the headings in radians?" in w for w in report.warnings)
+
+
+def test_a_ship_heading_north_in_degrees_is_not_taken_for_radians(tmp_path):
+    table = _log()
+    table[["vel_x_mps", "vel_y_mps", "ship_heading_deg"]] = [0.0, 1.5, 2.0]
+    table["x_m"], table["y_m"] = 500_000.0, 5_700_000.0 + 1.5 * table["t_s"]
+    assert read_navlog(_write(tmp_path, table))[1].warnings == ()
+
+
+def test_soundings_no_sea_floor_has_are_counted_not_gridded(tmp_path):
+    nav = _write(tmp_path, _log(5))
+    (tmp_path / "s.csv").write_text("t_s,east_m,north_m,depth_m\n0,0,0,300\n0,10,0,-500\n0,0,10,32768\n1,0,0,301\n")
+    records, report = read_navlog(nav, sonar=tmp_path / "s.csv", node_m=10.0, patch_shape=(3, 3))
+    assert report.soundings_implausible == 2 and report.soundings_used == 2 and report.soundings_without_value == 0
+    assert np.isnan(records.sonar[0].depth_m[1, 2]) and "not used: 2 with a depth no sea floor has" in report.summary()
