@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import glob
 import os
 import shutil
 import tempfile
@@ -128,9 +129,10 @@ def _recover(parent: Path, out: Path) -> None:
     A partial run is deleted. A previous run set aside for a replacement is put back when the
     machine stopped between the two renames (``out`` missing), else deleted.
     """
-    for partial in parent.glob(f".{out.name}.partial-*"):
+    name = glob.escape(out.name)  # a folder named run[1] is no pattern
+    for partial in parent.glob(f".{name}.partial-*"):
         shutil.rmtree(partial, ignore_errors=True)
-    for old in parent.glob(f".{out.name}.old-*"):
+    for old in parent.glob(f".{name}.old-*"):
         if not out.exists() and (old / "run").is_dir():
             os.replace(old / "run", out)
         shutil.rmtree(old, ignore_errors=True)

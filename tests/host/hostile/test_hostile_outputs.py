@@ -221,3 +221,9 @@ def test_a_run_set_aside_by_a_replacement_that_died_is_put_back(tiny, tmp_path, 
     code, _, err = run_cli("run", tiny, "--out", tmp_path / "a")
     assert code == EXIT_ERROR and "already holds a run" in err  # it is back, and not overwritten without --replace
     assert json.loads((tmp_path / "a" / "summary.json").read_text())["name"] == "the previous run"
+
+
+def test_a_folder_name_with_glob_characters_is_no_pattern(tiny, tmp_path, run_cli):
+    (tmp_path / ".run1.partial-other").mkdir()  # another folder's leftovers, which run[1]'s pattern would match
+    assert run_cli("run", tiny, "--out", tmp_path / "run[1]")[0] == EXIT_OK
+    assert (tmp_path / ".run1.partial-other").is_dir() and (tmp_path / "run[1]" / "summary.json").is_file()
