@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench synth clean verilog lint sim-full cycles
+.PHONY: setup demo test bench bench-nav synth clean verilog lint sim-full cycles
 
 setup: $(STAMP)
 
@@ -29,6 +29,11 @@ test: setup
 
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+# The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
+# build/bench/nav_filters.json.
+bench-nav: setup
+	$(BIN)/python benchmarks/nav_filters.py
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

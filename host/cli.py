@@ -34,7 +34,7 @@ from lost.model.shapes import shape_argument
 
 from . import BACKENDS, correlate
 from .grid import Grid
-from .nav import NavParameters, PreparedMap, run_lost
+from .nav import ESTIMATORS, NavParameters, PreparedMap, navigate
 from .navlog import PATCH_CENTRES
 from .records import NavRecords
 from .runfolder import describe_untouched, run_folder
@@ -83,11 +83,17 @@ def _warnings_collected():
         logger.removeHandler(collector)
 
 
-def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str]) -> dict:
+def _estimators(choice: str) -> tuple[str, ...]:
+    """``--estimator``: one name of ESTIMATORS, or ``all``."""
+    return ESTIMATORS if choice == "all" else (choice,)
+
+
+def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str],
+              estimators: tuple[str, ...] = ESTIMATORS) -> dict:
     from .report import plot_run, summarize, write_summary, write_track_csv
 
     start = time.perf_counter()
-    result = run_lost(records, grid, params, progress=_progress(len(records)))
+    result = navigate(records, grid, params, estimators=estimators, progress=_progress(len(records)))
     elapsed = time.perf_counter() - start
     summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
     summary["warnings"] = list(warnings)
@@ -101,14 +107,16 @@ def _print_summary(summary: dict, out: Path) -> None:
     print(f"{summary['name']}: {summary['records']} records, {summary['duration_s']:.0f} s of tow, navigated in {summary['run_time_s']:.2f} s")
     convergence = summary["convergence"]
     if summary["truth_known"]:
+        who = "LOST" if convergence["estimator"] == "lost" else convergence["estimator"]
         if convergence["converged"]:
-            print(f"LOST converged after {convergence['time_s']:.0f} s from an initial error of {convergence['initial_error_m']:.1f} m")
+            print(f"{who} converged after {convergence['time_s']:.0f} s from an initial error of {convergence['initial_error_m']:.1f} m")
         else:
-            print(f"LOST did not converge (initial error {convergence['initial_error_m']:.1f} m)")
-        print(f"{'method':16s} {'rms_m':>9s} {'p95_m':>9s} {'max_m':>9s}   (after convergence)")
+            print(f"{who} did not converge (initial error {convergence['initial_error_m']:.1f} m)")
+        columns = ("rms_m", "p95_m", "max_m", "nees_in_band", "usable_fraction", "false_fixes", "ms_per_update")
+        print(f"{'method':16s} " + " ".join(f"{c:>15s}" for c in columns) + "   (errors after each one's convergence)")
         for method, stats in summary["methods"].items():
-            cells = ["-" if stats[k] is None else f"{stats[k]:.2f}" for k in ("rms_m", "p95_m", "max_m")]
-            print(f"{method:16s} {cells[0]:>9s} {cells[1]:>9s} {cells[2]:>9s}")
+            cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
+            print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
     print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
     for warning in summary.get("warnings", ()):
         print(f"warning: {warning}")
@@ -179,7 +187,7 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
     with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
         grid, records = simulate(scenario)
-        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings)
+        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator))
     _print_summary(summary, out)
     return 0
 
@@ -211,7 +219,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                       patch_shape=args.patch_shape, patch_centre=args.patch_centre)
         print(report.summary())
         warnings += [*report.warnings, *check_against_map(records, grid)]
-        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings)
+        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings,
+                            estimators=_estimators(args.estimator))
     _print_summary(summary, out)
     return 0
 
@@ -300,6 +309,8 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--replace", action="store_true", help="replace an earlier run in --out (whole); without it such a folder is refused")
         sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
+        sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",
+                         help="the LOST patent pipeline, the point-mass filter, the particle filter, or all three on the same records (default)")
         sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
                          help="a navigation parameter (NavParameters), over the scenario's [navigation]; repeatable; "
                               "VALUE is TOML, or none for the patent's default (e.g. --set u=0.005 --set cross_damping_per_s=none)")

@@ -1,10 +1,20 @@
 """What a run leaves behind: the track CSV, ``summary.json`` and PNG plots.
 
-"After convergence", precisely: LOST has converged at the first record from which its horizontal
-error stays within ``radius_m`` (default 20 m, two map nodes) for ``hold_s`` seconds (default 60 s)
-without a break; the after-convergence statistics of every method are taken over the records from
-that moment to the end of the run, excursions included. A run that never converges reports
-``converged: false`` and no after-convergence figures.
+"After convergence", precisely: an estimator has converged at the first record from which its
+horizontal error stays within ``radius_m`` (default 20 m, two map nodes) for ``hold_s`` seconds
+(default 60 s) without a break; its after-convergence statistics are taken over the records from that
+moment to the end of the run, excursions included. The baselines are measured from LOST's moment (the
+top-level ``convergence``). A run that never converges reports ``converged: false`` and no
+after-convergence figures.
+
+The Bayesian filters' trust figures (``methods.pmf``, ``methods.pf``):
+
+- ``nees_in_band``: the share of terrain updates after convergence whose NEES (the squared error
+  weighted by the inverse covariance, chi-square with 2 degrees of freedom for a consistent filter)
+  lies in its two-sided 95 % band [0.051, 7.38];
+- ``false_fixes``: records flagged usable whose error lies beyond 3 sigma (NEES above 11.83);
+- ``usable_fraction``: the share of records flagged usable;
+- ``ms_per_update``: the median wall time of the estimator's work at a record, milliseconds.
 """
 
 from __future__ import annotations
@@ -17,14 +27,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.stats import chi2
 
 from .grid import Grid
-from .nav.pipeline import NavResult
+from .nav.pipeline import FilterTrack, NavResult
 
 __all__ = ["ConvergenceRule", "error_stats", "convergence_index", "summarize", "write_track_csv", "write_summary", "plot_run", "METHODS"]
 
 #: summary.json's method names and the NavResult fields they read.
 METHODS = {"lost": "estimate", "layback": "layback", "dead_reckoning": "dead_reckoning"}
+
+#: NEES of a consistent 2-D estimate: its two-sided 95 % band, and 3 sigma (99.73 %).
+NEES_BAND = (float(chi2.ppf(0.025, 2)), float(chi2.ppf(0.975, 2)))
+NEES_3_SIGMA = float(chi2.ppf(0.9973, 2))
+#: Stages at which a filter made a terrain update.
+UPDATE_STAGES = ("acquisition", "tracking")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,6 +80,39 @@ def error_stats(errors: np.ndarray) -> dict[str, float | int | None]:
     }
 
 
+def nees(track: FilterTrack, truth: np.ndarray) -> np.ndarray:
+    """Normalized estimation error squared of every record (NaN without an estimate or a covariance)."""
+    error = track.position - truth
+    out = np.full(len(error), np.nan)
+    ok = np.isfinite(error).all(axis=1) & np.isfinite(track.covariance).all(axis=(1, 2))
+    out[ok] = np.einsum("ni,nij,nj->n", error[ok], np.linalg.pinv(track.covariance[ok]), error[ok])
+    return out
+
+
+def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | None) -> dict[str, Any]:
+    """The trust figures of one Bayesian filter (see the module docstring); None where the truth is needed but unknown."""
+    updates = np.isin(track.stage, UPDATE_STAGES)
+    timed = np.isfinite(track.ms) & (track.stage != "initialization")
+    figures: dict[str, Any] = {
+        "usable_fraction": round(float(track.usable.mean()), 4) if len(track.usable) else None,
+        "ms_per_update": round(float(np.median(track.ms[timed])), 3) if timed.any() else None,
+        "terrain_updates": int(updates.sum()),
+        "counts": dict(track.counts),
+        "nees_in_band": None,
+        "false_fixes": None,
+    }
+    if truth is None:
+        return figures
+    value = nees(track, truth)
+    figures["false_fixes"] = int(np.count_nonzero(track.usable & (value > NEES_3_SIGMA)))
+    if start is not None:
+        after = updates & (np.arange(len(value)) >= start) & np.isfinite(value)
+        if after.any():
+            inside = (value[after] >= NEES_BAND[0]) & (value[after] <= NEES_BAND[1])
+            figures["nees_in_band"] = round(float(inside.mean()), 4)
+    return figures
+
+
 def convergence_index(t_s: np.ndarray, errors: np.ndarray, rule: ConvergenceRule) -> int | None:
     """Index of the first record of the first unbroken stretch within ``rule.radius_m`` lasting ``rule.hold_s``."""
     inside = np.isfinite(errors) & (errors <= rule.radius_m)
@@ -95,20 +145,42 @@ def summarize(result: NavResult, *, name: str, parameters: dict[str, Any], rule:
         "convergence": {"definition": rule.describe(), "radius_m": rule.radius_m, "hold_s": rule.hold_s},
         "methods": {},
     }
+    filters = {name: track for name, track in result.tracks.items() if name != "lost"}
     if result.truth is None:
+        for name, track in filters.items():
+            summary["methods"][name] = filter_figures(track, None, None)
         return summary
     errors = {method: horizontal_error(getattr(result, field), result.truth) for method, field in METHODS.items()}
-    start = convergence_index(result.t_s, errors["lost"], rule)
-    first = np.flatnonzero(np.isfinite(errors["lost"]))
+    # The top-level convergence is LOST's, or the first filter's when LOST did not run.
+    primary = "lost" if "lost" in result.tracks or not result.tracks else next(iter(result.tracks))
+    reference = errors["lost"] if primary == "lost" else horizontal_error(result.tracks[primary].position, result.truth)
+    start = convergence_index(result.t_s, reference, rule)
+    first = np.flatnonzero(np.isfinite(reference))
     summary["convergence"].update(
+        estimator=primary,
         converged=start is not None,
         time_s=None if start is None else float(result.t_s[start] - result.t_s[0]),
-        initial_error_m=None if not first.size else round(float(errors["lost"][first[0]]), 3),
+        initial_error_m=None if not first.size else round(float(reference[first[0]]), 3),
     )
     for method, error in errors.items():
-        after = error_stats(error[start:]) if start is not None else {"rms_m": None, "p95_m": None, "max_m": None, "records": 0}
-        summary["methods"][method] = {**after, "whole_run": error_stats(error)}
+        if method == "lost" and not _ran_lost(result):
+            continue
+        summary["methods"][method] = _accuracy(error, start)
+    for name, track in filters.items():
+        error = horizontal_error(track.position, result.truth)
+        own = convergence_index(result.t_s, error, rule)
+        summary["methods"][name] = {
+            **_accuracy(error, own),
+            "converged": own is not None,
+            "convergence_time_s": None if own is None else float(result.t_s[own] - result.t_s[0]),
+            **filter_figures(track, result.truth, own),
+        }
     return summary
+
+
+def _accuracy(error: np.ndarray, start: int | None) -> dict[str, Any]:
+    after = error_stats(error[start:]) if start is not None else {"rms_m": None, "p95_m": None, "max_m": None, "records": 0}
+    return {**after, "whole_run": error_stats(error)}
 
 
 def _fmt(value: float) -> str:
@@ -122,6 +194,10 @@ def write_track_csv(path: Path, result: NavResult) -> None:
     tracker used unless the ship's fix was missing, counted as ``cat_no_ship_fix``),
     ``dead_reckoning`` (no MLE), ``off_map`` (dead reckoning because the prediction left the map),
     ``initialization`` (the lay-back start) or ``uninitialized``. Empty cells are missing values.
+
+    Each Bayesian filter that ran adds ``<name>_x_m``, ``<name>_y_m``, its covariance
+    (``<name>_sxx``, ``<name>_syy``, ``<name>_sxy``, m**2), ``<name>_usable`` (0/1), ``<name>_nis``,
+    ``<name>_stage``, ``<name>_rejected`` and ``<name>_error_m``.
     """
     started = np.flatnonzero(np.isfinite(result.estimate[:, 0]))
     first = int(started[0]) if started.size else -1
@@ -132,6 +208,10 @@ def write_track_csv(path: Path, result: NavResult) -> None:
         "pred_x_m", "pred_y_m", "mle_x_m", "mle_y_m", "distinctness", "cat_x_m", "cat_y_m", "cross_velocity_mps",
         "slant_corrected", "layback_x_m", "layback_y_m", "layback_error_m", "dr_x_m", "dr_y_m", "dr_error_m",
     ]
+    filters = {name: track for name, track in result.tracks.items() if name != "lost"}
+    for name in filters:
+        header += [f"{name}_{column}" for column in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "nis", "stage", "rejected", "error_m")]
+    filter_errors = {name: horizontal_error(track.position, truth) for name, track in filters.items()}
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
         writer.writerow(header)
@@ -149,57 +229,110 @@ def write_track_csv(path: Path, result: NavResult) -> None:
                  int(result.off_map[n]), *map(_fmt, result.predicted[n]), *map(_fmt, result.mle[n]), _fmt(result.distinctness[n]),
                  *map(_fmt, result.cat[n]),
                  _fmt(result.cross_velocity_mps[n]), int(result.slant_corrected[n]), *map(_fmt, result.layback[n]),
-                 _fmt(errors["layback"][n]), *map(_fmt, result.dead_reckoning[n]), _fmt(errors["dead_reckoning"][n])]
+                 _fmt(errors["layback"][n]), *map(_fmt, result.dead_reckoning[n]), _fmt(errors["dead_reckoning"][n]),
+                 *(cell for name, track in filters.items() for cell in _filter_cells(track, n, filter_errors[name][n]))]
             )
+
+
+def _filter_cells(track: FilterTrack, n: int, error: float) -> list[str]:
+    c = track.covariance[n]
+    return [*map(_fmt, track.position[n]), _fmt(c[0, 0]), _fmt(c[1, 1]), _fmt(c[0, 1]), str(int(track.usable[n])), _fmt(track.nis[n]),
+            str(track.stage[n]), str(track.rejected[n]), _fmt(error)]
 
 
 def write_summary(path: Path, summary: dict[str, Any]) -> None:
     path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
 
 
+#: Colour and line style of each method in the plots.
+STYLES = {"layback": ("tab:orange", "--"), "dead_reckoning": ("tab:gray", ":"), "lost": ("tab:red", "-"), "pmf": ("tab:blue", "-"),
+          "pf": ("tab:purple", "-")}
+
+
+def _ran_lost(result: NavResult) -> bool:
+    """Whether the patent pipeline ran (a result built without estimator tracks is the patent's alone)."""
+    return not result.tracks or "lost" in result.tracks
+
+
+def _tracks(result: NavResult) -> dict[str, np.ndarray]:
+    """Every method's positions by name, those that ran."""
+    tracks = {method: getattr(result, field) for method, field in METHODS.items() if method != "lost" or _ran_lost(result)}
+    tracks.update({name: track.position for name, track in result.tracks.items() if name != "lost"})
+    return tracks
+
+
 def plot_run(out_dir: Path, result: NavResult, grid: Grid, summary: dict[str, Any]) -> list[Path]:
-    """``map.png`` (the bathymetry with the tracks) and, when the truth is known, ``error.png``."""
+    """``map.png`` (the bathymetry with the tracks and the filters' 2-sigma ellipses) and, when the
+    truth is known, ``error.png`` (each method's error, each filter's 2-sigma radius as a band)."""
     import matplotlib
 
     matplotlib.use("Agg")  # files only, no display
     import matplotlib.pyplot as plt
 
-    paths = []
-    rows, cols = grid.shape
-    extent = (grid.x0_m - grid.node_m / 2, grid.x0_m + (cols - 0.5) * grid.node_m,
-              grid.y0_m - grid.node_m / 2, grid.y0_m + (rows - 0.5) * grid.node_m)
+    paths = [out_dir / "map.png"]
     fig, ax = plt.subplots(figsize=(10, 6), layout="constrained")
-    image = ax.imshow(grid.depth_m, origin="lower", extent=extent, cmap="viridis_r")
-    fig.colorbar(image, ax=ax, label="depth (m)")
-    styles = {"layback": ("tab:orange", "--"), "dead_reckoning": ("tab:gray", ":"), "lost": ("tab:red", "-")}
-    if result.truth is not None:
-        ax.plot(result.truth[:, 0], result.truth[:, 1], color="white", lw=2.5, label="truth")
-    for method, field in METHODS.items():
-        color, style = styles[method]
-        track = getattr(result, field)
-        ax.plot(track[:, 0], track[:, 1], color=color, ls=style, lw=1.2, label=method)
-    # Frame the tracks, not the whole map, with a margin of a search area.
-    tracks = np.vstack([getattr(result, field) for field in METHODS.values()] + ([result.truth] if result.truth is not None else []))
-    low, high = np.nanmin(tracks, axis=0) - 500.0, np.nanmax(tracks, axis=0) + 500.0
-    ax.set(xlim=(max(low[0], extent[0]), min(high[0], extent[1])), ylim=(max(low[1], extent[2]), min(high[1], extent[3])))
-    ax.set(xlabel="easting (m)", ylabel="northing (m)", title=f"{summary['name']}: tracks over the map", aspect="equal")
-    ax.legend(loc="upper right", fontsize="small")
-    paths.append(out_dir / "map.png")
+    _draw_map(fig, ax, result, grid, summary)
     fig.savefig(paths[-1], dpi=110)
     plt.close(fig)
     if result.truth is None:
         return paths
-    fig, ax = plt.subplots(figsize=(10, 4), layout="constrained")
-    for method, field in METHODS.items():
-        color, style = styles[method]
-        ax.plot(result.t_s, horizontal_error(getattr(result, field), result.truth), color=color, ls=style, label=method)
-    converged = summary["convergence"].get("time_s")
-    if converged is not None:
-        ax.axvline(result.t_s[0] + converged, color="black", lw=0.8, label="converged")
-    ax.set(xlabel="time (s)", ylabel="horizontal error (m)", yscale="log", title=f"{summary['name']}: horizontal error")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
     paths.append(out_dir / "error.png")
+    fig, ax = plt.subplots(figsize=(10, 4), layout="constrained")
+    _draw_errors(ax, result, summary)
     fig.savefig(paths[-1], dpi=110)
     plt.close(fig)
     return paths
+
+
+def _two_sigma_radius(covariance: np.ndarray) -> np.ndarray:
+    """Twice the larger 1-sigma axis of each covariance, metres."""
+    return 2.0 * np.sqrt(np.maximum(np.linalg.eigvalsh(np.nan_to_num(covariance))[:, -1], 0.0))
+
+
+def _draw_map(fig, ax, result: NavResult, grid: Grid, summary: dict[str, Any]) -> None:
+    from matplotlib.patches import Ellipse
+
+    rows, cols = grid.shape
+    extent = (grid.x0_m - grid.node_m / 2, grid.x0_m + (cols - 0.5) * grid.node_m,
+              grid.y0_m - grid.node_m / 2, grid.y0_m + (rows - 0.5) * grid.node_m)
+    image = ax.imshow(grid.depth_m, origin="lower", extent=extent, cmap="viridis_r")
+    fig.colorbar(image, ax=ax, label="depth (m)")
+    if result.truth is not None:
+        ax.plot(result.truth[:, 0], result.truth[:, 1], color="white", lw=2.5, label="truth")
+    tracks = _tracks(result)
+    for method, track in tracks.items():
+        color, style = STYLES[method]
+        ax.plot(track[:, 0], track[:, 1], color=color, ls=style, lw=1.2, label=method)
+    for name, track in result.tracks.items():
+        if name == "lost":
+            continue
+        # A 2-sigma ellipse at about twenty records along the run.
+        for n in np.linspace(0, len(result.t_s) - 1, 20).astype(int):
+            if not np.isfinite(track.covariance[n]).all() or not np.isfinite(track.position[n]).all():
+                continue
+            values, vectors = np.linalg.eigh(track.covariance[n])
+            angle = float(np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1])))
+            width, height = 4.0 * np.sqrt(np.maximum(values[::-1], 0.0))
+            ax.add_patch(Ellipse(track.position[n], width, height, angle=angle, fill=False, color=STYLES[name][0], lw=0.8))
+    # Frame the tracks, not the whole map, with a margin of a search area.
+    points = np.vstack(list(tracks.values()) + ([result.truth] if result.truth is not None else []))
+    low, high = np.nanmin(points, axis=0) - 500.0, np.nanmax(points, axis=0) + 500.0
+    ax.set(xlim=(max(low[0], extent[0]), min(high[0], extent[1])), ylim=(max(low[1], extent[2]), min(high[1], extent[3])))
+    ax.set(xlabel="easting (m)", ylabel="northing (m)", title=f"{summary['name']}: tracks over the map (2-sigma ellipses)", aspect="equal")
+    ax.legend(loc="upper right", fontsize="small")
+
+
+def _draw_errors(ax, result: NavResult, summary: dict[str, Any]) -> None:
+    for method, track in _tracks(result).items():
+        color, style = STYLES[method]
+        ax.plot(result.t_s, horizontal_error(track, result.truth), color=color, ls=style, lw=1.0, label=method)
+    for name, track in result.tracks.items():
+        if name != "lost":
+            ax.fill_between(result.t_s, 0.0, _two_sigma_radius(track.covariance), color=STYLES[name][0], alpha=0.15, lw=0,
+                            label=f"{name} 2 sigma")
+    converged = summary["convergence"].get("time_s")
+    if converged is not None:
+        ax.axvline(result.t_s[0] + converged, color="black", lw=0.8, label=f"{summary['convergence']['estimator']} converged")
+    ax.set(xlabel="time (s)", ylabel="horizontal error (m)", yscale="log", title=f"{summary['name']}: horizontal error")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small", ncol=2)

@@ -60,6 +60,28 @@ def map_error_estimate(depth_m: np.ndarray) -> float:
     return 0.5 * float(np.sqrt(np.mean(difference**2))) if difference.size else 0.0
 
 
+def _bilinear(values: np.ndarray, valid: np.ndarray, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear interpolation at fractional (row, col), and whether all four nodes around are inside and valid."""
+    if values.shape[0] == 1 or values.shape[1] == 1:
+        # One row (or column) of placements: doubled, a point on it interpolates with a zero far weight.
+        reps = (2 if values.shape[0] == 1 else 1, 2 if values.shape[1] == 1 else 1)
+        values, valid = np.tile(values, reps), np.tile(valid, reps)
+    rows, cols = values.shape
+    r0, c0 = np.floor(row).astype(np.intp), np.floor(col).astype(np.intp)
+    fr, fc = row - r0, col - c0
+    # A point on the last row or column uses the cell before it (its far weight is zero).
+    r0 = np.where((r0 == rows - 1) & (fr == 0.0), r0 - 1, r0)
+    c0 = np.where((c0 == cols - 1) & (fc == 0.0), c0 - 1, c0)
+    fr, fc = row - r0, col - c0
+    inside = (r0 >= 0) & (r0 + 1 < rows) & (c0 >= 0) & (c0 + 1 < cols)
+    r0c, c0c = np.clip(r0, 0, rows - 1), np.clip(c0, 0, cols - 1)
+    r1c, c1c = np.clip(r0 + 1, 0, rows - 1), np.clip(c0 + 1, 0, cols - 1)
+    ok = inside & valid[r0c, c0c] & valid[r0c, c1c] & valid[r1c, c0c] & valid[r1c, c1c]
+    value = ((1 - fr) * ((1 - fc) * values[r0c, c0c] + fc * values[r0c, c1c])
+             + fr * ((1 - fc) * values[r1c, c0c] + fc * values[r1c, c1c]))
+    return value, ok
+
+
 @dataclass(frozen=True)
 class PatchLikelihood:
     """A patch's log-likelihood at a set of candidate vehicle positions.
@@ -117,11 +139,18 @@ class TerrainLikelihood:
         self.form = form
         self._backend = backend
 
-    def patch(self, x_m: np.ndarray, y_m: np.ndarray, patch: SonarPatch, *, weight: float = 1.0) -> PatchLikelihood | None:
+    def patch(self, x_m: np.ndarray, y_m: np.ndarray, patch: SonarPatch, *, weight: float = 1.0,
+              sigma_scale: float = 1.0, spacing_m: float = 0.0) -> PatchLikelihood | None:
         """Log-likelihood of ``patch`` were the vehicle at each (x, y); None for a patch with no valid node.
 
         The patch centre is placed ``patch.centre_offset_m`` from each candidate; the surface is computed
         once over the placements that the candidates span and interpolated bilinearly between nodes.
+        ``sigma_scale`` multiplies the residual sigma (a filter's running estimate of how much larger
+        the real residuals are than the nominal sigma); the misfit stays in nominal units.
+        ``spacing_m``: the candidates' spacing. Where it is coarser than the map's nodes, the
+        likelihood is averaged over a candidate's own cell before it is read there, so a narrow peak
+        counts by its mass rather than by whether a candidate happens to sit on it (point-sampled,
+        equal look-alike peaks would win or lose by the candidates' aliasing).
         """
         grid, prep = self._grid, self._prep
         if not math.isclose(patch.node_m, grid.node_m, rel_tol=1e-9):
@@ -149,25 +178,64 @@ class TerrainLikelihood:
         valid = ~prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1]
         if self.form == "laplace":
             per_node = residual  # mean |r| (metres) at each placement
-            ell = -math.sqrt(2.0) * n * per_node / self.sigma_m
+            ell = -math.sqrt(2.0) * n * per_node / (self.sigma_m * sigma_scale)
             expected = self.sigma_m / math.sqrt(2.0) * (n - 1) / n
         else:
             per_node = residual  # mean r**2
-            ell = -n * per_node / (2.0 * self.sigma_m**2)
+            ell = -n * per_node / (2.0 * (self.sigma_m * sigma_scale) ** 2)
             expected = self.sigma_m**2 * (n - 1) / n
         if not valid.any():
             shape = np.shape(x)
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
         misfit = float(per_node[valid].min() / expected)
-        neutral = weight * float(np.median(ell[valid]))
         if self.form == "gaussian" and math.isfinite(misfit):
             misfit = math.sqrt(misfit)  # in residual units, like the Laplace form's
-        coords = np.stack([np.ravel(pi - i0), np.ravel(pj - j0)])
-        share = ndimage.map_coordinates(valid.astype(np.float64), coords, order=1, mode="constant", cval=0.0)
-        value = ndimage.map_coordinates(np.where(valid, ell, 0.0), coords, order=1, mode="constant", cval=0.0)
-        informative = share > 1.0 - 1e-9
-        log_likelihood = np.where(informative, weight * value, neutral).reshape(np.shape(x))
+        ell = weight * ell
+        size = int(round(spacing_m / grid.node_m))
+        if size > 1:
+            top = float(ell[valid].max())
+            mass = ndimage.uniform_filter(np.where(valid, np.exp(ell - top), 0.0), size=size, mode="constant")
+            share_of_valid = ndimage.uniform_filter(valid.astype(np.float64), size=size, mode="constant")
+            valid = share_of_valid > 0.5
+            ell = np.log(np.maximum(mass / np.maximum(share_of_valid, 1e-12), 1e-300)) + top
+        neutral = float(np.median(ell[valid]))
+        value, informative = _bilinear(np.where(valid, ell, 0.0), valid, np.ravel(pi - i0), np.ravel(pj - j0))
+        log_likelihood = np.where(informative, value, neutral).reshape(np.shape(x))
         return PatchLikelihood(log_likelihood, informative.reshape(np.shape(x)), misfit, weight, n)
+
+    def margin(self, centre_m: np.ndarray, patch: SonarPatch, *, radius_m: float, exclusion_m: float) -> float:
+        """How much better the patch fits near ``centre_m`` than anywhere else within ``radius_m``.
+
+        The best log-likelihood (untempered, per valid node) within ``exclusion_m`` (Chebyshev) of the
+        centre, minus the best beyond it and within ``radius_m``; on the map's placements, holes
+        excluded. Near zero or negative: the terrain looks alike elsewhere, and following one mode
+        would be a guess. NaN when either region has no valid placement.
+        """
+        grid, prep = self._grid, self._prep
+        words, mask, _ = prep.quantize_patch(patch.depth_m)
+        n = int(mask.sum())
+        h, w = words.shape
+        rows, cols = grid.shape
+        if n < 2 or h > rows or w > cols:
+            return float("nan")
+        row, col = grid.row_col(centre_m[0] + patch.centre_offset_m[0], centre_m[1] + patch.centre_offset_m[1])
+        ci, cj = float(row) - (h - 1) / 2, float(col) - (w - 1) / 2
+        reach = radius_m / grid.node_m
+        i0, i1 = max(int(np.floor(ci - reach)), 0), min(int(np.ceil(ci + reach)), rows - h)
+        j0, j1 = max(int(np.floor(cj - reach)), 0), min(int(np.ceil(cj + reach)), cols - w)
+        if i0 > i1 or j0 > j1:
+            return float("nan")
+        per_node = self._mean_abs_or_square(words, mask, i0, i1, j0, j1, h, w)
+        if self.form == "gaussian":
+            per_node = np.sqrt(per_node)
+        score = -per_node / self.sigma_m  # per valid node, in nominal residual units
+        valid = ~prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1]
+        ii, jj = np.meshgrid(np.arange(i0, i1 + 1) - ci, np.arange(j0, j1 + 1) - cj, indexing="ij")
+        near = valid & (np.maximum(np.abs(ii), np.abs(jj)) * grid.node_m <= exclusion_m)
+        far = valid & ~near
+        if not (near.any() and far.any()):
+            return float("nan")
+        return float(score[near].max() - score[far].max())
 
     def _mean_abs_or_square(self, words: np.ndarray, mask: np.ndarray, i0: int, i1: int, j0: int, j1: int, h: int, w: int) -> np.ndarray:
         """Per placement, the mean |residual| (Laplace, from the correlator) or mean residual**2 (Gaussian), metres."""

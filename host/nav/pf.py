@@ -58,6 +58,8 @@ class ParticleFilter:
         self.counts = self._trust.counts
         self._rng = np.random.default_rng(seed)
         self._n = int(params.pf_particles)
+        self._pending_var = 0.0  # floor variance owed to the cloud, spread in the next prediction
+        self._cached: tuple[np.ndarray, np.ndarray] | None = None
         self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2
         self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
 
@@ -72,9 +74,19 @@ class ParticleFilter:
         bias_sigma = self._p.velocity_bias_sigma_mps
         self._b = self._rng.normal(0.0, bias_sigma, (n, 2)) if bias_sigma > 0 else np.zeros((n, 2))
         self._w = np.full(n, 1.0 / n)
+        self._pending_var, self._cached = 0.0, None
+
+    def _spacing(self) -> float:
+        """The particles' typical spacing, metres: a square of four sigma a side shared among them."""
+        _, cov = self._moments()
+        return 4.0 * math.sqrt(max(math.sqrt(max(np.linalg.det(cov), 0.0)), 0.0) / self._n)
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
-        return moments(self._w, self._x, self._y)
+        """Mean and covariance of the cloud (with the floor variance it is owed), cached until it changes."""
+        if self._cached is None:
+            mean, cov = moments(self._w, self._x, self._y)
+            self._cached = mean, cov + self._pending_var * np.eye(2)
+        return self._cached
 
     @property
     def velocity_bias_mps(self) -> np.ndarray:
@@ -87,8 +99,9 @@ class ParticleFilter:
     def predict(self, motion: Motion) -> None:
         dt = motion.dt_s
         v = np.asarray(motion.velocity_mps, float)
-        sigma = math.sqrt(self._trust.growth_variance(dt))
-        noise = self._rng.normal(0.0, 1.0, (self._n, 2))
+        sigma = math.sqrt(self._trust.growth_variance(dt) + self._pending_var)
+        self._pending_var, self._cached = 0.0, None
+        noise = self._rng.standard_normal((self._n, 2))
         self._x += (v[0] - self._b[:, 0]) * dt + sigma * noise[:, 0]
         self._y += (v[1] - self._b[:, 1]) * dt + sigma * noise[:, 1]
         if self._p.velocity_bias_walk_mps > 0:
@@ -113,8 +126,12 @@ class ParticleFilter:
     def _terrain_update(self, observation: Observation) -> None:
         patch = observation.patch
         length = max(patch.depth_m.shape) * patch.node_m
-        result = self._lik.patch(self._x, self._y, patch, weight=self._trust.patch_weight(length))
+        result = self._lik.patch(self._x, self._y, patch, weight=self._trust.patch_weight(length),
+                                sigma_scale=self._trust.misfit_level, spacing_m=self._spacing())
         if result is None:
+            self.counts["patch_too_sparse"] += 1
+            return
+        if result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
             self.counts["patch_too_sparse"] += 1
             return
         if not result.informative.any():
@@ -122,10 +139,13 @@ class ParticleFilter:
             self._stage = "off_map"
             return
         # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
-        if result.misfit > self._p.misfit_gate and self._w[result.informative].sum() > 0.5:
+        if self._trust.misfit_refused(result.misfit) and self._w[result.informative].sum() > 0.5:
             self._reject("misfit", terrain=True)
             return
-        self._apply(result.log_likelihood, terrain=True)
+        if self._apply(result.log_likelihood, terrain=True):
+            self._trust.note_misfit(result.misfit)
+            self._trust.look_alike(self._lik, *self._moments(), patch)
+            self._stage = "tracking" if self._trust.usable else "acquisition"
 
     def _range_update(self, observation: Observation) -> None:
         frame = observation.frame
@@ -137,37 +157,39 @@ class ParticleFilter:
         distance = np.hypot(self._x - frame.ship_x_m, self._y - frame.ship_y_m)
         self._apply(-0.5 * ((distance - math.sqrt(horizontal_sq)) / self._p.slant_range_sigma_m) ** 2, terrain=False)
 
-    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> None:
+    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> bool:
+        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used."""
         prior_mean, prior_cov = self._moments()
         log_w = np.log(np.maximum(self._w, 1e-300)) + log_likelihood
         log_w -= log_w.max()
         w = np.exp(log_w)
         w /= w.sum()
         post_mean, post_cov = moments(w, self._x, self._y)
+        post_cov = post_cov + self._pending_var * np.eye(2)
         value = nis(prior_mean, prior_cov, post_mean, post_cov)
         if terrain:
             self._nis = value
         if value > self._p.gate_nis:
             self._reject("gate", terrain)
-            return
-        self._w = w
+            return False
+        self._w, self._cached = w, None
         if terrain:
             self._trust.accepted(post_cov)
             self._stage = "tracking" if self._trust.usable else "acquisition"
             self.counts["terrain_updates"] += 1
         else:
             self.counts["range_updates"] += 1
+            self._trust.range_outcome(refused=False)
         if 1.0 / np.sum(w * w) < 0.5 * self._n:
             self._resample()
         self._keep_floor(post_cov)
+        return True
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
-        """Jitter the particles back to the floor's width where an update made the cloud narrower."""
+        """Owe the cloud the variance an update took below the floor's width; the next prediction spreads it."""
         missing = self._floor_var - float(np.linalg.eigvalsh(covariance)[0])
-        if missing > 0:
-            jitter = self._rng.normal(0.0, math.sqrt(missing), (self._n, 2))
-            self._x += jitter[:, 0]
-            self._y += jitter[:, 1]
+        if missing > self._pending_var:
+            self._pending_var, self._cached = missing, None
 
     def _resample(self) -> None:
         index = systematic_resample(self._w, self._rng)
@@ -176,13 +198,14 @@ class ParticleFilter:
         jitter = ROUGHENING_K * spread * self._n ** (-1.0 / states.shape[1])
         states += self._rng.normal(0.0, 1.0, states.shape) * jitter
         self._x, self._y, self._b = states[:, 0].copy(), states[:, 1].copy(), states[:, 2:].copy()
-        self._w = np.full(self._n, 1.0 / self._n)
+        self._w, self._cached = np.full(self._n, 1.0 / self._n), None
         self.counts["resamples"] += 1
 
     def _reject(self, reason: str, terrain: bool) -> None:
         self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
         if not terrain:
             self.counts[f"range_rejected_{reason}"] += 1
+            self._trust.range_outcome(refused=True)
             return
         self._stage = "rejected"
         if self._trust.rejected(reason):

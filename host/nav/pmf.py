@@ -92,16 +92,34 @@ class PointMassFilter:
         if old is None:
             self._p_grid = np.full((n, n), 1.0 / n**2)
             return
-        old_centre, old_cell, old_n = old
-        x, y = self._cells()
-        col = (x - old_centre[0]) / old_cell + (old_n - 1) / 2.0
-        row = (y - old_centre[1]) / old_cell + (old_n - 1) / 2.0
-        row, col = np.broadcast_arrays(row, col)
-        carried = ndimage.map_coordinates(density, [row.ravel(), col.ravel()], order=1, mode="constant", cval=0.0).reshape(n, n)
-        carried = np.maximum(carried, 0.0)
+        carried = self._splat(density, *old)
         total = carried.sum()
         self._p_grid = carried / total if total > 0 else np.full((n, n), 1.0 / n**2)
         self.counts["regrids"] += 1
+        # A coarse cell's mass was spread over the cell, not on its centre: keep that spread on finer cells.
+        old_cell = old[1]
+        if old_cell > self._cell:
+            self._pending_var += (old_cell**2 - self._cell**2) / 12.0
+            self._diffuse()
+
+    def _splat(self, density: np.ndarray, old_centre: np.ndarray, old_cell: float, old_n: int) -> np.ndarray:
+        """The old grid's masses moved onto the new cells, each split bilinearly among the four around it.
+
+        Conservative, unlike interpolating the density: a mode narrower than a cell keeps its mass
+        whatever the new grid's offset, so equal look-alike modes stay equal through re-gridding.
+        """
+        offsets = (np.arange(old_n) - (old_n - 1) / 2.0) * old_cell
+        x = (old_centre[0] + offsets[None, :] - self._centre[0]) / self._cell + (self._n - 1) / 2.0
+        y = (old_centre[1] + offsets[:, None] - self._centre[1]) / self._cell + (self._n - 1) / 2.0
+        x, y = (a.ravel() for a in np.broadcast_arrays(x, y))
+        mass = density.ravel()
+        carried = np.zeros((self._n + 2, self._n + 2))  # one cell of margin each side, dropped after
+        c0, r0 = np.floor(x).astype(int), np.floor(y).astype(int)
+        fc, fr = x - c0, y - r0
+        inside = (c0 >= -1) & (c0 <= self._n - 1) & (r0 >= -1) & (r0 <= self._n - 1) & (mass > 0)
+        for dr, dc, share in ((0, 0, (1 - fr) * (1 - fc)), (0, 1, (1 - fr) * fc), (1, 0, fr * (1 - fc)), (1, 1, fr * fc)):
+            np.add.at(carried, (r0[inside] + dr + 1, c0[inside] + dc + 1), mass[inside] * share[inside])
+        return carried[1:-1, 1:-1]
 
     def _follow(self) -> None:
         """Re-lay the grid when the density drifts toward its edge or its width no longer fits it."""
@@ -160,15 +178,15 @@ class PointMassFilter:
             self._range_update(observation)
         self._trust.watch(self._moments()[1])
 
-    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> None:
-        """Multiply a likelihood in, gated by its NIS; counts and stages follow."""
+    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> bool:
+        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used."""
         prior_mean, prior_cov = self._moments()
         ell = log_likelihood - log_likelihood.max()
         posterior = self._p_grid * np.exp(ell)
         total = posterior.sum()
         if not total > 0:
             self._reject("underflow", terrain)
-            return
+            return False
         before = self._p_grid
         self._p_grid = posterior / total
         post_mean, post_cov = self._moments()
@@ -178,7 +196,7 @@ class PointMassFilter:
         if value > self._p.gate_nis:
             self._p_grid = before
             self._reject("gate", terrain)
-            return
+            return False
         self._keep_floor(post_cov)
         if terrain:
             self._learn_bias(post_mean - prior_mean)
@@ -187,7 +205,9 @@ class PointMassFilter:
             self.counts["terrain_updates"] += 1
         else:
             self.counts["range_updates"] += 1
+            self._trust.range_outcome(refused=False)
         self._follow()
+        return True
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
         """Blur the density back to the floor's width where an update made it narrower."""
@@ -200,6 +220,7 @@ class PointMassFilter:
         self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
         if not terrain:
             self.counts[f"range_rejected_{reason}"] += 1
+            self._trust.range_outcome(refused=True)
             return
         self._stage = "rejected"
         if self._trust.rejected(reason):
@@ -225,8 +246,12 @@ class PointMassFilter:
         patch = observation.patch
         x, y = np.broadcast_arrays(*self._cells())
         length = max(patch.depth_m.shape) * patch.node_m
-        result = self._lik.patch(x, y, patch, weight=self._trust.patch_weight(length))
+        result = self._lik.patch(x, y, patch, weight=self._trust.patch_weight(length),
+                                sigma_scale=self._trust.misfit_level, spacing_m=self._cell)
         if result is None:
+            self.counts["patch_too_sparse"] += 1
+            return
+        if result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
             self.counts["patch_too_sparse"] += 1
             return
         if not result.informative.any():
@@ -234,10 +259,13 @@ class PointMassFilter:
             self._stage = "off_map"
             return
         # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
-        if result.misfit > self._p.misfit_gate and self._p_grid[result.informative].sum() > 0.5:
+        if self._trust.misfit_refused(result.misfit) and self._p_grid[result.informative].sum() > 0.5:
             self._reject("misfit", terrain=True)
             return
-        self._apply(result.log_likelihood, terrain=True)
+        if self._apply(result.log_likelihood, terrain=True):
+            self._trust.note_misfit(result.misfit)
+            self._trust.look_alike(self._lik, *self._moments(), patch)
+            self._stage = "tracking" if self._trust.usable else "acquisition"
 
     def _depth_update(self, ocean_depth_m: float) -> None:
         x, y = np.broadcast_arrays(*self._cells())

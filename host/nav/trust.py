@@ -7,25 +7,41 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   noise of each step and by the INS error model of eqs. 6.1-6.2 over the time since the last update.
 - Tempering: each patch's log-likelihood is weighted by the share of the patch that is new since the
   last update used (see :mod:`lost.host.nav.likelihood`).
-- Gating: an update is refused when the patch fits nowhere in the filter's area (misfit), or when it
+- Residual level: the misfit of a patch is its best mean absolute residual over the filter's area in
+  units of the residual the nominal sigma predicts (about 1 at the true position). The running
+  median of the accepted patches' misfits (the last ``MISFIT_MEMORY``, bounded to [0.5, 4]) scales
+  the likelihood's sigma: the real map error is seldom known, and this learns it from the data.
+- Gating: an update is refused when the patch fits nowhere in the filter's area (its misfit over
+  the running level exceeds ``misfit_gate``), or when it
   moves the estimate further than its own information allows: the normalized innovation squared
   ``NIS = d^T (P_prior - P_post)^-1 d``, d the shift of the mean, is chi-square with 2 degrees of freedom
   for a consistent linear-Gaussian update (there d = K nu and Cov(d) = P_prior - P_post).
 - Usable: the largest 1-sigma axis of the covariance stays under ``usable_sigma_nodes`` map nodes for
   ``usable_updates`` terrain updates in a row (MB-System: under a threshold for 200 updates). A
-  multimodal posterior has a wide covariance, so look-alike terrain lowers the flag by itself.
-- Recovery: after ``reinit_after`` refused terrain updates in a row the filter re-initializes, its
-  search widened to ``initial_sigma_m`` around its current estimate.
+  multimodal posterior has a wide covariance, so look-alike terrain lowers the flag by itself. A
+  refused terrain update lowers it, and so do three refused slant ranges among the last ten (one
+  is an outlier, several say the estimate has moved away from the range). Look-alike terrain: a
+  density can collapse onto one of several equally good modes (particles by resampling, cells by
+  their offsets), so once the covariance is small enough to be usable, each patch is also matched
+  over ``lookalike_radius_m`` around the estimate; if a placement beyond three sigma fits within
+  ``lookalike_margin`` (mean absolute residual over sigma, per node) of the best near the estimate,
+  the update is counted ``lookalike`` and the flag goes down.
+- Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
+  filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
+  (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
 """
 
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import Counter, deque
 
 import numpy as np
 
-__all__ = ["SCHULER_PERIOD_S", "ins_position_sigma", "nis", "moments", "Trust"]
+__all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "ins_position_sigma", "nis", "moments", "Trust"]
+
+#: Accepted patches whose misfits set the running residual level.
+MISFIT_MEMORY = 50
 
 #: Nygren section 6.1.
 SCHULER_PERIOD_S = 84.4 * 60.0
@@ -83,9 +99,22 @@ class Trust:
         self.counts: Counter = Counter()
         self.since_update_s = 0.0
         self.travelled_m = math.inf  # the first patch is wholly new
-        self.rejects_in_row = 0
+        self.outcomes: deque[bool] = deque(maxlen=2 * params.reinit_after)  # True: refused
         self.good_in_row = 0
         self.usable = False
+        self._ranges: deque[bool] = deque(maxlen=10)  # True: refused
+        self._misfits: deque[float] = deque(maxlen=MISFIT_MEMORY)
+        self.misfit_level = 1.0
+
+    def misfit_refused(self, misfit: float) -> bool:
+        """Whether a patch's misfit is too large for the running residual level."""
+        return misfit > self._p.misfit_gate * self.misfit_level
+
+    def note_misfit(self, misfit: float) -> None:
+        """An accepted patch's misfit joins the running level."""
+        if math.isfinite(misfit):
+            self._misfits.append(misfit)
+            self.misfit_level = float(np.clip(np.median(self._misfits), 0.5, 4.0))
 
     def growth_variance(self, dt_s: float) -> float:
         """Variance (m**2, per axis) the position error gains over one step of ``dt_s``."""
@@ -106,7 +135,7 @@ class Trust:
         """An update was used: reset growth and tempering, and advance the usable rule."""
         self.since_update_s = 0.0
         self.travelled_m = 0.0
-        self.rejects_in_row = 0
+        self.outcomes.append(False)
         sigma = math.sqrt(max(float(np.linalg.eigvalsh(covariance)[-1]), 0.0))
         if sigma <= self._p.usable_sigma_nodes * self._node_m:
             self.good_in_row += 1
@@ -121,14 +150,35 @@ class Trust:
             self.usable = False
             self.good_in_row = 0
 
+    def sigma_max(self, covariance: np.ndarray) -> float:
+        return math.sqrt(max(float(np.linalg.eigvalsh(covariance)[-1]), 0.0))
+
+    def look_alike(self, likelihood, mean: np.ndarray, covariance: np.ndarray, patch) -> None:
+        """The look-alike check of an accepted patch update (see the module docstring)."""
+        sigma = self.sigma_max(covariance)
+        if sigma > self._p.usable_sigma_nodes * self._node_m:
+            return
+        margin = likelihood.margin(mean, patch, radius_m=self._p.lookalike_radius_m, exclusion_m=max(3.0 * sigma, 2.0 * self._node_m))
+        if margin < self._p.lookalike_margin:
+            self.counts["lookalike"] += 1
+            self.good_in_row = 0
+            self.usable = False
+
+    def range_outcome(self, refused: bool) -> None:
+        """A slant range was used or refused; several refused lower the usable flag."""
+        self._ranges.append(refused)
+        if sum(self._ranges) >= 3:
+            self.good_in_row = 0
+            self.usable = False
+
     def rejected(self, reason: str) -> bool:
         """A terrain update was refused; True when the filter should re-initialize now."""
         self.counts[f"rejected_{reason}"] += 1
-        self.rejects_in_row += 1
+        self.outcomes.append(True)
         self.good_in_row = 0
         self.usable = False
-        if self.rejects_in_row >= self._p.reinit_after:
-            self.rejects_in_row = 0
+        if sum(self.outcomes) >= self._p.reinit_after:
+            self.outcomes.clear()
             self.counts["reinitializations"] += 1
             return True
         return False

@@ -1,6 +1,8 @@
 """The ``lost`` command: run, demo and correlate, end to end on files."""
 
+import csv
 import json
+import math
 import re
 from dataclasses import replace
 
@@ -18,13 +20,31 @@ def test_run_a_scenario_writes_the_track_summary_and_plots(tmp_path, capsys):
     assert main(["run", str(builtin_scenario_path("short")), "--out", str(out)]) == 0
     assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "map.png", "error.png"}
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary["methods"]) == {"lost", "layback", "dead_reckoning"}
+    assert set(summary["methods"]) == {"lost", "layback", "dead_reckoning", "pmf", "pf"}
     for stats in summary["methods"].values():
         assert {"rms_m", "p95_m", "max_m"} <= set(stats)
+    for name in ("pmf", "pf"):
+        assert {"nees_in_band", "usable_fraction", "false_fixes", "ms_per_update", "convergence_time_s"} <= set(summary["methods"][name])
     assert summary["parameters"]["backend"] == "software"
     assert (out / "map.png").read_bytes()[:4] == b"\x89PNG"
     printed = capsys.readouterr().out
     assert "LOST converged after" in printed and "layback" in printed
+
+
+def test_one_estimator_writes_its_track_with_covariance(tmp_path, capsys):
+    out = tmp_path / "pmf"
+    assert main(["run", "short", "--estimator", "pmf", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["methods"]) == {"layback", "dead_reckoning", "pmf"} and summary["convergence"]["estimator"] == "pmf"
+    with open(out / "track.csv", newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert {"pmf_x_m", "pmf_y_m", "pmf_sxx", "pmf_syy", "pmf_sxy", "pmf_usable", "pmf_nis", "pmf_stage"} <= set(rows[0])
+    assert "pf_x_m" not in rows[0]
+    assert {r["pmf_stage"] for r in rows} >= {"initialization", "acquisition", "tracking", "dead_reckoning"}
+    late = [r for r in rows if r["pmf_stage"] == "tracking"][-1]
+    assert float(late["pmf_sxx"]) > 0 and float(late["pmf_syy"]) > 0 and late["pmf_usable"] == "1"
+    assert float(late["pmf_error_m"]) < 3.0 * math.sqrt(float(late["pmf_sxx"]) + float(late["pmf_syy"]))
+    assert "pmf converged after" in capsys.readouterr().out
 
 
 def test_run_by_builtin_name_with_backend_and_matching(tmp_path):

@@ -229,3 +229,49 @@ def test_swath_settings_are_validated():
         Scenario(sensors={"sonar": SonarSpec(mode="swath", beams=1)})
     with pytest.raises(ValueError, match="realtime applies to mode = 'swath'"):
         Scenario(sensors={"sonar": SonarSpec(realtime=True)})
+
+
+def test_the_map_is_surveyed_from_a_finer_floor_by_block_means_noise_offset_and_extent():
+    from lost.host.scenario import FaultSpec, MapSpec, scenario_floor, survey_map
+
+    scenario = _quiet(terrain=TerrainSpec(shape=(200, 500), node_m=5.0, roughness_m=5.0), map=MapSpec(node_m=50.0))
+    floor = scenario_floor(scenario)
+    nav_map = survey_map(floor, scenario.map, seed=1)
+    assert nav_map.node_m == 50.0 and nav_map.shape == (20, 50)
+    assert nav_map.depth_m[3, 7] == pytest.approx(floor.depth_m[30:40, 70:80].mean())
+    # A map node stands at the centre of the floor nodes it averages.
+    assert nav_map.xy(3, 7) == pytest.approx(floor.xy(34.5, 74.5))
+    noisy = survey_map(floor, MapSpec(node_m=50.0, noise_m=1.0, offset_m=3.0), seed=1)
+    difference = noisy.depth_m - nav_map.depth_m
+    assert difference.mean() == pytest.approx(3.0, abs=0.1) and difference.std() == pytest.approx(1.0, rel=0.1)
+    cut = survey_map(floor, MapSpec(node_m=50.0, extent_m=(0.0, 0.0, 1000.0, 2000.0)), seed=1)
+    x, y = cut.xy(np.array(cut.shape) - 1, np.array(cut.shape) - 1)
+    assert cut.x0_m == nav_map.x0_m and float(x[1]) <= 1000.0 + 50.0 and cut.shape[1] < nav_map.shape[1]
+    # The sonar sees the floor, the navigation gets the map; without [map] they are one grid.
+    grid, records = simulate(replace(scenario, fault=FaultSpec()))
+    assert grid.node_m == 50.0 and records.sonar[0].node_m == 50.0
+    with pytest.raises(ValueError, match="whole multiple"):
+        replace(scenario, map=MapSpec(node_m=12.0))
+
+
+def test_an_injected_jump_moves_the_dead_reckoning_once():
+    from lost.host.scenario import FaultSpec
+
+    plain = simulate(_quiet())[1]
+    faulty = simulate(_quiet(fault=FaultSpec(position_jump_m=(300.0, 400.0), at_s=100.0)))[1]
+    jump = np.array([faulty.vel_x_mps - plain.vel_x_mps, faulty.vel_y_mps - plain.vel_y_mps])
+    assert np.flatnonzero(np.abs(jump).sum(axis=0) > 1e-9).tolist() == [100]
+    assert jump[:, 100] == pytest.approx((300.0, 400.0))
+
+
+def test_von_karman_terrain_has_its_corner_and_a_repeated_tile_repeats():
+    from lost.host.terrain import synthetic_terrain
+
+    floor = synthetic_terrain((256, 256), seed=2, relief_m=0.0, roughness_m=1.0, corner_nodes=32.0, hurst=0.8)
+    power = np.abs(np.fft.rfft2(floor - floor.mean())) ** 2
+    k = np.hypot(np.fft.fftfreq(256)[:, None], np.fft.rfftfreq(256)[None, :])
+    flat = power[(k > 0) & (k < 1 / 128)].mean() / power[(k > 1 / 64) & (k < 1 / 48)].mean()
+    steep = power[(k > 1 / 8) & (k < 1 / 6)].mean() / power[(k > 1 / 4) & (k < 1 / 3)].mean()
+    assert flat < 3.0 < steep  # flat beyond the corner, a power law well inside it
+    tiled = synthetic_terrain((100, 100), seed=2, repeat_nodes=(40, 40))
+    np.testing.assert_array_equal(tiled[:40, :40], tiled[40:80, 40:80])

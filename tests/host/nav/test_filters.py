@@ -1,0 +1,220 @@
+"""The Bayesian filters: motion and measurement updates by hand, gating, recovery, PF against PMF, eq. 5.2."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from lost.host.grid import Grid
+from lost.host.nav import NavParameters, navigate
+from lost.host.nav.estimator import Motion, Observation
+from lost.host.nav.likelihood import TerrainLikelihood
+from lost.host.nav.mapprep import PreparedMap
+from lost.host.nav.pf import ParticleFilter, systematic_resample
+from lost.host.nav.pmf import PointMassFilter
+from lost.host.nav.theory import ml_offset_variance, nygren_ml_variance
+from lost.host.nav.trust import SCHULER_PERIOD_S, ins_position_sigma, nis
+from lost.host.records import SonarPatch
+from lost.host.terrain import synthetic_terrain
+
+NODE = 10.0
+
+
+def _map(seed=4, shape=(80, 80)):
+    return Grid(synthetic_terrain(shape, seed=seed, roughness_m=10.0, hurst=0.5), 0.0, 0.0, NODE)
+
+
+def _patch_at(grid, x, y, side=9, bias=2.0):
+    """A patch cut exactly from the map around node (x, y), with a constant bias."""
+    row, col = (int(round(v)) for v in grid.row_col(x, y))
+    half = side // 2
+    return SonarPatch(grid.depth_m[row - half : row + half + 1, col - half : col + half + 1] + bias, NODE)
+
+
+def _observation(patch=None, slant=np.nan, frame=None):
+    return Observation(t_s=0.0, frame=frame, patch=patch, ocean_depth_m=np.nan, vehicle_depth_m=0.0, slant_range_m=slant)
+
+
+def _quiet(**changes):
+    """No error growth besides what a test asks for; every update usable at once."""
+    base = NavParameters(velocity_noise_mps=0.0, gyro_bias_rps=0.0, accel_bias_mps2=0.0, use_slant_range=False,
+                         usable_updates=1, velocity_bias_time_s=None)
+    return replace(base, **changes)
+
+
+def test_the_motion_update_is_a_shift_and_a_gaussian_convolution_by_hand():
+    grid = _map()
+    params = _quiet(velocity_noise_mps=2.0, position_floor_nodes=0.01, pmf_min_cell_m=1.0, initial_sigma_m=5.0)
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+    pmf.start(0.0, np.array([400.0, 400.0]), _observation())
+    # A delta: all the mass in one cell.
+    x, y, p = pmf.density
+    k = np.unravel_index(np.argmin(np.hypot(x - 400.0, y - 400.0)), p.shape)
+    at = np.array([x[k], y[k]])
+    pmf._p_grid[:] = 0.0
+    pmf._p_grid[k] = 1.0
+    cell = pmf._cell
+    pmf.predict(Motion(dt_s=1.0, velocity_mps=np.array([3.0, -1.0])))
+    x, y, p = pmf.density
+    # The mass moved by the velocity exactly, and spread as N(0, 2**2) per axis: the convolution by hand.
+    assert pmf._cell == cell == pytest.approx(1.0)  # a shift and a blur, no new grid
+    assert ((p * x).sum(), (p * y).sum()) == pytest.approx((at[0] + 3.0, at[1] - 1.0), abs=1e-9)
+    by_hand = np.exp(-0.5 * ((x - at[0] - 3.0) ** 2 + (y - at[1] + 1.0) ** 2) / 4.0)
+    by_hand /= by_hand.sum()
+    assert np.abs(p - by_hand).max() < 0.01 * by_hand.max()
+
+
+def test_the_measurement_update_is_eq_3_5_on_a_tiny_grid():
+    grid = _map()
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=30.0)
+    pmf = PointMassFilter(lik, _quiet(pmf_cells=8, initial_sigma_m=10.0, position_floor_nodes=0.001), grid=grid)
+    pmf._follow = lambda: None  # keep the grid, to compare cell for cell
+    pmf.start(0.0, np.array([400.0, 400.0]), _observation())
+    x, y, prior = (a.copy() for a in pmf.density)
+    assert prior.shape == (8, 8) and pmf._cell == NODE
+    patch = _patch_at(grid, 405.0, 395.0)
+    expected = lik.patch(x, y, patch, weight=1.0).log_likelihood
+    pmf.update(_observation(patch))
+    assert pmf.estimate().stage == "acquisition"
+    # Eq. 3.5: the posterior is the likelihood times the prior, normalized.
+    by_hand = prior * np.exp(expected - expected.max())
+    by_hand /= by_hand.sum()
+    np.testing.assert_allclose(pmf.density[2], by_hand, rtol=1e-9, atol=1e-15)
+
+
+def test_the_laplace_likelihood_is_the_correlators_sum_of_absolute_residuals():
+    grid = _map()
+    prep = PreparedMap(grid=grid, lsb_m=0.01)
+    lik = TerrainLikelihood(prep, sigma_m=0.7)
+    patch = _patch_at(grid, 300.0, 350.0, bias=5.0)
+    patch = SonarPatch(patch.depth_m + np.random.default_rng(1).normal(0, 0.3, patch.depth_m.shape), NODE)
+    result = lik.patch(np.array([300.0, 330.0]), np.array([350.0, 350.0]), patch)
+    for k, (x, y) in enumerate([(300.0, 350.0), (330.0, 350.0)]):
+        row, col = (int(round(v)) for v in grid.row_col(x, y))
+        d = (np.round(grid.depth_m[row - 4 : row + 5, col - 4 : col + 5] / 0.01) - np.round(patch.depth_m / 0.01)) * 0.01
+        by_hand = -math.sqrt(2.0) * np.abs(d - d.mean()).sum() / 0.7
+        assert result.log_likelihood[k] == pytest.approx(by_hand, rel=1e-3)
+    gaussian = TerrainLikelihood(prep, sigma_m=0.7, form="gaussian").patch(np.array([300.0]), np.array([350.0]), patch)
+    row, col = (int(round(v)) for v in grid.row_col(300.0, 350.0))
+    d = (np.round(grid.depth_m[row - 4 : row + 5, col - 4 : col + 5] / 0.01) - np.round(patch.depth_m / 0.01)) * 0.01
+    assert gaussian.log_likelihood[0] == pytest.approx(-((d - d.mean()) ** 2).sum() / (2 * 0.7**2), rel=1e-6)
+
+
+def test_off_the_map_the_likelihood_is_flat_and_typical_not_good():
+    grid = _map()
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    patch = _patch_at(grid, 100.0, 400.0)
+    x = np.array([100.0, -300.0, -500.0])
+    result = lik.patch(x, np.full(3, 400.0), patch)
+    assert result.informative.tolist() == [True, False, False]
+    assert result.log_likelihood[1] == result.log_likelihood[2] < result.log_likelihood[0]
+
+
+def _track(f, grid, start, steps, *, velocity=(0.0, 10.0), seen=None):
+    """Move a filter ``steps`` records north at 10 m/s from ``start``; the patches are cut where ``seen`` says (default: the truth)."""
+    position = np.asarray(start, float)
+    for _ in range(steps):
+        position = position + velocity
+        f.predict(Motion(dt_s=1.0, velocity_mps=np.asarray(velocity, float)))
+        at = position if seen is None else seen(position)
+        f.update(_observation(_patch_at(grid, *at)))
+    return position
+
+
+def test_an_injected_outlier_patch_is_gated_and_counted():
+    grid = _map(shape=(120, 80))
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), _quiet(), grid=grid)
+    pmf.start(0.0, np.array([400.0, 300.0]), _observation())
+    position = _track(pmf, grid, (400.0, 300.0), 8)
+    before = pmf.estimate()
+    assert before.usable and np.hypot(*(before.position - position)) < 3.0
+    # A patch of another place (300 m away) does not fit anywhere the filter may be.
+    _track(pmf, grid, position, 1, seen=lambda p: p + (-300.0, 100.0))
+    after = pmf.estimate()
+    assert after.stage == "rejected" and "misfit" in after.rejected and not after.usable
+    assert pmf.counts["rejected_misfit"] == 1
+    assert np.hypot(*(after.position - before.position - (0.0, 10.0))) < 1.0
+
+
+def test_refusals_reinitialize_wide_and_the_filter_recovers():
+    grid = _map(shape=(140, 100))
+    params = _quiet(reinit_after=3, initial_sigma_m=100.0)
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+    pmf.start(0.0, np.array([500.0, 300.0]), _observation())
+    position = _track(pmf, grid, (500.0, 300.0), 4)
+    # From now on the vehicle is really 150 m east of where its motion says (a jump the motion did not see).
+    stages = []
+    for _ in range(10):
+        position = _track(pmf, grid, position, 1, seen=lambda p: p + (150.0, 0.0))
+        stages.append(pmf.estimate().stage)
+    assert "reinitialized" in stages and pmf.counts["reinitializations"] == 1
+    assert np.hypot(*(pmf.estimate().position - position - (150.0, 0.0))) < 3.0
+
+
+def test_particle_and_point_mass_filters_agree_on_a_unimodal_case():
+    grid = _map(shape=(100, 100))
+    truth = np.array([500.0, 400.0])
+    params = _quiet(initial_sigma_m=20.0, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0, position_floor_nodes=0.01,
+                    pmf_min_cell_m=0.5, usable_sigma_nodes=10.0)
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=300.0)
+    filters = [PointMassFilter(lik, params, grid=grid), ParticleFilter(lik, params, grid=grid, seed=3)]
+    for f in filters:
+        f.start(0.0, truth + (15.0, -10.0), _observation())
+        _track(f, grid, truth, 3)
+    pmf, pf = (f.estimate() for f in filters)
+    assert np.sqrt(np.diag(pmf.covariance)).max() > 2.0  # broad enough to compare shapes, not cells
+    assert np.hypot(*(pmf.position - pf.position)) < 0.1 * np.sqrt(np.trace(pmf.covariance))
+    np.testing.assert_allclose(pf.covariance, pmf.covariance, rtol=0.15, atol=0.1 * np.trace(pmf.covariance))
+
+
+def test_systematic_resampling_keeps_each_particle_in_proportion():
+    rng = np.random.default_rng(0)
+    weights = np.array([0.5, 0.25, 0.125, 0.125])
+    counts = np.bincount(systematic_resample(np.repeat(weights, 250) / 250, rng) // 250, minlength=4)
+    assert counts.tolist() == [500, 250, 125, 125]
+
+
+def test_nis_of_a_linear_gaussian_update_is_the_innovations():
+    prior_cov, r = np.diag([4.0, 9.0]), np.eye(2)
+    innovation = np.array([1.0, -2.0])
+    gain = prior_cov @ np.linalg.inv(prior_cov + r)
+    post_cov = prior_cov - gain @ prior_cov
+    expected = innovation @ np.linalg.solve(prior_cov + r, innovation)
+    assert nis(np.zeros(2), prior_cov, gain @ innovation, post_cov) == pytest.approx(expected, rel=1e-4)
+
+
+def test_the_ins_error_model_is_eq_6_2():
+    w = 2 * math.pi / SCHULER_PERIOD_S
+    t = 3000.0
+    gyro, accel = 1e-7, 5e-4
+    by_hand = math.hypot(9.81 * t / w**2 * (1 - math.sin(w * t) / (w * t)) * gyro, (1 - math.cos(w * t)) / w**2 * accel)
+    assert float(ins_position_sigma(t, gyro_bias_rps=gyro, accel_bias_mps2=accel)) == pytest.approx(by_hand)
+    # Early on the accelerometer term is B t**2 / 2; it peaks at half a Schuler period.
+    assert float(ins_position_sigma(10.0, gyro_bias_rps=0.0, accel_bias_mps2=accel)) == pytest.approx(accel * 50.0, rel=1e-3)
+    peak = ins_position_sigma(SCHULER_PERIOD_S / 2, gyro_bias_rps=0.0, accel_bias_mps2=accel)
+    assert float(peak) == pytest.approx(2 * accel / w**2)
+
+
+@pytest.mark.parametrize("a", [0.0, 0.3])
+def test_eq_5_2_the_ml_variance_on_ar1_terrain_within_1_5_and_falling_as_1_over_n(a):
+    variances = {n: ml_offset_variance(a, n, 0.1, trials=600, seed=n) for n in (25, 100)}
+    for n, variance in variances.items():
+        assert 1 / 1.5 <= variance / nygren_ml_variance(a, n, 0.1) <= 1.5
+    assert variances[100] / variances[25] == pytest.approx(0.25, rel=0.35)
+
+
+def test_the_nees_of_the_filters_on_the_short_tow_lies_in_its_band():
+    from lost.host.report import summarize
+    from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
+
+    scenario = load_scenario(builtin_scenario_path("short"))
+    grid, records = simulate(scenario)
+    result = navigate(records, grid, NavParameters(**{**scenario.navigation, "pf_particles": 3000}), estimators=("pmf", "pf"))
+    summary = summarize(result, name="short", parameters={})
+    band = (chi2.ppf(0.025, 2), chi2.ppf(0.975, 2))
+    for name in ("pmf", "pf"):
+        figures = summary["methods"][name]
+        assert figures["converged"] and figures["convergence_time_s"] < 120.0, (name, figures)
+        assert figures["rms_m"] < 5.0 and figures["nees_in_band"] >= 0.8, (name, figures, band)
