@@ -258,8 +258,13 @@ class PointMassFilter:
             self.counts["patch_off_map"] += 1
             self._stage = "off_map"
             return
+        on_map = float(self._p_grid[result.informative].sum())
+        if self._trust.at_edge(on_map, self._moments()[1]):
+            self.counts["patch_at_map_edge"] += 1
+            self._stage = "off_map"
+            return
         # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
-        if self._trust.misfit_refused(result.misfit) and self._p_grid[result.informative].sum() > 0.5:
+        if self._trust.misfit_refused(result.misfit) and on_map > 0.5:
             self._reject("misfit", terrain=True)
             return
         if self._apply(result.log_likelihood, terrain=True):

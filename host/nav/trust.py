@@ -26,6 +26,10 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   over ``lookalike_radius_m`` around the estimate; if a placement beyond three sigma fits within
   ``lookalike_margin`` (mean absolute residual over sigma, per node) of the best near the estimate,
   the update is counted ``lookalike`` and the flag goes down.
+- The map's edge: a patch whose placements hang past the map carries no information, and the
+  candidates beside it on the map all fit it a little worse than the truth would; so while the
+  density is narrow (under twice the usable width) and less than ``EDGE_MASS`` of it lies where the
+  patch is wholly on the map, the patch is left out (``patch_at_map_edge``) and the filter dead-reckons.
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
@@ -42,6 +46,8 @@ __all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "ins_position_sigma", "nis", "mo
 
 #: Accepted patches whose misfits set the running residual level.
 MISFIT_MEMORY = 50
+#: A narrow density with less than this share on the map straddles its edge.
+EDGE_MASS = 0.9
 
 #: Nygren section 6.1.
 SCHULER_PERIOD_S = 84.4 * 60.0
@@ -77,7 +83,11 @@ def nis(prior_mean: np.ndarray, prior_cov: np.ndarray, post_mean: np.ndarray, po
     # The information an update brings is at least a little in every direction it moves the estimate.
     gain = gain + 1e-6 * np.trace(prior_cov) * np.eye(2)
     try:
-        return float(d @ np.linalg.solve(gain, d))
+        if np.linalg.eigvalsh(gain)[0] > 0:
+            return float(d @ np.linalg.solve(gain, d))
+        # A posterior wider than its prior (a density split between places) has no such bound: measure
+        # the shift against the prior alone, a lower bound of the NIS above.
+        return float(d @ np.linalg.solve(prior_cov, d))
     except np.linalg.LinAlgError:
         return float("inf")
 
@@ -163,6 +173,11 @@ class Trust:
             self.counts["lookalike"] += 1
             self.good_in_row = 0
             self.usable = False
+
+    def at_edge(self, on_map_mass: float, covariance: np.ndarray) -> bool:
+        """Whether a narrow density straddles the map's edge, where a patch is left out (see the module docstring)."""
+        narrow = self.sigma_max(covariance) <= 2.0 * self._p.usable_sigma_nodes * self._node_m
+        return narrow and on_map_mass < EDGE_MASS
 
     def range_outcome(self, refused: bool) -> None:
         """A slant range was used or refused; several refused lower the usable flag."""
