@@ -7,17 +7,27 @@
     lost demo [--out runs/demo]                         the built-in scenario "demo"
     lost correlate MAP PATCH                            best fit and runner-up of a patch on a map
     lost track DETECTIONS.csv|SCENARIO [--out DIR]      sonar contact tracking (lost.host.track.cli)
+    lost usbl LOG.csv --svp CAST.csv | SCENARIO         INS+USBL positioning of the towfish (lost.host.usbl.cli)
 
-``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``.
+``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at
+all (``lost.host.runfolder``): an earlier run there is replaced only with ``--replace``.
+
+Exit codes: 0 done; 1 an error in the inputs or the outputs (one line on stderr naming the file or
+field; ``--debug`` adds the traceback); 2 a usage error (options); 130 interrupted (Ctrl-C or
+SIGTERM), the output folder left as it was.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import logging
+import signal
 import sys
 import time
 import tomllib
+import traceback
 from pathlib import Path
 
 import numpy as np
@@ -29,9 +39,16 @@ from .grid import Grid
 from .nav import ESTIMATORS, NavParameters, PreparedMap, navigate
 from .navlog import PATCH_CENTRES
 from .records import NavRecords
+from .runfolder import describe_untouched, run_folder
 from .usbl.cli import add_usbl_command
 
-__all__ = ["main"]
+__all__ = ["main", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_USAGE", "EXIT_INTERRUPTED"]
+
+EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class UsageError(ValueError):
+    """The options contradict each other or name nothing known: exit code 2, like argparse's own errors."""
 
 #: Runs longer than this many records show a progress bar.
 PROGRESS_RECORDS = 1000
@@ -47,19 +64,42 @@ def _progress(total: int):
     return lambda iterable: track(iterable, total=total, description="navigating", console=console, transient=True)
 
 
+class _Collector(logging.Handler):
+    """Keeps the warnings of ``lost.host`` (a grid's sign guessed from its data, ...) for the run's report."""
+
+    def __init__(self) -> None:
+        super().__init__(level=logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def _warnings_collected():
+    """Yield the list the warnings of the run go to (instead of stderr: the report shows them)."""
+    collector, logger = _Collector(), logging.getLogger("lost.host")
+    logger.addHandler(collector)
+    try:
+        yield collector.messages
+    finally:
+        logger.removeHandler(collector)
+
+
 def _estimators(choice: str) -> tuple[str, ...]:
     """``--estimator``: one name of ESTIMATORS, or ``all``."""
     return ESTIMATORS if choice == "all" else (choice,)
 
 
-def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, estimators: tuple[str, ...] = ESTIMATORS) -> dict:
+def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str],
+              estimators: tuple[str, ...] = ESTIMATORS) -> dict:
     from .report import plot_run, summarize, write_summary, write_track_csv
 
-    out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     result = navigate(records, grid, params, estimators=estimators, progress=_progress(len(records)))
     elapsed = time.perf_counter() - start
     summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
+    summary["warnings"] = list(warnings)
     write_track_csv(out / "track.csv", result)
     write_summary(out / "summary.json", summary)
     plot_run(out, result, grid, summary)
@@ -81,6 +121,8 @@ def _print_summary(summary: dict, out: Path) -> None:
             cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
             print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
     print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    for warning in summary.get("warnings", ()):
+        print(f"warning: {warning}")
     print(f"wrote {out}/track.csv, summary.json, map.png" + (", error.png" if summary["truth_known"] else ""))
 
 
@@ -99,16 +141,38 @@ def _setting(text: str) -> tuple[str, object]:
 
 
 def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
+    """The navigation parameters: ``base`` (a scenario's [navigation]), then --config's, --set, --backend/--matching; strictly validated."""
+    from .config import ConfigError, navigation_parameters, read_navigation_table
+
     overrides = {key: value for key, value in (("backend", args.backend), ("matching", args.matching)) if value is not None}
     settings = dict(args.settings or ())
     fields = set(NavParameters.__dataclass_fields__)
     unknown = sorted(set(settings) - fields)
     if unknown:
-        raise ValueError(f"--set names no navigation parameter: {', '.join(unknown)} (known: {', '.join(sorted(fields))})")
+        raise UsageError(f"--set names no navigation parameter: {', '.join(unknown)} (known: {', '.join(sorted(fields))})")
+    layers = [("navigation", base)]
+    if getattr(args, "config", None) is not None:
+        layers.append((f"{args.config} [navigation]", read_navigation_table(args.config)))
+    layers += [("--set", settings), ("--backend/--matching", overrides)]
+    merged: dict = {}
+    for where, table in layers:
+        # Each layer alone first, so an error names where its value came from; a bad option value is a usage error.
+        try:
+            navigation_parameters(table, where)
+        except ConfigError as error:
+            raise (UsageError(str(error)) if where.startswith("--") else error) from None
+        merged.update(table)
+    return navigation_parameters(merged)
+
+
+def _positive_metres(text: str) -> float:
     try:
-        return NavParameters(**{**base, **settings, **overrides})
-    except TypeError as error:
-        raise ValueError(f"[navigation] has a field NavParameters does not know: {error}") from None
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number of metres, got {text!r}")
+    return value
 
 
 def _scenario_path(text: str) -> Path:
@@ -122,32 +186,44 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     from .scenario import load_scenario, simulate
 
     scenario = load_scenario(path)
-    grid, records = simulate(scenario)
-    out = out or Path("runs") / scenario.name
-    summary = _navigate(records, grid, _parameters(args, scenario.navigation), name=scenario.name, out=out,
-                        estimators=_estimators(args.estimator))
+    params = _parameters(args, scenario.navigation)
+    out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
+    with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
+        grid, records = simulate(scenario)
+        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator))
     _print_summary(summary, out)
     return 0
+
+
+#: Options of `lost run` that describe recorded files, meaningless with a scenario.
+_RECORDED_ONLY = ("sonar", "node_m", "crs", "source_crs", "positive", "nodata")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     if args.scenario is not None:
         if args.log or args.bathy:
-            raise ValueError("give either a scenario or --log and --bathy, not both")
+            raise UsageError("give either a scenario or --log and --bathy, not both")
+        grid_options = [f"--{name.replace('_', '-')}" for name in _RECORDED_ONLY if getattr(args, name) is not None]
+        if grid_options:
+            raise UsageError(f"{', '.join(grid_options)} apply to a recorded tow (--log, --bathy); a scenario sets its map in [terrain]")
         return _run_scenario(_scenario_path(args.scenario), args, args.out)
     if not (args.log and args.bathy):
-        raise ValueError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
+        raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
     try:
         from .io import read_grid
-        from .navlog import read_navlog
+        from .navlog import check_against_map, read_navlog
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
-    grid = read_grid(args.bathy)
-    records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
-                                  patch_shape=args.patch_shape, patch_centre=args.patch_centre)
-    print(report.summary())
-    out = args.out or Path("runs") / Path(args.log).stem
-    summary = _navigate(records, grid, _parameters(args, {}), name=Path(args.log).stem, out=out, estimators=_estimators(args.estimator))
+    params = _parameters(args, {})
+    out = args.out = args.out or Path("runs") / Path(args.log).stem
+    with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
+        grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
+        records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
+                                      patch_shape=args.patch_shape, patch_centre=args.patch_centre)
+        print(report.summary())
+        warnings += [*report.warnings, *check_against_map(records, grid)]
+        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings,
+                            estimators=_estimators(args.estimator))
     _print_summary(summary, out)
     return 0
 
@@ -224,10 +300,16 @@ def _cmd_correlate(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="lost", description=__doc__.splitlines()[0].replace("``", ""))
+    # SUPPRESS on both levels, so `lost --debug run` and `lost run --debug` both work (a subparser's
+    # default would otherwise overwrite the top level's value).
+    debug = argparse.ArgumentParser(add_help=False)
+    debug.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an error")
+    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an error")
     commands = parser.add_subparsers(dest="command", required=True)
 
     def navigation_options(sub: argparse.ArgumentParser) -> None:
-        sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME)")
+        sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME), written whole or not at all")
+        sub.add_argument("--replace", action="store_true", help="replace an earlier run in --out (whole); without it such a folder is refused")
         sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
         sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",
@@ -236,24 +318,34 @@ def build_parser() -> argparse.ArgumentParser:
                          help="a navigation parameter (NavParameters), over the scenario's [navigation]; repeatable; "
                               "VALUE is TOML, or none for the patent's default (e.g. --set u=0.005 --set cross_damping_per_s=none)")
 
-    run = commands.add_parser("run", help="navigate a simulated or recorded tow")
+    run = commands.add_parser("run", parents=[debug], help="navigate a simulated or recorded tow")
     run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
     run.add_argument("--sonar", help="sonar soundings side file of the log")
+    run.add_argument("--node-m", type=_positive_metres, default=None, metavar="METRES",
+                     help="node spacing of the map (and of the sonar patches), metres (default: the grid file's)")
+    run.add_argument("--crs", default=None, help="projected CRS to navigate in (default: the grid's own, or its UTM zone)")
+    run.add_argument("--source-crs", default=None, help="CRS of the grid file's coordinates when it declares none")
+    run.add_argument("--positive", choices=("up", "down"), default=None,
+                     help="the grid holds elevation (up, as GEBCO) or depth (down); default: its metadata, else its data's sign")
+    run.add_argument("--nodata", type=float, default=None, metavar="VALUE",
+                     help="a value of the grid file that marks a hole, when the file declares none (e.g. -32768)")
     run.add_argument("--patch-shape", type=shape_argument, default=(10, 10), metavar="ROWSxCOLS",
                      help="nodes of the sonar patch the soundings are gridded into (default 10x10)")
     run.add_argument("--patch-centre", choices=PATCH_CENTRES, default="vehicle",
                      help="centre of a record's patch when the log has no patch_east_m/patch_north_m: the vehicle "
                           "(default) or the middle of its soundings (a swath gathered in real time, behind the vehicle)")
+    run.add_argument("--config", type=Path, default=None, metavar="FILE",
+                     help="navigation parameters from the [navigation] table of FILE (a scenario file), over a scenario's own; --set wins")
     navigation_options(run)
     run.set_defaults(handler=_cmd_run)
 
-    demo = commands.add_parser("demo", help="run the built-in scenario into runs/demo")
+    demo = commands.add_parser("demo", parents=[debug], help="run the built-in scenario into runs/demo")
     navigation_options(demo)
     demo.set_defaults(handler=_cmd_demo, out=None)
 
-    corr = commands.add_parser("correlate", help="correlate a sonar patch against a map file")
+    corr = commands.add_parser("correlate", parents=[debug], help="correlate a sonar patch against a map file")
     corr.add_argument("map", type=Path, help="map: .npz (write_npz) or any grid read_grid reads")
     corr.add_argument("patch", type=Path, help="patch of depths in metres: .npy, .npz or .csv (empty cell = no beam)")
     corr.add_argument("--backend", choices=sorted(BACKENDS), default="software")
@@ -270,15 +362,58 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def _sigterm_interrupts():
+    """SIGTERM (a job scheduler's stop, ``kill``) unwinds like Ctrl-C, so a run's temporary folder is cleaned up."""
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave the signal alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _exit_code(error: BaseException) -> int:
+    if isinstance(error, KeyboardInterrupt):
+        return EXIT_INTERRUPTED
+    return EXIT_USAGE if isinstance(error, UsageError) else EXIT_ERROR
+
+
+def _one_line(error: BaseException) -> str:
+    """The error as one line: the message itself for the errors a user causes, with the class for the others."""
+    text = " ".join(str(error).split()) or type(error).__name__
+    if isinstance(error, (ValueError, OSError)):
+        return text
+    return f"internal error ({type(error).__name__}: {text}); please report it with the output of --debug"
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``lost`` command; returns the exit code (argparse's own usage errors raise ``SystemExit(2)``)."""
     args = build_parser().parse_args(argv)
     if args.command == "demo" and args.out is None:
-        args.out = Path("runs") / "demo"
+        # The demo's own folder holds only the demo: running it again replaces it.
+        args.out, args.replace = Path("runs") / "demo", True
     try:
-        return args.handler(args)
-    except (ValueError, FileNotFoundError) as error:
-        print(f"lost {args.command}: {error}", file=sys.stderr)
-        return 2
+        with _sigterm_interrupts():
+            return args.handler(args)
+    except (Exception, KeyboardInterrupt) as error:
+        if getattr(args, "debug", False):
+            traceback.print_exc(file=sys.stderr)
+        if isinstance(error, KeyboardInterrupt):
+            message = "interrupted"
+        else:
+            message = _one_line(error)
+        out = getattr(args, "out", None)
+        if out is not None and args.command in ("run", "demo") and not isinstance(error, UsageError):
+            message += f"; {describe_untouched(Path(out))}"
+        print(f"lost {args.command}: {message}", file=sys.stderr)
+        return _exit_code(error)
 
 
 if __name__ == "__main__":

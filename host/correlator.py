@@ -70,5 +70,5 @@ def correlate(
         surface = BACKENDS[backend]
     except (KeyError, TypeError):
         raise ValueError(f"unknown correlator backend {backend!r}; choose one of {sorted(BACKENDS)}") from None
-    terrain, patch, mask = model.check_inputs(terrain, patch, mask)
+    terrain, patch, mask = model.check_inputs(terrain, patch, mask, mean_compensation)
     return surface(terrain, patch, mask, bool(mean_compensation))

@@ -14,6 +14,9 @@ file                      how it is read
 ``.tif .tiff``            GeoTIFF through rasterio, band 1, with its CRS, transform and nodata.
 ``.asc``                  ESRI ASCII grid (EMODnet ships these) through rasterio, with a ``.prj``
                           beside it for the CRS.
+GMT native (any name)     GMT's ``=bf``/``=bd`` binary grids (892-byte header, then the values,
+                          north row first); the integer ones (``=bs``, ``=bi``, ``=bb``) and Surfer
+                          grids are refused with the command that converts them (:mod:`~lost.host.filecheck`).
 ``.npz``                  LOST's own cache, written by :func:`write_npz`; keys ``depth_m`` (2-D,
                           row 0 south), ``x0_m``, ``y0_m``, ``node_m`` and ``crs`` (a CRS string,
                           empty for a local frame).
@@ -22,8 +25,15 @@ file                      how it is read
 ``bounds=(west, south, east, north)``, in the file's own coordinates, reads only a window (from
 NetCDF and GeoTIFF without loading the rest), so a region can be cut from a global GEBCO grid.
 
-Binary files are recognised by content (NetCDF, HDF5, TIFF and zip signatures), so a GMT ``.grd``
-that is really NetCDF reads whatever its name; text files by extension.
+Binary files are recognised by content (NetCDF, HDF5, TIFF and zip signatures, GMT's native
+header), so a GMT ``.grd`` that is really NetCDF reads whatever its name; text files by extension.
+
+Damaged files
+    A NetCDF file shorter than its header says (classic: every variable's extent; NetCDF-4: the HDF5
+    superblock's end of file) is refused as truncated, naming both sizes; a NetCDF or GeoTIFF the
+    library cannot read is named with the library's reason. Values farther from sea level than any
+    sea floor (:data:`lost.host.filecheck.DEEPEST_M`) are refused, with a hint when they look like an
+    undeclared nodata value (``nodata=``).
 
 Coordinates
     A grid in geographic coordinates (longitude/latitude: CF ``degrees_east`` units, ``lon``/``lat``
@@ -39,7 +49,10 @@ Depth sign
     variable's name, standard name or long name (``depth`` means down; ``elevation``, ``height``,
     ``altitude``, ``topo`` mean up); and last the data itself (a negative median means elevation of a
     sea floor). Elevations are negated to depth. The ``lost.host.io`` logger says which: at INFO when
-    metadata decided, at WARNING when the data's sign did (a guess the user should see).
+    metadata decided, at WARNING when the data's sign did (a guess the user should see; ``lost run``
+    puts it in the run's summary). Data holding both signs in earnest (a median of zero or more
+    with at least ``MIXED_SIGN_SHARE`` below zero: mostly land with some sea) are refused without
+    metadata or ``positive``: the data cannot tell.
 
 Holes
     Holes stay holes: NaN in ``Grid.depth_m`` (nodata values, NaN cells, nodes outside a reprojected
@@ -49,9 +62,12 @@ Holes
 
 Gridding scattered soundings
     Soundings are projected to the metric frame, duplicates at the same position averaged, then
-    interpolated linearly over their Delaunay triangulation (scipy ``griddata``) onto the nodes; a node
-    whose nearest sounding is farther than ``max_gap_m`` (default ``node_m``) is NaN, so gaps between
-    survey lines are not invented. ``node_m`` defaults to the median distance between neighbouring
+    interpolated linearly over their Delaunay triangulation (scipy) onto the nodes; a node whose
+    nearest sounding is farther than ``max_gap_m`` (default ``node_m``) is NaN, and so, when
+    ``max_gap_m`` is not given, is a node whose triangle has a side longer than two nodes (it spans a
+    hole or a concave edge of the survey): gaps between survey lines are not invented. Soundings on a regular lattice (a gridded export, ``grd2xyz``, at least
+    half its nodes present) are read node for node instead, so a missing node stays a hole exactly
+    (unless ``max_gap_m`` is given, which asks for the triangulation's bridging). ``node_m`` defaults to the median distance between neighbouring
     soundings. Lines whose depth is NaN (GMT writes holes so) are skipped and the count is logged.
 """
 
@@ -65,6 +81,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .filecheck import GMT_NATIVE_HEADER_BYTES, check_plausible, check_whole, native_format, read_gmt_native
 from .grid import Grid
 
 __all__ = ["read_grid", "write_npz", "utm_crs", "GRID_SUFFIXES"]
@@ -100,6 +117,7 @@ def read_grid(
     positive: str | None = None,
     max_gap_m: float | None = None,
     bounds: tuple[float, float, float, float] | None = None,
+    nodata: float | None = None,
 ) -> Grid:
     """Read a bathymetry file into a projected, square-node :class:`Grid`.
 
@@ -129,6 +147,9 @@ def read_grid(
         Read only the nodes (or soundings) inside this box, given in the file's own coordinates
         (degrees for a geographic file, as its longitudes run): a region of a global GEBCO grid without
         loading the whole file.
+    nodata : float, optional
+        A value of the file that marks a hole, when the file does not declare one (a 16-bit GeoTIFF
+        written without a nodata tag holds -32768 there); in the file's units, before any sign change.
 
     Returns
     -------
@@ -140,13 +161,17 @@ def read_grid(
     ValueError
         The format is unknown, a required variable, column or key is missing (the message names what
         was found), coordinates are not monotonic, the CRS is ambiguous or contradictory, or the
-        result would be empty or absurdly large.
+        result would be empty or absurdly large; the file is truncated or unreadable (named, with the
+        library's reason); it holds values farther from sea level than any sea floor (an undeclared
+        nodata value: see ``nodata``); its sign is not in its metadata and its data hold both signs in
+        earnest (pass ``positive``); it is a format LOST does not read (GMT's integer native grids,
+        Surfer grids), named with how to convert it.
     FileNotFoundError
         The file does not exist.
     """
     grid = _read_any(
         Path(path), crs=crs, node_m=node_m, source_crs=source_crs, variable=variable, positive=positive,
-        max_gap_m=max_gap_m, bounds=bounds,
+        max_gap_m=max_gap_m, bounds=bounds, nodata=nodata,
     )
     if not np.isfinite(grid.depth_m).any():
         raise ValueError(
@@ -156,7 +181,7 @@ def read_grid(
     return grid
 
 
-def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_gap_m, bounds) -> Grid:
+def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_gap_m, bounds, nodata) -> Grid:
     if not path.is_file():
         raise FileNotFoundError(f"no bathymetry file at {path}")
     if positive not in (None, "down", "up"):
@@ -166,10 +191,12 @@ def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_ga
             raise ValueError(f"{name} must be a positive number of metres, got {value!r}")
     if bounds is not None:
         bounds = _check_bounds(bounds)
+    if nodata is not None and not (isinstance(nodata, int | float) and not isinstance(nodata, bool) and math.isfinite(nodata)):
+        raise ValueError(f"nodata must be a finite number (the file's hole value), got {nodata!r}")
     kind = _format_of(path)
     if kind == "npz":
-        if variable is not None or positive is not None or source_crs is not None:
-            raise ValueError("an .npz grid is already depth in a known frame; variable, positive and source_crs do not apply")
+        if variable is not None or positive is not None or source_crs is not None or nodata is not None:
+            raise ValueError("an .npz grid is already depth in a known frame; variable, positive, source_crs and nodata do not apply")
         grid = _read_npz(path)
         if grid.crs is None and crs is not None:
             raise ValueError(f"{path.name} is in a local frame (no CRS), so it cannot be projected to crs={crs!r}")
@@ -187,18 +214,22 @@ def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_ga
         if variable is not None:
             raise ValueError("variable= names a NetCDF variable; an XYZ file has columns x, y, z")
         return _read_xyz(
-            path, crs=crs, node_m=node_m, source_crs=source_crs, positive=positive, max_gap_m=max_gap_m, bounds=bounds
+            path, crs=crs, node_m=node_m, source_crs=source_crs, positive=positive, max_gap_m=max_gap_m, bounds=bounds, nodata=nodata
         )
     if max_gap_m is not None:
         raise ValueError("max_gap_m applies to scattered soundings (XYZ files), not to gridded files")
     if kind == "netcdf":
         values, xs, ys, file_crs = _read_netcdf(
-            path, variable=variable, positive=positive, source_crs=source_crs, bounds=bounds
+            path, variable=variable, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata
         )
+    elif kind.startswith("gmt:"):
+        if variable is not None:
+            raise ValueError("variable= names a NetCDF variable; a GMT native binary grid holds one")
+        values, xs, ys, file_crs = _read_gmt_native(path, kind, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata)
     else:
         if variable is not None:
             raise ValueError("variable= names a NetCDF variable; a GeoTIFF or ESRI ASCII grid is read from its band 1")
-        values, xs, ys, file_crs = _read_raster(path, positive=positive, source_crs=source_crs, bounds=bounds)
+        values, xs, ys, file_crs = _read_raster(path, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata)
     return _regular_to_grid(values, xs, ys, file_crs, crs=crs, node_m=node_m)
 
 
@@ -246,13 +277,23 @@ def _format_of(path: Path) -> str:
     with path.open("rb") as f:
         magic = f.read(8)
     if magic.startswith(b"CDF") or magic.startswith(b"\x89HDF"):
+        check_whole(path)
         return "netcdf"
     if magic[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+        check_whole(path)
         return "raster"
     if magic.startswith(b"PK"):
         if path.suffix.lower() != ".npz":
             raise ValueError(f"{path.name} is a zip archive; only .npz grids written by write_npz are read as zip")
         return "npz"
+    native = native_format(path)
+    if native is not None and native.startswith("gmt:"):
+        return native
+    if native is not None:
+        raise ValueError(
+            f"{path.name} is a {native.split(':', 1)[1]}, which LOST does not read; convert it to NetCDF or GeoTIFF, e.g. "
+            f"gdal_translate -of netCDF '{path.name}' {path.stem}.nc, or gmt grdconvert '{path.name}=sf' {path.stem}.nc"
+        )
     suffix = path.suffix.lower()
     if suffix in _XYZ_SUFFIXES:
         return "xyz"
@@ -261,7 +302,10 @@ def _format_of(path: Path) -> str:
             raise ValueError(f"{path.name} has an .asc name but no ESRI ASCII grid header (it starts {magic!r})")
         return "raster"
     if suffix in _NETCDF_SUFFIXES + _TIFF_SUFFIXES + (".npz",):
-        raise ValueError(f"{path.name} has a {suffix} name but its content is not {suffix[1:]} (first bytes {magic!r})")
+        hint = ""
+        if suffix == ".grd" and path.stat().st_size > GMT_NATIVE_HEADER_BYTES:
+            hint = "; a GMT native binary grid (=bf, =bs, ...) is recognised by its 892-byte header, which this file's is not either"
+        raise ValueError(f"{path.name} has a {suffix} name but its content is not {suffix[1:]} (first bytes {magic!r}){hint}")
     raise ValueError(f"cannot read {path.name}: unknown grid format {suffix!r}; LOST reads {', '.join(GRID_SUFFIXES)}")
 
 
@@ -284,7 +328,22 @@ def _read_npz(path: Path) -> Grid:
         )
 
 
-def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, source_crs: str | None, bounds):
+def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, source_crs: str | None, bounds, nodata):
+    try:
+        values, xs, ys, geographic, file_crs, sign_hint, variable = _netcdf_values(path, variable, bounds)
+    except (OSError, RuntimeError, KeyError, IndexError) as error:
+        # netCDF4/HDF5 report a damaged file as "NetCDF: HDF error" and the like: name the file and say what it means.
+        raise ValueError(f"{path.name} cannot be read as NetCDF, it is truncated or damaged ({type(error).__name__}: {error})") from None
+    if geographic:
+        if file_crs is not None and not _crs(file_crs).is_geographic:
+            raise ValueError(f"{path.name}: coordinates are in degrees but the grid mapping says {file_crs}")
+        file_crs = file_crs or "EPSG:4326"
+    file_crs = _agree(path, file_crs, source_crs)
+    values = _to_depth(values, positive or sign_hint, path.name, variable, nodata)
+    return (*_ascending(values, xs, ys, path.name), file_crs)
+
+
+def _netcdf_values(path: Path, variable: str | None, bounds):
     import xarray as xr
 
     with xr.open_dataset(path, engine="netcdf4", mask_and_scale=True, decode_times=False) as ds:
@@ -297,13 +356,7 @@ def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, sour
                 values, xs, ys = values[sy, sx], xs[sx], ys[sy]
         else:
             values, xs, ys, geographic, file_crs, sign_hint, variable = _cf_grid(ds, path, variable, two_d, bounds)
-    if geographic:
-        if file_crs is not None and not _crs(file_crs).is_geographic:
-            raise ValueError(f"{path.name}: coordinates are in degrees but the grid mapping says {file_crs}")
-        file_crs = file_crs or "EPSG:4326"
-    file_crs = _agree(path, file_crs, source_crs)
-    values = _to_depth(values, positive or sign_hint, path.name, variable)
-    return (*_ascending(values, xs, ys, path.name), file_crs)
+    return values, xs, ys, geographic, file_crs, sign_hint, variable
 
 
 def _cf_grid(ds, path: Path, variable: str | None, two_d: list[str], bounds):
@@ -405,7 +458,21 @@ def _sign_from_metadata(attrs: dict, variable: str) -> str | None:
     return None
 
 
-def _read_raster(path: Path, *, positive: str | None, source_crs: str | None, bounds):
+def _read_raster(path: Path, *, positive: str | None, source_crs: str | None, bounds, nodata):
+    from rasterio.errors import RasterioError
+
+    try:
+        values, xs, ys, file_crs, description, tags = _raster_values(path, bounds)
+    except (RasterioError, OSError) as error:
+        # GDAL reports a cut-off strip or tile as a read error of a block: name the file and say what it means.
+        raise ValueError(f"{path.name} cannot be read as a raster, it is truncated or damaged ({' '.join(str(error).split())})") from None
+    file_crs = _agree(path, file_crs, source_crs)
+    hint = _sign_from_metadata({"positive": tags.get("positive", ""), "long_name": description}, "")
+    values = _to_depth(values, positive or hint, path.name, "band 1", nodata)
+    return (*_ascending(values, xs, ys, path.name), file_crs)
+
+
+def _raster_values(path: Path, bounds):
     import rasterio
     from rasterio.windows import Window
 
@@ -427,13 +494,22 @@ def _read_raster(path: Path, *, positive: str | None, source_crs: str | None, bo
         file_crs = src.crs.to_string() if src.crs else None
         description = (src.descriptions[0] or "") if src.descriptions else ""
         tags = src.tags(1)
-    file_crs = _agree(path, file_crs, source_crs)
-    hint = _sign_from_metadata({"positive": tags.get("positive", ""), "long_name": description}, "")
-    values = _to_depth(values, positive or hint, path.name, "band 1")
+    return values, xs, ys, file_crs, description, tags
+
+
+def _read_gmt_native(path: Path, kind: str, *, positive, source_crs, bounds, nodata):
+    values, xs, ys, header = read_gmt_native(path, kind)
+    geographic = any(word in header["x_units"].lower() for word in ("degree", "lon"))
+    file_crs = _agree(path, "EPSG:4326" if geographic else None, source_crs)
+    if bounds is not None:
+        sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
+        values, xs, ys = values[sy, sx], xs[sx], ys[sy]
+    hint = _sign_from_metadata({"long_name": header["z_units"]}, "")
+    values = _to_depth(values, positive or hint, path.name, f"the GMT native grid ({kind.split(':')[1]})", nodata)
     return (*_ascending(values, xs, ys, path.name), file_crs)
 
 
-def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bounds) -> Grid:
+def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bounds, nodata) -> Grid:
     import pandas as pd
 
     first = _first_data_line(path)
@@ -490,7 +566,14 @@ def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bound
         )
     else:
         file_crs = None
-    z = _to_depth(z, positive or sign_hint, path.name, f"column {z_col!r}" if has_header else "the third (z) column")
+    z = _to_depth(z, positive or sign_hint, path.name, f"column {z_col!r}" if has_header else "the third (z) column", nodata)
+    keep = np.isfinite(z)  # nodata made holes: a hole is the absence of a sounding
+    x, y, z = x[keep], y[keep], z[keep]
+    lattice = _lattice(x, y, z) if max_gap_m is None else None
+    if lattice is not None:
+        # Gridded soundings (grd2xyz): read node for node, so a missing node stays a hole, exactly, and
+        # nothing lies past the data's edge. (An explicit max_gap_m asks for the triangulation's bridging.)
+        return _regular_to_grid(*lattice, file_crs, crs=crs, node_m=node_m)
 
     target = _target_crs(file_crs, crs, x, y)
     if file_crs is not None and target is not None and not _same_crs(file_crs, target):
@@ -540,22 +623,45 @@ def _is_number(token: str) -> bool:
 # shared steps
 
 
-def _to_depth(values: np.ndarray, positive: str | None, name: str, variable: str) -> np.ndarray:
+#: A share of values on the other side of zero from the median above which the data's sign is no guide.
+MIXED_SIGN_SHARE = 0.1
+
+
+def _to_depth(values: np.ndarray, positive: str | None, name: str, variable: str, nodata: float | None = None) -> np.ndarray:
+    """The file's values as depth (positive down): holes for ``nodata``, implausible values refused, the sign applied."""
+    if nodata is not None:
+        values = np.where(values == nodata, np.nan, values)
+    check_plausible(values, name, variable)
     if positive is None:
-        finite = values[np.isfinite(values)]
-        if finite.size == 0:
-            raise ValueError(f"{name}: {variable} holds no finite value")
-        positive = "up" if np.median(finite) < 0 else "down"
-        # A guess from the data, so it is said at WARNING, which Python prints even when logging is not set up.
-        log.warning(
-            "%s: %s has no sign convention in its metadata; its median is %s, so it is read as %s "
-            "(pass positive='up' or 'down' to say otherwise)",
-            name, variable, f"{np.median(finite):g}", "elevation" if positive == "up" else "depth",
-        )
+        positive = _sign_from_data(values, name, variable)
     if positive == "up":
         log.info("%s: %s is elevation (positive up); negated to depth (positive down)", name, variable)
         return -values
     return values
+
+
+def _sign_from_data(values: np.ndarray, name: str, variable: str) -> str:
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        raise ValueError(f"{name}: {variable} holds no finite value")
+    median = float(np.median(finite))
+    below, above = float(np.mean(finite < 0)), float(np.mean(finite > 0))
+    if median >= 0 and below >= MIXED_SIGN_SHARE:
+        # Mostly land at +60 m with sea at -40 m, or a depth grid with much ground above its datum: the median cannot tell.
+        raise ValueError(
+            f"{name}: {variable} has no sign convention in its metadata and holds both signs in earnest ({above:.0%} above zero, "
+            f"{below:.0%} below): elevation over mostly land or depth with dry ground, the data cannot tell; "
+            "pass positive='up' (elevation, as GEBCO) or 'down' (depth), --positive on the command line"
+        )
+    positive = "up" if median < 0 else "down"
+    # A guess from the data, so it is said at WARNING (Python prints it even when logging is not set up,
+    # and the command line puts it in the run's report).
+    log.warning(
+        "%s: %s has no sign convention in its metadata; its median is %s, so it is read as %s "
+        "(pass positive='up' or 'down', --positive on the command line, to say otherwise)",
+        name, variable, f"{median:g}", "elevation (negated to depth)" if positive == "up" else "depth",
+    )
+    return positive
 
 
 def _ascending(values: np.ndarray, xs: np.ndarray, ys: np.ndarray, name: str):
@@ -691,10 +797,31 @@ def _interpolate_keeping_holes(values, xs, ys, qx, qy) -> np.ndarray:
     return depth.reshape(qx.shape)
 
 
+def _lattice(x: np.ndarray, y: np.ndarray, z: np.ndarray):
+    """``(values, xs, ys)`` when the soundings sit on a regular lattice (a gridded export), holes NaN; else None."""
+    xs, ys = np.unique(x), np.unique(y)
+    if xs.size < 2 or ys.size < 2:
+        return None
+    dx, dy = float(np.min(np.diff(xs))), float(np.min(np.diff(ys)))
+    col, row = (x - xs[0]) / dx, (y - ys[0]) / dy
+    on_lattice = np.allclose(col, np.round(col), rtol=0, atol=1e-3) and np.allclose(row, np.round(row), rtol=0, atol=1e-3)
+    cols, rows = int(round((xs[-1] - xs[0]) / dx)) + 1, int(round((ys[-1] - ys[0]) / dy)) + 1
+    # Mostly full, or scattered soundings written with few decimals would pass for a fine lattice.
+    if not on_lattice or x.size < 0.5 * rows * cols or rows * cols > _MAX_NODES:
+        return None
+    r, c = np.round(row).astype(np.int64), np.round(col).astype(np.int64)
+    sums, counts = np.zeros((rows, cols)), np.zeros((rows, cols))
+    np.add.at(sums, (r, c), z)
+    np.add.at(counts, (r, c), 1)  # repeated soundings of a node: their mean
+    with np.errstate(invalid="ignore"):
+        values = np.where(counts > 0, sums / counts, np.nan)
+    return values, xs[0] + np.arange(cols) * dx, ys[0] + np.arange(rows) * dy
+
+
 def _grid_soundings(x, y, z, *, node_m, max_gap_m, crs, name) -> Grid:
     import pandas as pd
     from scipy.interpolate import LinearNDInterpolator
-    from scipy.spatial import QhullError, cKDTree
+    from scipy.spatial import Delaunay, QhullError, cKDTree
     from threadpoolctl import threadpool_limits
 
     # Repeated positions would make a degenerate triangulation; their mean is the honest depth.
@@ -705,6 +832,8 @@ def _grid_soundings(x, y, z, *, node_m, max_gap_m, crs, name) -> Grid:
     tree = cKDTree(np.column_stack([x, y]))
     if node_m is None:
         node_m = float(np.median(tree.query(np.column_stack([x, y]), k=2)[0][:, 1]))
+    # By default a triangle may not bridge more than two nodes; an explicit max_gap_m is the user's one rule.
+    longest_side_m = 2 * node_m if max_gap_m is None else math.inf
     max_gap_m = node_m if max_gap_m is None else max_gap_m
     x0 = math.ceil(x.min() / node_m - 1e-9) * node_m
     y0 = math.ceil(y.min() / node_m - 1e-9) * node_m
@@ -721,7 +850,15 @@ def _grid_soundings(x, y, z, *, node_m, max_gap_m, crs, name) -> Grid:
         # Delaunay's barycentric transforms call LAPACK once per triangle, where BLAS threads only
         # contend (20 times slower on a busy 2-core machine).
         with threadpool_limits(limits=1, user_api="blas"):
-            depth[near] = LinearNDInterpolator(np.column_stack([x, y]), z)(qx[near], qy[near])
+            triangles = Delaunay(np.column_stack([x, y]))
+            # A triangle with a side longer than two nodes spans a hole or a concave edge of the survey:
+            # the nodes it covers are not bridged, even when one of its corners is near.
+            corners = triangles.points[triangles.simplices]
+            longest = np.max(np.hypot(*(corners - np.roll(corners, 1, axis=1)).transpose(2, 0, 1)), axis=1)
+            within = triangles.find_simplex(np.column_stack([qx[near], qy[near]]))
+            bridged = np.zeros(qx.shape, dtype=bool)
+            bridged[near] = (within >= 0) & (longest[within] <= longest_side_m * (1 + 1e-9))
+            depth[bridged] = LinearNDInterpolator(triangles, z)(qx[bridged], qy[bridged])
     except QhullError:
         raise ValueError(f"{name}: the soundings cannot be triangulated (are they all on one line?)") from None
     return Grid(depth_m=depth, x0_m=float(x0), y0_m=float(y0), node_m=float(node_m), crs=crs)

@@ -60,8 +60,20 @@ Writing
     value: an example survey to run the command line on.
 
 Errors
-    A missing file, a missing required column, a non-numeric cell, latitude/longitude out of range or
-    time not increasing raise ``ValueError`` naming the column, data row and file line.
+    A missing file, a missing required column, a column named twice (compared without case), a file
+    that is not UTF-8 text, a non-numeric cell, latitude/longitude out of range or time not
+    increasing raise ``ValueError`` naming the column, data row and file line. So do positions and
+    logged velocities that disagree by more than a factor of 100 (times in milliseconds, positions in
+    kilometres, a velocity in another unit) and a cable shorter than the depth in every record.
+
+Plausibility
+    Comma, semicolon and tab separated files are read (the separator splits the header). Readings no
+    tow can give (a negative altitude, cable or range; the vehicle more than 1 m above the surface)
+    are set to missing and counted; ship position steps faster than any ship (``MAX_SHIP_SPEED_MPS``),
+    records with less cable than depth and ``time_utc`` columns mixing zoned and bare times are
+    reported: each is a line of :attr:`LoadReport.warnings`. :func:`check_against_map` checks records
+    against the map they are to be navigated on (patch node spacing, positions near the map, with a
+    diagnosis of swapped or kilometre positions).
 """
 
 from __future__ import annotations
@@ -74,10 +86,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .filecheck import DEEPEST_M
+from .grid import Grid
 from .records import NavRecords, SonarPatch
 from .sonar import _check_shape, grid_soundings, soundings_centre
 
-__all__ = ["LoadReport", "read_navlog", "write_navlog", "NAVLOG_COLUMNS", "PATCH_CENTRES", "SONAR_COLUMNS"]
+__all__ = ["LoadReport", "read_navlog", "write_navlog", "check_against_map", "NAVLOG_COLUMNS", "PATCH_CENTRES", "SONAR_COLUMNS",
+           "MAX_SHIP_SPEED_MPS"]
 
 _TIME_COLUMNS = ("t_s", "time_utc")
 _SINGLE_REQUIRED = ("ship_heading_deg", "vehicle_depth_m", "altitude_m", "cable_out_m")
@@ -113,6 +128,9 @@ class LoadReport:
         ``(data row, reason)`` for each row left out; data rows count from 0 after the header.
     unknown_columns : tuple of str
         Columns not in the documented layout, not read.
+    warnings : tuple of str
+        Implausible readings found and kept (position jumps faster than any ship); the command line
+        puts them in the run's report.
     notes : tuple of str
         Decisions worth knowing: projections, north conversion, absent optional columns, ignored
         duplicate forms.
@@ -122,6 +140,9 @@ class LoadReport:
         Rows of the sonar file.
     soundings_used : int
         Soundings gridded into a patch.
+    soundings_implausible : int
+        Soundings whose depth no sea floor has (more than ``SOUNDING_ABOVE_SURFACE_M`` above the
+        surface, deeper than ``lost.host.filecheck.DEEPEST_M``).
     soundings_without_value : int
         Soundings with an empty or NaN time/record, offset or depth.
     soundings_unmatched : int
@@ -141,10 +162,12 @@ class LoadReport:
     skipped_rows: tuple[tuple[int, str], ...] = ()
     unknown_columns: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
     sonar_path: str | None = None
     soundings: int = 0
     soundings_used: int = 0
     soundings_without_value: int = 0
+    soundings_implausible: int = 0
     soundings_unmatched: int = 0
     soundings_of_skipped_records: int = 0
     soundings_outside_patch: int = 0
@@ -165,6 +188,7 @@ class LoadReport:
         if self.unknown_columns:
             lines.append("  unknown columns, not read: " + ", ".join(self.unknown_columns))
         lines += [f"  note: {n}" for n in self.notes]
+        lines += [f"  warning: {w}" for w in self.warnings]
         if self.sonar_path is not None:
             lines.append(
                 f"{self.sonar_path}: {self.soundings} soundings, {self.soundings_used} gridded into "
@@ -172,6 +196,7 @@ class LoadReport:
             )
             for label, count in (
                 ("without a value (empty or NaN)", self.soundings_without_value),
+                ("with a depth no sea floor has", self.soundings_implausible),
                 ("matching no record", self.soundings_unmatched),
                 ("of skipped records", self.soundings_of_skipped_records),
                 ("beyond the patch", self.soundings_outside_patch),
@@ -250,11 +275,12 @@ def read_navlog(
     unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
     lines = _Lines(path, len(table))
     values = {c: _numeric(table[columns[c]], c, path, lines) for c in used}
-    epoch = None
+    epoch, zone_warnings = None, []
     if time_column == "t_s":
         values["t_s"] = _numeric(table[columns["t_s"]], "t_s", path, lines)
     else:
         values["t_s"], epoch = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=None)
+        zone_warnings = _check_zones(table[columns["time_utc"]], lines, notes)
         if epoch is not None:
             notes.append(f"t_s counts seconds from time_utc {epoch.isoformat()}")
 
@@ -275,6 +301,7 @@ def read_navlog(
         values["slant_range_m"] = np.full(keep.sum(), np.nan)
         notes.append("no slant_range_m column: slant range is NaN (not measured) for every record")
 
+    impossible = _impossible_readings(values, kept_rows, lines, path)
     geographic = position == ("lat", "lon")
     if geographic:
         if crs is None:
@@ -333,8 +360,10 @@ def read_navlog(
         truth_x_m=truth_x,
         truth_y_m=truth_y,
     )
+    warnings = zone_warnings + impossible + _check_motion(records, kept_rows, lines, path, time_column, geographic)
     report = LoadReport(
         path=str(path),
+        warnings=tuple(warnings),
         rows=len(table),
         records=len(records),
         nan_counts=nan_counts,
@@ -402,17 +431,52 @@ def _read_table(path: Path):
 
     if not path.is_file():
         raise FileNotFoundError(f"no file at {path}")
+    header = _header_line(path)
+    sep = _separator(header)
+    _refuse_duplicates([name.strip() for name in header.split(sep)], path)
     try:
         # The C parser makes clean columns float64 at once; a column with a stray word stays text, and
         # _numeric then names the cell. Only these words (and empty cells) are missing readings.
         return pd.read_csv(
-            path, comment="#", skipinitialspace=True, keep_default_na=False,
+            path, sep=sep, comment="#", skipinitialspace=True, keep_default_na=False,
             na_values=["", "nan", "NaN", "NAN", "NA", "n/a", "N/A", "null", "NULL", "NaT"],
         )
     except pd.errors.EmptyDataError:
         raise ValueError(f"{path.name} is empty; a header row naming the columns is needed") from None
     except pd.errors.ParserError as exc:
-        raise ValueError(f"{path.name} is not a well-formed CSV: {exc}") from None
+        raise ValueError(f"{path.name} is not a well-formed CSV: {' '.join(str(exc).split())}") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path.name} is not UTF-8 text (a byte {exc.object[exc.start]:#04x} at {exc.start}); is it a binary file?") from None
+
+
+def _header_line(path: Path) -> str:
+    try:
+        with path.open("r", encoding="utf-8") as stream:
+            for line in stream:
+                if line.strip() and not line.lstrip().startswith("#"):
+                    return line.rstrip("\r\n").lstrip("\ufeff")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path.name} is not UTF-8 text (a byte {exc.object[exc.start]:#04x} at {exc.start}); is it a binary file?") from None
+    raise ValueError(f"{path.name} is empty; a header row naming the columns is needed")
+
+
+def _separator(header: str) -> str:
+    """Comma, semicolon or tab: whichever separates the header's names (the most frequent of the three)."""
+    counts = {sep: header.count(sep) for sep in (",", ";", "\t")}
+    best = max(counts, key=counts.get)
+    return best if counts[best] else ","
+
+
+def _refuse_duplicates(names: list[str], path: Path) -> None:
+    seen: dict[str, int] = {}
+    for index, name in enumerate(names):
+        key = name.lower()
+        if key in seen:
+            raise ValueError(
+                f"{path.name}: the column name {name!r} appears twice (columns {seen[key] + 1} and {index + 1}, "
+                f"names compared without case: {names[seen[key]]!r}); which one is meant cannot be guessed, rename or drop one"
+            )
+        seen[key] = index
 
 
 class _Lines:
@@ -565,6 +629,9 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
         v["t_s"], _ = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=epoch)
         key = "t_s"
     finite = np.isfinite(v[key]) & np.isfinite(v["east_m"]) & np.isfinite(v["north_m"]) & np.isfinite(v["depth_m"])
+    # A sounding above the surface or deeper than any sea is no sounding: counted, not gridded.
+    implausible = finite & ((v["depth_m"] < -SOUNDING_ABOVE_SURFACE_M) | (v["depth_m"] > DEEPEST_M))
+    finite &= ~implausible
 
     # Which kept record (index into record_times) each sounding belongs to; -1 none, -2 a skipped row.
     owner = np.full(len(table), -1, dtype=np.int64)
@@ -621,11 +688,214 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
         sonar_path=str(path),
         soundings=len(table),
         soundings_used=used,
-        soundings_without_value=int((~finite).sum()),
+        soundings_without_value=int((~finite).sum()) - int(implausible.sum()),
+        soundings_implausible=int(implausible.sum()),
         soundings_unmatched=int((finite & (owner == -1)).sum()),
         soundings_of_skipped_records=int((finite & (owner == -2)).sum()),
         soundings_outside_patch=outside,
         records_with_sonar=sum(p is not None for p in patches),
     )
-    assert used + outside + sum(stats[k] for k in ("soundings_without_value", "soundings_unmatched", "soundings_of_skipped_records")) == len(table)
+    assert used + outside + sum(stats[k] for k in ("soundings_without_value", "soundings_implausible", "soundings_unmatched",
+                                                   "soundings_of_skipped_records")) == len(table)
     return tuple(patches), stats
+
+
+# --------------------------------------------------------------------------------------------
+# plausibility
+
+#: A sounding more than this far above the sea surface (a negative depth) is not of the sea floor (drying banks are a few metres).
+SOUNDING_ABOVE_SURFACE_M = 20.0
+#: Faster than any ship that tows a vehicle (about 50 kn): a position step this fast is a bad fix.
+MAX_SHIP_SPEED_MPS = 25.0
+_ZONE = r"(Z|[+-]\d{2}(?::?\d{2})?)$"
+
+
+def _check_zones(column, lines, notes: list) -> list[str]:
+    """A warning when some timestamps carry a zone and some do not; a note for several zones (all converted to UTC)."""
+    text = column.astype(str).str.strip()
+    stamped = ~(column.isna() | (text == "") | text.str.lower().isin(_MISSING_WORDS + ("nat",)))
+    # A zone follows the time of day: look only past the 'T' (or the space) so a date's dashes are not taken for one.
+    zones = text.str.split(r"[T ]", n=1, regex=True).str[-1].str.extract(_ZONE, expand=False).fillna("")
+    zones = zones[stamped.to_numpy()]
+    with_zone = zones != ""
+    kinds = sorted(set(zones[with_zone]))
+    if len(kinds) > 1:
+        notes.append(f"time_utc holds several time zones ({', '.join(kinds)}); every time converted to UTC")
+    if with_zone.any() and not with_zone.all():
+        row = int(zones.index[(~with_zone).to_numpy()][0] if with_zone.iloc[0] else zones.index[with_zone.to_numpy()][0])
+        return [
+            f"time_utc mixes times with a zone and without one (the first change at {_where(row, lines)}: {column.iloc[row]!r}); "
+            "a bare time is read as UTC, check that it is"
+        ]
+    return []
+
+
+#: Readings no tow can give: (column, test of the impossible values, why). Such a reading is set to missing and counted.
+_IMPOSSIBLE = (
+    ("altitude_m", lambda v: v < 0, "a negative height above the floor"),
+    ("altitude_m", lambda v: v > DEEPEST_M, "higher above the floor than any sea is deep"),
+    ("vehicle_depth_m", lambda v: v < -1.0, "the vehicle more than 1 m above the surface"),
+    ("vehicle_depth_m", lambda v: v > DEEPEST_M, "deeper than any sea"),
+    ("cable_out_m", lambda v: v < 0, "a negative cable length"),
+    ("slant_range_m", lambda v: v < 0, "a negative range"),
+)
+
+
+def _impossible_readings(values: dict, rows: np.ndarray, lines, path: Path) -> list[str]:
+    """Set physically impossible readings to missing (NaN) and say how many; refuse a cable always shorter than the depth."""
+    warnings = []
+    for column, test, why in _IMPOSSIBLE:
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(test(values[column]))
+        if bad.size:
+            values[column] = values[column].copy()
+            values[column][bad] = np.nan
+            warnings.append(f"{bad.size} {column} reading(s) set to missing, {why} (the first at {_where(int(rows[bad[0]]), lines)})")
+    cable, depth = values["cable_out_m"], values["vehicle_depth_m"]
+    both = np.isfinite(cable) & np.isfinite(depth)
+    short = both & (cable < depth)
+    if both.any() and short.sum() == both.sum():
+        raise ValueError(
+            f"{path.name}: cable_out_m is shorter than vehicle_depth_m in every record (e.g. {cable[short][0]:g} m of cable at "
+            f"{depth[short][0]:g} m depth): a cable in another unit, or the wrong column?"
+        )
+    if short.any():
+        first = int(rows[np.flatnonzero(short)[0]])
+        warnings.append(f"{int(short.sum())} record(s) with less cable out than the vehicle's depth, the first at {_where(first, lines)}: "
+                        "their lay-back is taken as zero")
+    return warnings
+
+
+def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time_column: str, geographic: bool) -> list[str]:
+    """Refuse a log whose positions and velocities disagree by a factor of a thousand; list position jumps."""
+    t, x, y = records.t_s, records.ship_x_m, records.ship_y_m
+    known = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
+    if known.size < 3:
+        return []
+    dt = np.diff(t[known])
+    step = np.hypot(np.diff(x[known]), np.diff(y[known]))
+    speed = step / dt
+    logged = np.hypot(records.vel_x_mps, records.vel_y_mps)
+    logged = logged[known[1:]]
+    # Moving by either measure (a unit error makes one of them tiny); a zero velocity is a dropout, not a ratio.
+    moving = np.isfinite(logged) & np.isfinite(speed) & (logged > 0) & (np.maximum(logged, speed) > 0.3)
+    if moving.sum() >= 3:
+        ratio = float(np.median(speed[moving] / logged[moving]))
+        if not 1e-2 < ratio < 1e2:
+            raise ValueError(_unit_suspect(ratio, float(np.median(dt)), time_column, geographic, path))
+    warnings = _check_time_gaps(t, rows, lines) + _check_heading_unit(records)
+    fast = np.flatnonzero(speed > MAX_SHIP_SPEED_MPS)
+    if fast.size:
+        k = int(fast[0])
+        warnings.append(
+            f"{fast.size} ship position step(s) faster than any ship (> {MAX_SHIP_SPEED_MPS:g} m/s), the first at "
+            f"{_where(int(rows[known[k + 1]]), lines)}: {step[k]:.0f} m in {dt[k]:g} s; bad GPS fixes?"
+        )
+    return warnings
+
+
+#: A gap between records longer than this many typical steps (and a minute) is reported.
+GAP_STEPS = 60
+
+
+def _check_time_gaps(t: np.ndarray, rows: np.ndarray, lines) -> list[str]:
+    steps = np.diff(t)
+    if steps.size < 2:
+        return []
+    limit = max(GAP_STEPS * float(np.median(steps)), 60.0)
+    gaps = np.flatnonzero(steps > limit)
+    if not gaps.size:
+        return []
+    k = int(gaps[0])
+    return [f"{gaps.size} gap(s) in time longer than {limit:g} s, the first {steps[k]:g} s before {_where(int(rows[k + 1]), lines)}: "
+            "the navigation dead-reckons across them"]
+
+
+def _check_heading_unit(records: NavRecords) -> list[str]:
+    """Headings all within [0, 2 pi] while the ship's course turns through more than 20 degrees: radians."""
+    heading = records.ship_heading_deg[np.isfinite(records.ship_heading_deg)]
+    course = np.degrees(np.arctan2(records.vel_x_mps, records.vel_y_mps))
+    course = course[np.isfinite(course) & (np.hypot(records.vel_x_mps, records.vel_y_mps) > 0.3)]
+    if heading.size < 3 or course.size < 3 or np.max(np.abs(heading)) > 2 * np.pi:
+        return []
+    # The spread of the course about its circular mean.
+    mean = np.angle(np.mean(np.exp(1j * np.radians(course))), deg=True)
+    if np.max(np.abs((course - mean + 180.0) % 360.0 - 180.0)) > 20.0 or abs(mean) > 20.0:
+        return [f"ship_heading_deg stays within 0 to {2 * np.pi:.2f} while the ship's course is not near north: "
+                "are the headings in radians? give degrees"]
+    return []
+
+
+def _unit_suspect(ratio: float, median_step: float, time_column: str, geographic: bool, path: Path) -> str:
+    said = f"{path.name}: the ship moves {ratio:.3g} times as fast by its positions as by its logged velocity"
+    if ratio < 1:
+        if time_column == "t_s" and median_step >= 50:
+            return f"{said}, and records are {median_step:g} s apart: t_s looks like milliseconds; give seconds"
+        if not geographic:
+            return f"{said}: x_m/y_m look like kilometres (or t_s like milliseconds); give metres and seconds"
+        return f"{said}: are the times in milliseconds, or the velocity in another unit than m/s?"
+    return f"{said}: is the velocity in another unit than m/s (knots, cm/s), or are the times in another unit than seconds?"
+
+
+def check_against_map(records: NavRecords, grid: Grid) -> list[str]:
+    """Refuse records that cannot belong to ``grid``; return warnings for doubtful ones.
+
+    Sonar patches must have the map's node spacing (the correlator compares node with node). At
+    least one ship position must lie within reach of the map (the largest cable out, at least
+    2 km); when none does, the message says whether the positions fit the map swapped (latitude for
+    longitude, x for y) or multiplied by a thousand (kilometres).
+
+    Raises
+    ------
+    ValueError
+        A patch node spacing differs from the map's, or no ship position comes near the map.
+    """
+    sizes = sorted({float(p.node_m) for p in records.sonar if p is not None})
+    wrong = [size for size in sizes if not np.isclose(size, grid.node_m, rtol=1e-9)]
+    if wrong:
+        raise ValueError(
+            f"the sonar patches have {', '.join(f'{v:g}' for v in wrong)} m nodes but the map has {grid.node_m:g} m nodes: the correlator "
+            f"compares node with node, so no patch could match; grid the soundings at the map's node (read_navlog node_m={grid.node_m:g}) "
+            "or resample the map (read_grid node_m=, lost run --node-m)"
+        )
+    x, y = records.ship_x_m, records.ship_y_m
+    finite = np.isfinite(x) & np.isfinite(y)
+    if not finite.any():
+        raise ValueError("no record has a ship position; there is nothing to navigate from")
+    reach = max(2000.0, float(np.nanmax(records.cable_out_m)) if np.isfinite(records.cable_out_m).any() else 0.0)
+    near = _near(grid, x[finite], y[finite], reach)
+    if near.any():
+        if near.mean() < 0.5:
+            return [f"only {near.mean():.0%} of the ship positions lie within {reach:g} m of the map"]
+        return []
+    raise ValueError(
+        f"no ship position lies within {reach:g} m of the map (map x {grid.x0_m:.0f} to {grid.x0_m + (grid.shape[1] - 1) * grid.node_m:.0f}, "
+        f"y {grid.y0_m:.0f} to {grid.y0_m + (grid.shape[0] - 1) * grid.node_m:.0f}; the log's first position is "
+        f"({x[finite][0]:.1f}, {y[finite][0]:.1f})): {_diagnose(grid, x[finite], y[finite], reach)}"
+    )
+
+
+def _near(grid: Grid, x: np.ndarray, y: np.ndarray, reach: float) -> np.ndarray:
+    rows, cols = grid.shape
+    dx = np.maximum(0.0, np.maximum(grid.x0_m - x, x - (grid.x0_m + (cols - 1) * grid.node_m)))
+    dy = np.maximum(0.0, np.maximum(grid.y0_m - y, y - (grid.y0_m + (rows - 1) * grid.node_m)))
+    return np.hypot(dx, dy) <= reach
+
+
+def _diagnose(grid: Grid, x: np.ndarray, y: np.ndarray, reach: float) -> str:
+    if _near(grid, x * 1000.0, y * 1000.0, reach).mean() > 0.5:
+        return "multiplied by 1000 they would be on it: the positions look like kilometres; give metres"
+    if _near(grid, y, x, reach).mean() > 0.5:
+        return "with x and y swapped they would be on it: swap the x_m and y_m columns"
+    if grid.crs is not None:
+        from pyproj import Transformer
+
+        try:
+            to_lonlat = Transformer.from_crs(grid.crs, "EPSG:4326", always_xy=True)
+            lon, lat = to_lonlat.transform(x, y)
+            sx, sy = to_lonlat.transform(np.asarray(lat), np.asarray(lon), direction="INVERSE")
+            if np.all(np.isfinite(sx)) and _near(grid, np.asarray(sx), np.asarray(sy), reach).mean() > 0.5:
+                return "with latitude and longitude swapped they would be on it: swap the lat and lon columns"
+        except Exception:  # noqa: BLE001  (a failed projection only means no diagnosis)
+            pass
+    return "is the log in the map's CRS, and is it the right map?"

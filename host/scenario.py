@@ -26,14 +26,16 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import Field
 from scipy import ndimage
 
+from .config import ConfigError, Fraction, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, navigation_parameters, validate_fields
 from .grid import Grid
 from .records import NavRecords, SonarPatch
 from .terrain import synthetic_terrain
@@ -83,20 +85,20 @@ class TerrainSpec:
     """
 
     file: str | None = None
-    seed: int | None = None
-    shape: tuple[int, int] = (400, 700)
-    node_m: float = 10.0
+    seed: NonNegativeInt | None = None
+    shape: tuple[PositiveInt, PositiveInt] = (400, 700)
+    node_m: PositiveFloat = 10.0
     x0_m: float = 0.0
     y0_m: float = 0.0
     mean_depth_m: float = 1000.0
-    relief_m: float = 60.0
-    roughness_m: float = 8.0
-    smooth_fraction: float = 0.0
-    hurst: float = 0.8
-    corner_m: float | None = None
-    aspect: float = 1.0
+    relief_m: NonNegativeFloat = 60.0
+    roughness_m: NonNegativeFloat = 8.0
+    smooth_fraction: Fraction = 0.0
+    hurst: Annotated[float, Field(gt=0, le=1)] = 0.8
+    corner_m: PositiveFloat | None = None
+    aspect: PositiveFloat = 1.0
     azimuth_deg: float = 0.0
-    repeat_m: tuple[float, float] | None = None
+    repeat_m: tuple[PositiveFloat, PositiveFloat] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -113,11 +115,11 @@ class MapSpec:
     seed : the noise's seed (default: the scenario's seed + 1).
     """
 
-    node_m: float | None = None
-    noise_m: float = 0.0
+    node_m: PositiveFloat | None = None
+    noise_m: NonNegativeFloat = 0.0
     offset_m: float = 0.0
     extent_m: tuple[float, float, float, float] | None = None
-    seed: int | None = None
+    seed: NonNegativeInt | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -130,7 +132,7 @@ class FaultSpec:
     """
 
     position_jump_m: tuple[float, float] = (0.0, 0.0)
-    at_s: float | None = None
+    at_s: NonNegativeFloat | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -138,23 +140,23 @@ class ShipSpec:
     """``[ship]``: waypoints_m, a list of [east, north] in metres; speed_kn; turn_rate_dps, degrees/s."""
 
     waypoints_m: tuple[tuple[float, float], ...] = ((1000.0, 2000.0), (6000.0, 2000.0))
-    speed_kn: float = 3.0
-    turn_rate_dps: float = 0.5
+    speed_kn: PositiveFloat = 3.0
+    turn_rate_dps: PositiveFloat = 0.5
 
 
 @dataclass(frozen=True, kw_only=True)
 class CableSpec:
     """``[cable]``: out_m, cable paid out, metres; catenary_factor in (0, 1], the true lay-back's share of a straight cable's."""
 
-    out_m: float = 1500.0
-    catenary_factor: float = 0.9
+    out_m: PositiveFloat = 1500.0
+    catenary_factor: Annotated[float, Field(gt=0, le=1)] = 0.9
 
 
 @dataclass(frozen=True, kw_only=True)
 class CurrentSpec:
     """``[current]``: speed_kn and the direction it flows toward, toward_deg, degrees clockwise from north."""
 
-    speed_kn: float = 0.0
+    speed_kn: NonNegativeFloat = 0.0
     toward_deg: float = 0.0
 
 
@@ -163,8 +165,8 @@ class VehicleSpec:
     """``[vehicle]``: altitude_m, the target height above the floor; depth_time_constant_s, its depth lag;
     has_velocity_sensor: an INS/DVL on board (else the pipeline gets the ship's velocity)."""
 
-    altitude_m: float = 80.0
-    depth_time_constant_s: float = 60.0
+    altitude_m: PositiveFloat = 80.0
+    depth_time_constant_s: PositiveFloat = 60.0
     has_velocity_sensor: bool = True
 
 
@@ -178,11 +180,11 @@ class SensorSpec:
     outlier_rate, outlier : probability of a gross error, uniform in [-outlier, +outlier].
     """
 
-    noise: float = 0.0
+    noise: NonNegativeFloat = 0.0
     bias: float | tuple[float, float] = 0.0
-    dropout_rate: float = 0.0
-    outlier_rate: float = 0.0
-    outlier: float = 0.0
+    dropout_rate: Fraction = 0.0
+    outlier_rate: Fraction = 0.0
+    outlier: NonNegativeFloat = 0.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -207,13 +209,13 @@ class SonarSpec(SensorSpec):
     """
 
     enabled: bool = True
-    shape: tuple[int, int] = (10, 10)
-    interval_s: float = 1.0
-    missing_beam_rate: float = 0.0
-    mode: str = "gridded"
-    beams: int = 64
-    swath_width_m: float | None = None
-    max_window_s: float = 300.0
+    shape: tuple[PositiveInt, PositiveInt] = (10, 10)
+    interval_s: PositiveFloat = 1.0
+    missing_beam_rate: Fraction = 0.0
+    mode: Literal["gridded", "swath"] = "gridded"
+    beams: Annotated[int, Field(ge=2)] = 64
+    swath_width_m: PositiveFloat | None = None
+    max_window_s: PositiveFloat = 300.0
     realtime: bool = False
 
 
@@ -235,9 +237,9 @@ class Scenario:
 
     name: str = "scenario"
     description: str = ""
-    seed: int = 0
-    duration_s: float = 600.0
-    rate_hz: float = 1.0
+    seed: NonNegativeInt = 0
+    duration_s: PositiveFloat = 600.0
+    rate_hz: PositiveFloat = 1.0
     terrain: TerrainSpec = field(default_factory=TerrainSpec)
     map: MapSpec = field(default_factory=MapSpec)
     fault: FaultSpec = field(default_factory=FaultSpec)
@@ -273,6 +275,7 @@ class Scenario:
         if not sonar.interval_s > 0:
             raise ValueError(f"sensors.sonar.interval_s must be positive, got {sonar.interval_s!r}.")
         object.__setattr__(self, "sensors", sensors)
+        _check_physics(self)
         if self.map.node_m is not None:
             ratio = self.map.node_m / self.terrain.node_m
             if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
@@ -284,18 +287,35 @@ class Scenario:
             raise ValueError(f"map.extent_m must be (west, south, east, north) with west < east and south < north, got {self.map.extent_m!r}.")
 
 
-def _tuples(value: Any) -> Any:
-    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+#: A scenario needing more memory than this (records, patches, floor) is refused before it starts.
+MAX_SCENARIO_BYTES = 4e9
+
+
+def _check_physics(scenario: Scenario) -> None:
+    """Refuse what no tow can be, and what no machine can hold, before simulating."""
+    terrain, vehicle, cable = scenario.terrain, scenario.vehicle, scenario.cable
+    if terrain.file is None and cable.out_m <= terrain.mean_depth_m - vehicle.altitude_m:
+        raise ValueError(
+            f"cable.out_m ({cable.out_m:g} m) is shorter than the vehicle's depth (about {terrain.mean_depth_m - vehicle.altitude_m:g} m: "
+            "terrain.mean_depth_m less vehicle.altitude_m); the vehicle cannot reach its altitude"
+        )
+    records = scenario.duration_s * scenario.rate_hz
+    sonar = scenario.sensors["sonar"]
+    h, w = sonar.shape
+    patches = records / max(sonar.interval_s * scenario.rate_hz, 1.0) if sonar.enabled else 0.0
+    beams = records * sonar.beams * 3 if sonar.enabled and sonar.mode == "swath" else 0.0
+    needed = 8.0 * (records * 24 + patches * h * w + beams + 3 * terrain.shape[0] * terrain.shape[1])
+    if needed > MAX_SCENARIO_BYTES:
+        raise ValueError(
+            f"this scenario would need about {needed / 1e9:,.0f} GB of memory ({records:,.0f} records from duration_s = {scenario.duration_s:g} "
+            f"and rate_hz = {scenario.rate_hz:g}, a {terrain.shape[0]} x {terrain.shape[1]} floor, {h} x {w} sonar patches); "
+            f"the limit is {MAX_SCENARIO_BYTES / 1e9:g} GB: lower rate_hz or duration_s, or a smaller terrain.shape"
+        )
 
 
 def _build(cls: type, table: Any, where: str) -> Any:
-    if not isinstance(table, dict):
-        raise ValueError(f"[{where}] must be a table, got {table!r}.")
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(table) - known)
-    if unknown:
-        raise ValueError(f"[{where}] has unknown field(s) {unknown}; known fields are {sorted(known)}.")
-    return cls(**{key: _tuples(value) for key, value in table.items()})
+    """A table of the file as ``cls``, its values checked first by the strict schema of ``cls``'s type hints (lost.host.config)."""
+    return cls(**validate_fields(cls, table, where))
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -308,8 +328,10 @@ def load_scenario(path: str | Path) -> Scenario:
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as error:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no scenario file at {path}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
         raise ValueError(f"{path} is not valid TOML: {error}") from None
     tables = {"terrain": TerrainSpec, "map": MapSpec, "fault": FaultSpec, "ship": ShipSpec, "cable": CableSpec, "current": CurrentSpec,
               "vehicle": VehicleSpec}
@@ -317,19 +339,29 @@ def load_scenario(path: str | Path) -> Scenario:
     unknown = sorted(set(data) - top)
     if unknown:
         raise ValueError(f"{path} has unknown top-level field(s) {unknown}; known ones are {sorted(top)}.")
-    kwargs: dict[str, Any] = {key: data[key] for key in ("name", "description", "seed", "duration_s", "rate_hz") if key in data}
+    scalars = {key: data[key] for key in ("name", "description", "seed", "duration_s", "rate_hz") if key in data}
+    try:
+        kwargs: dict[str, Any] = validate_fields(Scenario, scalars, "")
+        navigation_parameters(data.get("navigation", {}))  # the pipeline's settings, checked as strictly, here
+    except ConfigError as error:
+        raise ConfigError(f"{path.name}: {error}") from None
     kwargs.setdefault("name", path.stem)
-    for key, cls in tables.items():
-        if key in data:
-            kwargs[key] = _build(cls, data[key], key)
     sensors = data.get("sensors", {})
-    unknown = sorted(set(sensors) - set(_SENSORS))
+    unknown = sorted(set(sensors) - set(_SENSORS)) if isinstance(sensors, dict) else []
     if unknown:
-        raise ValueError(f"[sensors] has unknown sensor(s) {unknown}; known ones are {sorted(_SENSORS)}.")
-    kwargs["sensors"] = {name: _build(_SENSORS[name], table, f"sensors.{name}") for name, table in sensors.items()}
-    kwargs["navigation"] = dict(data.get("navigation", {}))
-    kwargs["base_dir"] = path.parent
-    return Scenario(**kwargs)
+        raise ValueError(f"{path.name}: [sensors] has unknown sensor(s) {unknown}; known ones are {sorted(_SENSORS)}.")
+    try:
+        for key, cls in tables.items():
+            if key in data:
+                kwargs[key] = _build(cls, data[key], key)
+        if not isinstance(sensors, dict):
+            raise ConfigError(f"[sensors] must be a table of sensor tables, got {sensors!r}")
+        kwargs["sensors"] = {name: _build(_SENSORS[name], table, f"sensors.{name}") for name, table in sensors.items()}
+        kwargs["navigation"] = dict(data.get("navigation", {}))
+        kwargs["base_dir"] = path.parent
+        return Scenario(**kwargs)
+    except ValueError as error:
+        raise type(error)(f"{path.name}: {error}") from None
 
 
 def builtin_scenarios() -> list[str]:
@@ -464,7 +496,11 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
     cable, vehicle = scenario.cable, scenario.vehicle
 
     def layback(depth: float) -> float:
-        return cable.catenary_factor * math.sqrt(max(cable.out_m**2 - depth**2, 0.0))
+        if depth >= cable.out_m:
+            # Clamping the lay-back to zero would hang the vehicle under the ship on a cable it does not have.
+            raise ValueError(f"cable.out_m ({cable.out_m:g} m) is shorter than the vehicle's depth ({depth:.0f} m, the floor less "
+                             "vehicle.altitude_m): the vehicle cannot reach its altitude; pay out more cable")
+        return cable.catenary_factor * math.sqrt(cable.out_m**2 - depth**2)
 
     # Start in the steady state: trailing the ship's velocity through the water.
     ship_velocity = speed * np.array([math.sin(math.radians(heading[0])), math.cos(math.radians(heading[0]))])

@@ -62,7 +62,7 @@ def _check_depth_array(name: str, array: np.ndarray) -> None:
 
 
 def check_inputs(
-    terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray | None
+    terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray | None, mean_compensation: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validate correlator inputs; return them as ``int16`` terrain, ``int16`` patch, ``bool`` mask.
 
@@ -74,8 +74,14 @@ def check_inputs(
     ValueError
         Non-array or non-2-D inputs, a non-integer dtype, values outside the 16-bit depth word, a patch
         larger than the map, a mask that is not boolean or not of the patch's shape, a mask with no
-        valid node.
+        valid node, a ``mean_compensation`` that is not a boolean (``"False"`` or ``None`` would
+        otherwise pick a mode by truthiness).
     """
+    if not isinstance(mean_compensation, bool | np.bool_):
+        raise ValueError(
+            f"mean_compensation must be True or False, got {mean_compensation!r} ({type(mean_compensation).__name__}); "
+            "it is not taken by truthiness"
+        )
     _check_depth_array("terrain", terrain)
     _check_depth_array("patch", patch)
     (H, W), (h, w) = terrain.shape, patch.shape
@@ -126,7 +132,7 @@ def correlate(
     ValueError
         See :func:`check_inputs`.
     """
-    terrain, patch, mask = check_inputs(terrain, patch, mask)
+    terrain, patch, mask = check_inputs(terrain, patch, mask, mean_compensation)
     M = terrain.astype(np.int64)
     S = patch.astype(np.int64)
     (H, W), (h, w) = M.shape, S.shape

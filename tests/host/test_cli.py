@@ -76,7 +76,7 @@ def test_run_needs_a_scenario_or_log_and_bathy(capsys):
 def test_a_scenario_with_an_unknown_navigation_field_is_refused(tmp_path, capsys):
     path = tmp_path / "bad.toml"
     path.write_text("duration_s = 10\n[navigation]\nkay = 3\n")
-    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 1
     assert "kay" in capsys.readouterr().err
 
 
@@ -106,7 +106,7 @@ def test_correlate_files_prints_best_fit_and_runner_up(tmp_path, capsys):
 def test_correlate_rejects_a_bad_patch_file(tmp_path, capsys):
     _, map_path = _map_file(tmp_path)
     (tmp_path / "patch.json").write_text("[]")
-    assert main(["correlate", str(map_path), str(tmp_path / "patch.json")]) == 2
+    assert main(["correlate", str(map_path), str(tmp_path / "patch.json")]) == 1
     assert ".npy, .npz or .csv" in capsys.readouterr().err
 
 

@@ -465,7 +465,8 @@ def test_bounds_read_only_a_window(tmp_path):
 def test_longitudes_from_0_to_360_are_projected(tmp_path):
     lon = 350.0 + np.arange(41) * 0.0025  # 10 W
     lat = LAT0 + np.arange(25) * 0.0025
-    z = elevation_of(lon[None, :] - 360.0, lat[:, None])
+    # The plane shifted to 10 W (unshifted it would rise 11 km there, which the reader refuses as no sea floor).
+    z = elevation_of(lon[None, :] - 360.0 + 15.5, lat[:, None])
     path = tmp_path / "east360.nc"
     xr.Dataset({"elevation": (("lat", "lon"), z)}, coords={"lon": lon, "lat": lat}).to_netcdf(path)
     grid = read_grid(path, node_m=50.0)
@@ -473,7 +474,7 @@ def test_longitudes_from_0_to_360_are_projected(tmp_path):
     node_lon, node_lat = node_lonlat(grid)
     finite = np.isfinite(grid.depth_m)
     assert finite.mean() > 0.8
-    np.testing.assert_allclose(grid.depth_m[finite], -elevation_of(node_lon, node_lat)[finite], atol=1e-6)
+    np.testing.assert_allclose(grid.depth_m[finite], -elevation_of(node_lon + 15.5, node_lat)[finite], atol=1e-6)
 
 
 def test_all_hole_result_is_refused(tmp_path):

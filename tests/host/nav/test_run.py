@@ -44,7 +44,8 @@ def test_a_tow_that_leaves_the_map_dead_reckons_beyond_it():
     scenario = Scenario(
         seed=12,
         duration_s=1500.0,
-        terrain=TerrainSpec(shape=(150, 300), roughness_m=10.0, hurst=0.5),  # ends at easting 2990 m
+        # 880 m deep: the 900 m cable was shorter than the 920 m vehicle depth of the default 1000 m (clamped then, refused now).
+        terrain=TerrainSpec(shape=(150, 300), roughness_m=10.0, hurst=0.5, mean_depth_m=880.0),  # ends at easting 2990 m
         ship=ShipSpec(waypoints_m=((1500.0, 750.0), (5000.0, 750.0))),
         cable=CableSpec(out_m=900.0),
         sensors={"sonar": SonarSpec(noise=0.2), "velocity": SensorSpec(noise=0.02, bias=(0.02, 0.0))},

@@ -1,0 +1,196 @@
+"""Run folders that are never half-written: a run is written aside, then renamed into place whole.
+
+:func:`run_folder` is a context manager around everything a run writes::
+
+    with run_folder(Path("runs/demo"), replace=args.replace) as folder:
+        ...                      # write track.csv, summary.json, plots into `folder`
+    # here runs/demo holds exactly the new run
+
+- Before any work it checks that ``out`` can be written: its parent is created (or must be a
+  folder), a temporary folder ``.NAME.partial-XXXX`` is made beside ``out`` (so the final rename
+  stays on one file system) and a few megabytes must be free there.
+- A folder that already holds a run (a ``summary.json``) is refused unless ``replace=True``; then it
+  is replaced whole, never merged, so no file of the earlier run survives beside the new one. A
+  non-empty folder that is not a run is refused even with ``replace``: it is not ours to delete.
+- A lock (``fcntl.flock`` on ``.NAME.lock`` beside ``out``) refuses a second run on the same folder
+  while the first is writing; the kernel releases it when the process dies, so a killed run leaves
+  no stale lock.
+- An exception inside the block (an error, a failed write, Ctrl-C) deletes the temporary folder
+  and leaves ``out`` exactly as it was; :class:`RunFolderError`'s messages and
+  :func:`describe_untouched` say so.
+
+The replacement is two renames (old run aside, new run in): between them, for microseconds, ``out``
+does not exist; were the machine to stop there, the previous run is still whole in
+``.NAME.old-XXXX/run``, and the next run on ``out`` puts it back before anything else. A run killed
+outright (SIGKILL) leaves its ``.NAME.partial-XXXX``; the next run on ``out`` deletes it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import glob
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", "RUN_MARKER", "MIN_FREE_BYTES"]
+
+#: The file that marks a folder as a LOST run (every run writes it).
+RUN_MARKER = "summary.json"
+
+#: A run's files (track CSV, summary, plots) take a few MB; refuse to start with less free.
+MIN_FREE_BYTES = 16 * 1024 * 1024
+
+
+class RunFolderError(OSError):
+    """The output folder cannot take this run (not writable, another run there, locked)."""
+
+
+def holds_a_run(folder: Path) -> bool:
+    """Whether ``folder`` is a folder holding a finished LOST run."""
+    return (folder / RUN_MARKER).is_file()
+
+
+def describe_untouched(out: Path) -> str:
+    """One sentence saying what an interrupted run left in ``out``."""
+    if holds_a_run(out):
+        return f"the previous run in {out} is intact"
+    return f"nothing was written to {out}"
+
+
+def _check_target(out: Path, replace: bool) -> None:
+    if out.exists() and not out.is_dir():
+        raise RunFolderError(f"--out {out} is a file, not a folder")
+    if not out.is_dir() or not any(out.iterdir()):
+        return
+    if not holds_a_run(out):
+        raise RunFolderError(
+            f"--out {out} is a non-empty folder that holds no LOST run ({RUN_MARKER} missing); choose an empty or new folder "
+            "(--replace only replaces an earlier run)"
+        )
+    if not replace:
+        raise RunFolderError(f"--out {out} already holds a run; pass --replace to replace it whole, or choose another folder")
+
+
+def _parent(out: Path) -> Path:
+    parent = out.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise RunFolderError(f"cannot create {out}: {parent} exists and is not a folder") from None
+    except OSError as error:
+        raise RunFolderError(f"cannot create the folder {parent} for {out}: {error.strerror or error}") from None
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise RunFolderError(f"cannot write {out}: the folder {parent} is not writable")
+    free = shutil.disk_usage(parent).free
+    if free < MIN_FREE_BYTES:
+        raise RunFolderError(f"cannot write {out}: only {free // 1024} kB free on its file system, a run needs {MIN_FREE_BYTES // 2**20} MB")
+    return parent
+
+
+@contextlib.contextmanager
+def _lock(parent: Path, out: Path) -> Iterator[None]:
+    path = parent / f".{out.name}.lock"
+    while True:
+        handle = open(path, "a+")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "unknown"
+            handle.close()
+            raise RunFolderError(f"another lost run (pid {holder}) is writing to {out}; wait for it or choose another --out") from None
+        # The holder before us may have unlinked the file between our open and our lock: lock the live one.
+        try:
+            same = os.path.samestat(os.fstat(handle.fileno()), os.stat(path))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        handle.close()
+    try:
+        handle.seek(0)
+        handle.truncate()
+        handle.write(str(os.getpid()))
+        handle.flush()
+        yield
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+        handle.close()
+
+
+def _recover(parent: Path, out: Path) -> None:
+    """Clear what a killed run left beside ``out`` (we hold its lock, so nobody else is using it).
+
+    A partial run is deleted. A previous run set aside for a replacement is put back when the
+    machine stopped between the two renames (``out`` missing), else deleted.
+    """
+    name = glob.escape(out.name)  # a folder named run[1] is no pattern
+    for partial in parent.glob(f".{name}.partial-*"):
+        shutil.rmtree(partial, ignore_errors=True)
+    for old in parent.glob(f".{name}.old-*"):
+        if not out.exists() and (old / "run").is_dir():
+            os.replace(old / "run", out)
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _install(partial: Path, out: Path, parent: Path) -> None:
+    """Move the finished run into place, replacing (whole) an earlier run or an empty folder."""
+    if out.is_dir() and any(out.iterdir()):
+        old = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out.name}.old-"))
+        os.replace(out, old / "run")
+        os.replace(partial, out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(partial, out)  # POSIX rename replaces an empty folder
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+@contextlib.contextmanager
+def run_folder(out: str | os.PathLike, *, replace: bool = False) -> Iterator[Path]:
+    """Yield a fresh temporary folder for a run's files; on success it becomes ``out``, whole.
+
+    Parameters
+    ----------
+    out : path-like
+        The run's folder.
+    replace : bool
+        Replace an earlier run in ``out`` (whole). Without it such a folder is refused.
+
+    Yields
+    ------
+    Path
+        The folder to write into (beside ``out``, on the same file system).
+
+    Raises
+    ------
+    RunFolderError
+        ``out`` is a file, a non-empty folder that is no run, an earlier run without ``replace``,
+        locked by another run, or its parent is not writable or nearly full. Raised before the
+        block runs, so no work is wasted.
+    """
+    out = Path(out).absolute()
+    _check_target(out, replace)
+    parent = _parent(out)
+    with _lock(parent, out):
+        _recover(parent, out)
+        _check_target(out, replace)  # again, now that no other run can be installing one
+        try:
+            partial = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out.name}.partial-"))
+        except OSError as error:
+            raise RunFolderError(f"cannot write {out}: making a folder in {parent} failed ({error.strerror or error})") from None
+        partial.chmod(0o777 & ~_umask())  # mkdtemp makes it private; a run folder is an ordinary folder
+        try:
+            yield partial
+            _install(partial, out, parent)
+        finally:
+            shutil.rmtree(partial, ignore_errors=True)

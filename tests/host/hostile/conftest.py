@@ -1,0 +1,69 @@
+"""Shared helpers of the hostile-input suite: tiny inputs that run in a fraction of a second."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lost.host.cli import main
+
+#: A two-minute tow over a small floor: enough for a whole run folder, fast enough for dozens of cases.
+TINY_SCENARIO = """
+name = "tiny"
+seed = 3
+duration_s = 60
+[terrain]
+shape = [120, 160]
+node_m = 10.0
+roughness_m = 10.0
+hurst = 0.5
+[ship]
+waypoints_m = [[900.0, 600.0], [1500.0, 600.0]]
+[cable]
+out_m = 1200.0
+[navigation]
+search_half_width_m = 100.0
+"""
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    """Path of the tiny scenario file."""
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY_SCENARIO)
+    return path
+
+
+@pytest.fixture
+def run_cli(capsys):
+    """``main(argv)`` in-process: returns (exit code, stdout, stderr) and checks no traceback escaped."""
+
+    def run(*argv: str) -> tuple[int, str, str]:
+        code = main([str(a) for a in argv])
+        out, err = capsys.readouterr()
+        assert "Traceback" not in err, err
+        # Errors are one line on stderr (the command's own reports go to stdout).
+        if code:
+            assert len(err.strip().splitlines()) == 1, err
+        return code, out, err
+
+    return run
+
+
+@pytest.fixture
+def recorded(tmp_path, tiny):
+    """The tiny scenario written as recorded files: nav.csv, sonar.csv, map.npz and map.nc (elevation, no sign metadata)."""
+    import xarray as xr
+
+    from lost.host.io import write_npz
+    from lost.host.navlog import write_navlog
+    from lost.host.scenario import load_scenario, simulate
+
+    grid, records = simulate(load_scenario(tiny))
+    files = {"nav": tmp_path / "nav.csv", "sonar": tmp_path / "sonar.csv", "npz": write_npz(grid, tmp_path / "map.npz"),
+             "nc": tmp_path / "map.nc"}
+    write_navlog(records, files["nav"], sonar=files["sonar"])
+    rows, cols = grid.shape
+    xr.Dataset({"z": (("y", "x"), -grid.depth_m)},
+               coords={"x": grid.x0_m + grid.node_m * np.arange(cols), "y": grid.y0_m + grid.node_m * np.arange(rows)}).to_netcdf(files["nc"])
+    return files
