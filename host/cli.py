@@ -35,6 +35,7 @@ import numpy as np
 from lost.model.shapes import shape_argument
 
 from . import BACKENDS, correlate
+from .errors import UsageError
 from .grid import Grid
 from .nav import ESTIMATORS, NavParameters, PreparedMap, navigate
 from .navlog import PATCH_CENTRES
@@ -47,8 +48,6 @@ __all__ = ["main", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_USAGE", "EXIT_IN
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
-class UsageError(ValueError):
-    """The options contradict each other or name nothing known: exit code 2, like argparse's own errors."""
 
 #: Runs longer than this many records show a progress bar.
 PROGRESS_RECORDS = 1000

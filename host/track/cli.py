@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import UsageError
 from .detections import read_detections, write_detections
 from .evaluate import score
 from .geometry import Sonar
@@ -61,7 +62,7 @@ def _parameters(base: dict, overrides: dict, where: str) -> TrackerParameters:
     known = set(TrackerParameters.__dataclass_fields__)
     unknown = sorted(set(overrides) - known)
     if unknown:
-        raise ValueError(f"{where} names no tracker parameter: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+        raise UsageError(f"{where} names no tracker parameter: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
     return TrackerParameters(**{**base, **overrides})
 
 

@@ -16,6 +16,7 @@ import argparse
 import time
 from pathlib import Path
 
+from ..errors import UsageError
 from .pipeline import UsblConfig, process, read_imu, read_log
 from .report import summarize, write_outputs
 from .scenario import load_processing_config, load_usbl_scenario
@@ -45,14 +46,14 @@ def run_usbl(args: argparse.Namespace) -> int:
     if _is_log(args.source):
         log_path = Path(args.source)
         if args.svp is None:
-            raise ValueError("a log needs its sound-speed cast: --svp CAST.csv")
+            raise UsageError("a log needs its sound-speed cast: --svp CAST.csv")
         imu_path = args.imu or log_path.with_name("imu.csv")
         config = UsblConfig(**load_processing_config(args.config)) if args.config else UsblConfig()
         name = log_path.stem
         out = args.out or Path("runs") / f"usbl-{name}"
     else:
         if args.svp or args.imu or args.config:
-            raise ValueError("--svp, --imu and --config are for a recorded log; a scenario names its own cast and settings")
+            raise UsageError("--svp, --imu and --config are for a recorded log; a scenario names its own cast and settings")
         scenario = load_usbl_scenario(args.source)
         name = scenario.name
         out = args.out or Path("runs") / f"usbl-{name}"

@@ -65,16 +65,16 @@ def test_the_written_detections_run_as_a_recorded_log(scenario_run, tmp_path, ca
     assert "detections kept" in capsys.readouterr().out
 
 
-def test_bad_detections_exit_2_naming_the_line(tmp_path, capsys):
+def test_bad_detections_exit_1_naming_the_line(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("ping,t_s,platform_x_m,platform_y_m,heading_deg,range_m,bearing_deg\n0,0,0,0,0,ten,0\n")
-    assert main(["track", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert main(["track", str(bad), "--out", str(tmp_path / "o")]) == 1
     assert "line 2: range_m is not a number: 'ten'" in capsys.readouterr().err
     assert not (tmp_path / "o" / "summary.json").exists()
 
 
-def test_unknown_scenario_name_exits_2(tmp_path, capsys):
-    assert main(["track", "no_such_scenario", "--out", str(tmp_path / "o")]) == 2
+def test_unknown_scenario_name_exits_1(tmp_path, capsys):
+    assert main(["track", "no_such_scenario", "--out", str(tmp_path / "o")]) == 1
     assert "no built-in tracking scenario 'no_such_scenario'" in capsys.readouterr().err
 
 

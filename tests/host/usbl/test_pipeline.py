@@ -116,7 +116,7 @@ def test_a_log_gives_the_direction_as_phases_or_cosines_not_both(recording, tmp_
 
 def test_an_imu_that_stops_early_is_refused(recording, tmp_path, capsys):
     short = _edit(recording / "imu.csv", tmp_path / "imu.csv", lambda lines: lines[: len(lines) // 2])
-    assert main(["usbl", str(recording / "log.csv"), "--svp", str(recording / "cast.csv"), "--imu", str(short), "--out", str(tmp_path / "o")]) == 2
+    assert main(["usbl", str(recording / "log.csv"), "--svp", str(recording / "cast.csv"), "--imu", str(short), "--out", str(tmp_path / "o")]) == 1
     assert "must cover the pings" in capsys.readouterr().err
     assert not (tmp_path / "o" / "summary.json").exists()
 
