@@ -67,19 +67,16 @@ def _bilinear(values: np.ndarray, valid: np.ndarray, row: np.ndarray, col: np.nd
         reps = (2 if values.shape[0] == 1 else 1, 2 if values.shape[1] == 1 else 1)
         values, valid = np.tile(values, reps), np.tile(valid, reps)
     rows, cols = values.shape
-    r0, c0 = np.floor(row).astype(np.intp), np.floor(col).astype(np.intp)
+    # Invalid nodes as NaN: one gather per corner carries both the value and its validity.
+    flat = np.where(valid, values, np.nan).ravel()
+    r0 = np.minimum(np.floor(row), rows - 2)  # a point on the last row or column uses the cell before it
+    c0 = np.minimum(np.floor(col), cols - 2)
     fr, fc = row - r0, col - c0
-    # A point on the last row or column uses the cell before it (its far weight is zero).
-    r0 = np.where((r0 == rows - 1) & (fr == 0.0), r0 - 1, r0)
-    c0 = np.where((c0 == cols - 1) & (fc == 0.0), c0 - 1, c0)
-    fr, fc = row - r0, col - c0
-    inside = (r0 >= 0) & (r0 + 1 < rows) & (c0 >= 0) & (c0 + 1 < cols)
-    r0c, c0c = np.clip(r0, 0, rows - 1), np.clip(c0, 0, cols - 1)
-    r1c, c1c = np.clip(r0 + 1, 0, rows - 1), np.clip(c0 + 1, 0, cols - 1)
-    ok = inside & valid[r0c, c0c] & valid[r0c, c1c] & valid[r1c, c0c] & valid[r1c, c1c]
-    value = ((1 - fr) * ((1 - fc) * values[r0c, c0c] + fc * values[r0c, c1c])
-             + fr * ((1 - fc) * values[r1c, c0c] + fc * values[r1c, c1c]))
-    return value, ok
+    inside = (r0 >= 0) & (c0 >= 0) & (fr <= 1.0) & (fc <= 1.0)
+    k = np.where(inside, r0 * cols + c0, 0).astype(np.intp)
+    value = ((1 - fr) * ((1 - fc) * flat[k] + fc * flat[k + 1]) + fr * ((1 - fc) * flat[k + cols] + fc * flat[k + cols + 1]))
+    ok = inside & np.isfinite(value)
+    return np.where(ok, value, 0.0), ok
 
 
 @dataclass(frozen=True)

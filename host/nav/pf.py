@@ -72,7 +72,7 @@ class ParticleFilter:
             xy = centre + self._rng.uniform(-half_width_m, half_width_m, (n, 2))
         self._x, self._y = xy[:, 0].copy(), xy[:, 1].copy()
         bias_sigma = self._p.velocity_bias_sigma_mps
-        self._b = self._rng.normal(0.0, bias_sigma, (n, 2)) if bias_sigma > 0 else np.zeros((n, 2))
+        self._b = self._rng.normal(0.0, bias_sigma, (2, n)) if bias_sigma > 0 else np.zeros((2, n))  # rows east, north
         self._w = np.full(n, 1.0 / n)
         self._pending_var, self._cached = 0.0, None
 
@@ -90,7 +90,7 @@ class ParticleFilter:
 
     @property
     def velocity_bias_mps(self) -> np.ndarray:
-        return np.array([np.sum(self._w * self._b[:, 0]), np.sum(self._w * self._b[:, 1])])
+        return self._b @ self._w
 
     def start(self, t_s: float, position: np.ndarray, observation: Observation) -> None:
         self._spawn(np.asarray(position, float), None, self._p.initial_sigma_m)
@@ -101,11 +101,12 @@ class ParticleFilter:
         v = np.asarray(motion.velocity_mps, float)
         sigma = math.sqrt(self._trust.growth_variance(dt) + self._pending_var)
         self._pending_var, self._cached = 0.0, None
-        noise = self._rng.standard_normal((self._n, 2))
-        self._x += (v[0] - self._b[:, 0]) * dt + sigma * noise[:, 0]
-        self._y += (v[1] - self._b[:, 1]) * dt + sigma * noise[:, 1]
-        if self._p.velocity_bias_walk_mps > 0:
-            self._b += self._rng.normal(0.0, self._p.velocity_bias_walk_mps * math.sqrt(dt), (self._n, 2))
+        walk = self._p.velocity_bias_walk_mps * math.sqrt(dt)
+        noise = self._rng.standard_normal((4 if walk > 0 else 2, self._n))  # rows contiguous: one draw a step
+        self._x += (v[0] - self._b[0]) * dt + sigma * noise[0]
+        self._y += (v[1] - self._b[1]) * dt + sigma * noise[1]
+        if walk > 0:
+            self._b += walk * noise[2:]
         self._trust.moved(dt, float(np.hypot(*v)) * dt)
         self._stage, self._nis, self._rejected = "dead_reckoning", float("nan"), ""
 
@@ -202,7 +203,7 @@ class ParticleFilter:
         xy = np.column_stack([self._x[index], self._y[index]])
         jitter = ROUGHENING_K * (xy.max(axis=0) - xy.min(axis=0)) * self._n ** (-1.0 / 2)
         xy += self._rng.standard_normal(xy.shape) * jitter
-        self._x, self._y, self._b = xy[:, 0].copy(), xy[:, 1].copy(), self._b[index]
+        self._x, self._y, self._b = xy[:, 0].copy(), xy[:, 1].copy(), self._b[:, index]
         self._w, self._cached = np.full(self._n, 1.0 / self._n), None
         self.counts["resamples"] += 1
 

@@ -218,3 +218,23 @@ def test_the_nees_of_the_filters_on_the_short_tow_lies_in_its_band():
         figures = summary["methods"][name]
         assert figures["converged"] and figures["convergence_time_s"] < 120.0, (name, figures)
         assert figures["rms_m"] < 5.0 and figures["nees_in_band"] >= 0.8, (name, figures, band)
+
+
+def test_the_bilinear_read_matches_scipy_and_knows_where_it_is_valid():
+    from scipy import ndimage
+
+    from lost.host.nav.likelihood import _bilinear
+
+    rng = np.random.default_rng(0)
+    values, valid = rng.normal(size=(7, 9)), rng.random((7, 9)) > 0.1
+    row, col = rng.uniform(-1, 7, 5000), rng.uniform(-1, 9, 5000)
+    value, ok = _bilinear(np.where(valid, values, 0.0), valid, row, col)
+    coords = [row, col]
+    expected = ndimage.map_coordinates(np.where(valid, values, 0.0), coords, order=1, mode="constant", cval=0.0)
+    share = ndimage.map_coordinates(valid.astype(float), coords, order=1, mode="constant", cval=0.0)
+    np.testing.assert_array_equal(ok, share > 1 - 1e-9)
+    np.testing.assert_allclose(value[ok], expected[ok], atol=1e-12)
+    # Every node, the last row and column included, reads back as itself.
+    rows, cols = np.meshgrid(np.arange(7.0), np.arange(9.0), indexing="ij")
+    value, ok = _bilinear(values, np.ones((7, 9), bool), rows.ravel(), cols.ravel())
+    assert ok.all() and np.array_equal(value, values.ravel())
