@@ -18,9 +18,10 @@ import math
 import numpy as np
 
 from ..grid import Grid
-from .estimator import Estimate, Motion, Observation
+from .bayes import BayesFilter
+from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
-from .trust import Trust, moments, nis
+from .trust import moments
 
 __all__ = ["ParticleFilter", "systematic_resample"]
 
@@ -36,7 +37,7 @@ def systematic_resample(weights: np.ndarray, rng: np.random.Generator) -> np.nda
     return np.searchsorted(cumulative, positions)
 
 
-class ParticleFilter:
+class ParticleFilter(BayesFilter):
     """Recursive Bayesian terrain navigation with particles (see the module docstring).
 
     Parameters
@@ -51,17 +52,11 @@ class ParticleFilter:
     """
 
     def __init__(self, likelihood: TerrainLikelihood, params, *, grid: Grid, seed: int = 0, name: str = "pf") -> None:
-        self.name = name
-        self._lik = likelihood
-        self._p = params
-        self._trust = Trust(params, node_m=grid.node_m)
-        self.counts = self._trust.counts
+        super().__init__(likelihood, params, grid=grid, name=name)
         self._rng = np.random.default_rng(seed)
         self._n = int(params.pf_particles)
         self._pending_var = 0.0  # floor variance owed to the cloud, spread in the next prediction
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
-        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2 + params.position_floor_m**2
-        self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
 
     def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None) -> None:
         """Particles around ``centre``: Gaussian of ``sigma_m``, or flat over a square of ``half_width_m``."""
@@ -107,89 +102,7 @@ class ParticleFilter:
         self._y += (v[1] - self._b[1]) * dt + sigma * noise[1]
         if walk > 0:
             self._b += walk * noise[2:]
-        self._trust.moved(dt, float(np.hypot(*v)) * dt)
-        self._stage, self._nis, self._rejected = "dead_reckoning", float("nan"), ""
-
-    def update(self, observation: Observation) -> None:
-        if observation.patch is not None and self._p.matching == "patch":
-            self._terrain_update(observation)
-        elif self._p.matching == "point" and math.isfinite(observation.ocean_depth_m):
-            ell, informative = self._lik.depth(self._x, self._y, observation.ocean_depth_m, sigma_m=self._lik.depth_sigma_m)
-            if informative.any():
-                self._apply(ell * self._p.likelihood_weight, terrain=True)
-            else:
-                self.counts["depth_off_map"] += 1
-                self._stage = "off_map"
-        if self._p.use_slant_range and math.isfinite(observation.slant_range_m) and observation.frame is not None:
-            self._range_update(observation)
-        self._trust.watch(self._moments()[1])
-
-    def _terrain_update(self, observation: Observation) -> None:
-        patch = observation.patch
-        length = max(patch.depth_m.shape) * patch.node_m
-        result = self._lik.patch(self._x, self._y, patch, weight=self._trust.patch_weight(length),
-                                sigma_scale=self._trust.misfit_level, spacing_m=self._spacing())
-        if result is None:
-            self.counts["patch_too_sparse"] += 1
-            return
-        if result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
-            self.counts["patch_too_sparse"] += 1
-            return
-        if not result.informative.any():
-            self.counts["patch_off_map"] += 1
-            self._stage = "off_map"
-            return
-        on_map = float(self._w[result.informative].sum())
-        if self._trust.at_edge(on_map, self._moments()[1]):
-            self.counts["patch_at_map_edge"] += 1
-            self._stage = "off_map"
-            return
-        # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
-        if self._trust.misfit_refused(result.misfit) and on_map > 0.5:
-            self._reject("misfit", terrain=True)
-            return
-        if self._apply(result.log_likelihood, terrain=True):
-            self._trust.note_misfit(result.misfit)
-            self._trust.look_alike(self._lik, *self._moments(), patch)
-            self._stage = "tracking" if self._trust.usable else "acquisition"
-
-    def _range_update(self, observation: Observation) -> None:
-        frame = observation.frame
-        vertical = observation.vehicle_depth_m - self._p.reference_depth_m
-        horizontal_sq = observation.slant_range_m**2 - vertical**2
-        if not (math.isfinite(horizontal_sq) and horizontal_sq > 0):
-            self.counts["range_shorter_than_depth"] += 1
-            return
-        distance = np.hypot(self._x - frame.ship_x_m, self._y - frame.ship_y_m)
-        self._apply(-0.5 * ((distance - math.sqrt(horizontal_sq)) / self._p.slant_range_sigma_m) ** 2, terrain=False)
-
-    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> bool:
-        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used."""
-        prior_mean, prior_cov = self._moments()
-        log_w = np.log(np.maximum(self._w, 1e-300)) + log_likelihood
-        log_w -= log_w.max()
-        w = np.exp(log_w)
-        w /= w.sum()
-        post_mean, post_cov = moments(w, self._x, self._y)
-        post_cov = post_cov + self._pending_var * np.eye(2)
-        value = nis(prior_mean, prior_cov, post_mean, post_cov)
-        if terrain:
-            self._nis = value
-        if value > self._p.gate_nis:
-            self._reject("gate", terrain)
-            return False
-        self._w, self._cached = w, None
-        if terrain:
-            self._trust.accepted(post_cov)
-            self._stage = "tracking" if self._trust.usable else "acquisition"
-            self.counts["terrain_updates"] += 1
-        else:
-            self.counts["range_updates"] += 1
-            self._trust.range_outcome(refused=False)
-        if 1.0 / np.sum(w * w) < 0.5 * self._n:
-            self._resample()
-        self._keep_floor(post_cov)
-        return True
+        self._moved(dt, float(np.hypot(*v)) * dt)
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
         """Owe the cloud the variance an update took below the floor's width; the next prediction spreads it."""
@@ -207,18 +120,22 @@ class ParticleFilter:
         self._w, self._cached = np.full(self._n, 1.0 / self._n), None
         self.counts["resamples"] += 1
 
-    def _reject(self, reason: str, terrain: bool) -> None:
-        self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
-        if not terrain:
-            self.counts[f"range_rejected_{reason}"] += 1
-            self._trust.range_outcome(refused=True)
-            return
-        self._stage = "rejected"
-        if self._trust.rejected(reason):
-            mean, _ = self._moments()
-            self._spawn(mean, self._p.pmf_sigmas * self._p.initial_sigma_m, None)
-            self._stage = "reinitialized"
+    def _candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self._x, self._y, self._w
 
-    def estimate(self) -> Estimate:
-        mean, cov = self._moments()
-        return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected)
+    def _reweigh(self, log_likelihood: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        log_w = np.log(np.maximum(self._w, 1e-300)) + log_likelihood
+        w = np.exp(log_w - log_w.max())
+        w /= w.sum()
+        mean, cov = moments(w, self._x, self._y)
+        return w, mean, cov + self._pending_var * np.eye(2)
+
+    def _accept(self, posterior: np.ndarray, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool) -> None:
+        self._w, self._cached = posterior, None
+        if 1.0 / np.sum(posterior * posterior) < 0.5 * self._n:
+            self._resample()
+        self._keep_floor(post_cov)
+
+    def _reinitialize(self) -> None:
+        mean, _ = self._moments()
+        self._spawn(mean, self._p.pmf_sigmas * self._p.initial_sigma_m, None)

@@ -40,9 +40,10 @@ import numpy as np
 from scipy import ndimage
 
 from ..grid import Grid
-from .estimator import Estimate, Motion, Observation
+from .bayes import BayesFilter
+from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
-from .trust import Trust, moments, nis
+from .trust import moments
 
 __all__ = ["PointMassFilter", "PMF_CELLS_PER_NODE"]
 
@@ -50,7 +51,7 @@ __all__ = ["PointMassFilter", "PMF_CELLS_PER_NODE"]
 PMF_CELLS_PER_NODE = 10
 
 
-class PointMassFilter:
+class PointMassFilter(BayesFilter):
     """Recursive Bayesian terrain navigation on a grid of point masses (see the module docstring).
 
     Parameters
@@ -64,13 +65,7 @@ class PointMassFilter:
     """
 
     def __init__(self, likelihood: TerrainLikelihood, params, *, grid: Grid, name: str = "pmf") -> None:
-        self.name = name
-        self._lik = likelihood
-        self._p = params
-        self._grid = grid
-        self._trust = Trust(params, node_m=grid.node_m)
-        self.counts = self._trust.counts
-        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2 + params.position_floor_m**2
+        super().__init__(likelihood, params, grid=grid, name=name)
         floor = math.sqrt(self._floor_var)
         # Cells fine enough to resolve the floor's width, a grid wide enough for four of it.
         self._min_cell = params.pmf_min_cell_m if params.pmf_min_cell_m is not None else max(grid.node_m / PMF_CELLS_PER_NODE, floor / 2.0)
@@ -78,9 +73,6 @@ class PointMassFilter:
         self.velocity_bias_mps = np.zeros(2)
         self._pending_var = 0.0
         self._since_bias_update_s = 0.0
-        self._stage = "uninitialized"
-        self._nis = float("nan")
-        self._rejected = ""
 
     # -- the grid ---------------------------------------------------------------------------------
 
@@ -137,9 +129,11 @@ class PointMassFilter:
             self._lay(mean, wanted, self._p_grid)
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
-        x, y = self._cells()
-        x, y = np.broadcast_arrays(x, y)
-        mean, cov = moments(self._p_grid, x, y)
+        return self._moments_of(self._p_grid)
+
+    def _moments_of(self, density: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x, y = np.broadcast_arrays(*self._cells())
+        mean, cov = moments(density, x, y)
         return mean, cov + np.eye(2) * self._cell**2 / 12.0  # each cell's own spread
 
     # -- the estimator interface --------------------------------------------------------------------
@@ -158,12 +152,11 @@ class PointMassFilter:
         shift = (np.asarray(motion.velocity_mps, float) - self.velocity_bias_mps) * motion.dt_s
         self._centre = self._centre + shift
         self._pending_var += self._trust.growth_variance(motion.dt_s)
-        self._trust.moved(motion.dt_s, float(np.hypot(*shift)))
         self._since_bias_update_s += motion.dt_s
         if self._pending_var >= (0.5 * self._cell) ** 2:
             self._diffuse()
         self._follow()
-        self._stage, self._nis, self._rejected = "dead_reckoning", float("nan"), ""
+        self._moved(motion.dt_s, float(np.hypot(*shift)))
 
     def _diffuse(self) -> None:
         sigma_cells = math.sqrt(self._pending_var) / self._cell
@@ -174,46 +167,6 @@ class PointMassFilter:
         # Mass that spread past the edge is gone from the grid; its variance is not: add it to the cells.
         self._pending_var = 0.0
 
-    def update(self, observation: Observation) -> None:
-        if observation.patch is not None and self._p.matching == "patch":
-            self._terrain_update(observation)
-        elif self._p.matching == "point" and math.isfinite(observation.ocean_depth_m):
-            self._depth_update(observation.ocean_depth_m)
-        if self._p.use_slant_range and math.isfinite(observation.slant_range_m) and observation.frame is not None:
-            self._range_update(observation)
-        self._trust.watch(self._moments()[1])
-
-    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> bool:
-        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used."""
-        prior_mean, prior_cov = self._moments()
-        ell = log_likelihood - log_likelihood.max()
-        posterior = self._p_grid * np.exp(ell)
-        total = posterior.sum()
-        if not total > 0:
-            self._reject("underflow", terrain)
-            return False
-        before = self._p_grid
-        self._p_grid = posterior / total
-        post_mean, post_cov = self._moments()
-        value = nis(prior_mean, prior_cov, post_mean, post_cov)
-        if terrain:
-            self._nis = value
-        if value > self._p.gate_nis:
-            self._p_grid = before
-            self._reject("gate", terrain)
-            return False
-        self._keep_floor(post_cov)
-        if terrain:
-            self._learn_bias(post_mean - prior_mean)
-            self._trust.accepted(post_cov)
-            self._stage = "tracking" if self._trust.usable else "acquisition"
-            self.counts["terrain_updates"] += 1
-        else:
-            self.counts["range_updates"] += 1
-            self._trust.range_outcome(refused=False)
-        self._follow()
-        return True
-
     def _keep_floor(self, covariance: np.ndarray) -> None:
         """Blur the density back to the floor's width where an update made it narrower."""
         missing = self._floor_var - float(np.linalg.eigvalsh(covariance)[0])
@@ -221,20 +174,31 @@ class PointMassFilter:
             self._pending_var += missing
             self._diffuse()
 
-    def _reject(self, reason: str, terrain: bool) -> None:
-        self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
-        if not terrain:
-            self.counts[f"range_rejected_{reason}"] += 1
-            self._trust.range_outcome(refused=True)
-            return
-        self._stage = "rejected"
-        if self._trust.rejected(reason):
-            self._reinitialize()
-
     def _reinitialize(self) -> None:
         mean, _ = self._moments()
         self._lay(mean, self._p.pmf_sigmas * self._p.initial_sigma_m, None)  # flat: maximum likelihood next
-        self._stage = "reinitialized"
+
+    def _candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        x, y = np.broadcast_arrays(*self._cells())
+        return x, y, self._p_grid
+
+    def _spacing(self) -> float:
+        return self._cell
+
+    def _reweigh(self, log_likelihood: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        posterior = self._p_grid * np.exp(log_likelihood - log_likelihood.max())
+        total = posterior.sum()
+        if not total > 0:
+            return None
+        posterior = posterior / total
+        return (posterior, *self._moments_of(posterior))
+
+    def _accept(self, posterior: np.ndarray, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool) -> None:
+        self._p_grid = posterior
+        self._keep_floor(post_cov)
+        if terrain:
+            self._learn_bias(correction_m)
+        self._follow()
 
     def _learn_bias(self, correction_m: np.ndarray) -> None:
         """Average the implied velocity error (see the module docstring); only once the estimate is usable."""
@@ -246,62 +210,6 @@ class PointMassFilter:
         gain = min(self._since_bias_update_s / tau, 1.0)
         self.velocity_bias_mps = self.velocity_bias_mps + gain * implied
         self._since_bias_update_s = 0.0
-
-    def _terrain_update(self, observation: Observation) -> None:
-        patch = observation.patch
-        x, y = np.broadcast_arrays(*self._cells())
-        length = max(patch.depth_m.shape) * patch.node_m
-        result = self._lik.patch(x, y, patch, weight=self._trust.patch_weight(length),
-                                sigma_scale=self._trust.misfit_level, spacing_m=self._cell)
-        if result is None:
-            self.counts["patch_too_sparse"] += 1
-            return
-        if result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
-            self.counts["patch_too_sparse"] += 1
-            return
-        if not result.informative.any():
-            self.counts["patch_off_map"] += 1
-            self._stage = "off_map"
-            return
-        on_map = float(self._p_grid[result.informative].sum())
-        if self._trust.at_edge(on_map, self._moments()[1]):
-            self.counts["patch_at_map_edge"] += 1
-            self._stage = "off_map"
-            return
-        # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
-        if self._trust.misfit_refused(result.misfit) and on_map > 0.5:
-            self._reject("misfit", terrain=True)
-            return
-        if self._apply(result.log_likelihood, terrain=True):
-            self._trust.note_misfit(result.misfit)
-            self._trust.look_alike(self._lik, *self._moments(), patch)
-            self._stage = "tracking" if self._trust.usable else "acquisition"
-
-    def _depth_update(self, ocean_depth_m: float) -> None:
-        x, y = np.broadcast_arrays(*self._cells())
-        sigma = self._lik.depth_sigma_m
-        ell, informative = self._lik.depth(x, y, ocean_depth_m, sigma_m=sigma)
-        if not informative.any():
-            self.counts["depth_off_map"] += 1
-            self._stage = "off_map"
-            return
-        self._apply(ell * self._p.likelihood_weight, terrain=True)
-
-    def _range_update(self, observation: Observation) -> None:
-        frame = observation.frame
-        vertical = observation.vehicle_depth_m - self._p.reference_depth_m
-        horizontal_sq = observation.slant_range_m**2 - vertical**2
-        if not (math.isfinite(horizontal_sq) and horizontal_sq > 0):
-            self.counts["range_shorter_than_depth"] += 1
-            return
-        x, y = np.broadcast_arrays(*self._cells())
-        distance = np.hypot(x - frame.ship_x_m, y - frame.ship_y_m)
-        ell = -0.5 * ((distance - math.sqrt(horizontal_sq)) / self._p.slant_range_sigma_m) ** 2
-        self._apply(ell, terrain=False)
-
-    def estimate(self) -> Estimate:
-        mean, cov = self._moments()
-        return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected)
 
     @property
     def map_position(self) -> np.ndarray:

@@ -1,0 +1,175 @@
+"""What the point-mass and the particle filter share: a record's measurements, gated, counted and staged.
+
+A filter holds its density as candidate positions with probabilities (cells or particles). This base
+class turns an observation into log-likelihoods at those candidates (sonar patch, single depth, slant
+range; :mod:`lost.host.nav.likelihood`), refuses what :mod:`lost.host.nav.trust` says to refuse, and
+multiplies the rest in (Nygren eq. 3.5). A subclass says how its density is held: where its candidates
+are, how a likelihood reweighs them, what accepting a posterior does to it, and how it re-initializes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..grid import Grid
+from .estimator import Estimate, Observation
+from .likelihood import TerrainLikelihood
+from .trust import Trust, nis
+
+__all__ = ["BayesFilter"]
+
+
+class BayesFilter:
+    """The measurement side of a recursive Bayesian terrain filter (see the module docstring).
+
+    Parameters
+    ----------
+    likelihood : TerrainLikelihood
+        Patch, depth and (through the filter) range likelihoods against the map.
+    params : NavParameters
+        The noise levels and the trust rules.
+    grid : Grid
+        The map (for its node spacing).
+    name : str
+        The filter's name in the outputs.
+    """
+
+    def __init__(self, likelihood: TerrainLikelihood, params, *, grid: Grid, name: str) -> None:
+        self.name = name
+        self._lik = likelihood
+        self._p = params
+        self._trust = Trust(params, node_m=grid.node_m)
+        self.counts = self._trust.counts
+        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2 + params.position_floor_m**2
+        self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
+
+    # -- what a subclass provides ---------------------------------------------------------------------
+
+    def _candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions (x, y) of the density's candidates and their probabilities, all one shape."""
+        raise NotImplementedError
+
+    def _spacing(self) -> float:
+        """The candidates' typical spacing, metres."""
+        raise NotImplementedError
+
+    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and covariance of the density."""
+        raise NotImplementedError
+
+    def _reweigh(self, log_likelihood: np.ndarray) -> tuple[object, np.ndarray, np.ndarray] | None:
+        """The posterior a likelihood would give (opaque to this class) with its mean and covariance; None on underflow."""
+        raise NotImplementedError
+
+    def _accept(self, posterior: object, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool) -> None:
+        """Make ``posterior`` the density (the gates have passed)."""
+        raise NotImplementedError
+
+    def _reinitialize(self) -> None:
+        """Widen the search around the estimate, flat (see the trust rules)."""
+        raise NotImplementedError
+
+    # -- the shared update ------------------------------------------------------------------------------
+
+    def update(self, observation: Observation) -> None:
+        if observation.patch is not None and self._p.matching == "patch":
+            self._terrain_update(observation)
+        elif self._p.matching == "point" and math.isfinite(observation.ocean_depth_m):
+            self._depth_update(observation.ocean_depth_m)
+        if self._p.use_slant_range and math.isfinite(observation.slant_range_m) and observation.frame is not None:
+            self._range_update(observation)
+        self._trust.watch(self._moments()[1])
+
+    def _terrain_update(self, observation: Observation) -> None:
+        patch = observation.patch
+        x, y, mass = self._candidates()
+        length = max(patch.depth_m.shape) * patch.node_m
+        result = self._lik.patch(x, y, patch, weight=self._trust.patch_weight(length), sigma_scale=self._trust.misfit_level,
+                                 spacing_m=self._spacing())
+        if result is None or result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
+            self.counts["patch_too_sparse"] += 1
+            return
+        if not result.informative.any():
+            self._no_information("patch_off_map")
+            return
+        on_map = float(mass[result.informative].sum())
+        if self._trust.at_edge(on_map, self._moments()[1]):
+            self._no_information("patch_at_map_edge")
+            return
+        # A patch that fits nowhere is refused only where the map covers most of where the vehicle may be.
+        if self._trust.misfit_refused(result.misfit) and on_map > 0.5:
+            self._reject("misfit", terrain=True)
+            return
+        if self._apply(result.log_likelihood, terrain=True):
+            self._trust.note_misfit(result.misfit)
+            self._trust.look_alike(self._lik, *self._moments(), patch)
+            self._stage = "tracking" if self._trust.usable else "acquisition"
+
+    def _depth_update(self, ocean_depth_m: float) -> None:
+        x, y, _ = self._candidates()
+        ell, informative = self._lik.depth(x, y, ocean_depth_m, sigma_m=self._lik.depth_sigma_m)
+        if not informative.any():
+            self._no_information("depth_off_map")
+            return
+        self._apply(ell * self._p.likelihood_weight, terrain=True)
+
+    def _range_update(self, observation: Observation) -> None:
+        frame = observation.frame
+        vertical = observation.vehicle_depth_m - self._p.reference_depth_m
+        horizontal_sq = observation.slant_range_m**2 - vertical**2
+        if not (math.isfinite(horizontal_sq) and horizontal_sq > 0):
+            self.counts["range_shorter_than_depth"] += 1
+            return
+        x, y, _ = self._candidates()
+        distance = np.hypot(x - frame.ship_x_m, y - frame.ship_y_m)
+        self._apply(-0.5 * ((distance - math.sqrt(horizontal_sq)) / self._p.slant_range_sigma_m) ** 2, terrain=False)
+
+    def _no_information(self, reason: str) -> None:
+        self.counts[reason] += 1
+        self._stage = "off_map"
+
+    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> bool:
+        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used."""
+        prior_mean, prior_cov = self._moments()
+        proposal = self._reweigh(log_likelihood)
+        if proposal is None:
+            self._reject("underflow", terrain)
+            return False
+        posterior, post_mean, post_cov = proposal
+        value = nis(prior_mean, prior_cov, post_mean, post_cov)
+        if terrain:
+            self._nis = value
+        if value > self._p.gate_nis:
+            self._reject("gate", terrain)
+            return False
+        self._accept(posterior, post_cov, post_mean - prior_mean, terrain)
+        if terrain:
+            self._trust.accepted(post_cov)
+            self._stage = "tracking" if self._trust.usable else "acquisition"
+            self.counts["terrain_updates"] += 1
+        else:
+            self.counts["range_updates"] += 1
+            self._trust.range_outcome(refused=False)
+        return True
+
+    def _reject(self, reason: str, terrain: bool) -> None:
+        self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
+        if not terrain:
+            self.counts[f"range_rejected_{reason}"] += 1
+            self._trust.range_outcome(refused=True)
+            return
+        self._stage = "rejected"
+        if self._trust.rejected(reason):
+            self._reinitialize()
+            self._stage = "reinitialized"
+
+    def _moved(self, dt_s: float, distance_m: float) -> None:
+        """After a prediction: error growth and tempering advance, the record's stage starts afresh."""
+        self._trust.moved(dt_s, distance_m)
+        self._stage, self._nis, self._rejected = "dead_reckoning", float("nan"), ""
+
+    def estimate(self) -> Estimate:
+        mean, cov = self._moments()
+        return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected)
