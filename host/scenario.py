@@ -69,7 +69,8 @@ class TerrainSpec:
     """``[terrain]``: a seeded synthetic sea floor, or a grid file.
 
     file : path of a grid file read by ``lost.host.io.read_grid`` (relative to the scenario); when
-        given, the synthetic fields are ignored.
+        given, the synthetic fields are ignored. positive ("up" for elevations, "down" for depths)
+        and nodata, as read_grid takes them, for a file that does not say.
     seed : terrain seed (default: the scenario's seed).
     shape : (rows, cols) of the synthetic floor; node_m : its node spacing, metres.
     x0_m, y0_m : easting/northing of node (0, 0).
@@ -85,6 +86,8 @@ class TerrainSpec:
     """
 
     file: str | None = None
+    positive: Literal["up", "down"] | None = None
+    nodata: float | None = None
     seed: NonNegativeInt | None = None
     shape: tuple[PositiveInt, PositiveInt] = (400, 700)
     node_m: PositiveFloat = 10.0
@@ -384,7 +387,7 @@ def scenario_floor(scenario: Scenario) -> Grid:
     if spec.file is not None:
         from .io import read_grid  # lazily: the file readers and their dependencies load only when used
 
-        return read_grid(scenario.base_dir / spec.file)
+        return read_grid(scenario.base_dir / spec.file, positive=spec.positive, nodata=spec.nodata)
     depth = synthetic_terrain(
         spec.shape,
         seed=scenario.seed if spec.seed is None else spec.seed,

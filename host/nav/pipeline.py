@@ -410,6 +410,10 @@ def navigate(
         raise ValueError("the prepared map was made from another grid than the one given")
     if params.matching == "patch" and not any(patch is not None for patch in records.sonar):
         raise ValueError("the tow has no sonar patch, so patch matching has nothing to match; use matching='point'")
+    other = sorted({float(p.node_m) for p in records.sonar if p is not None and not math.isclose(p.node_m, grid.node_m, rel_tol=1e-9)})
+    if other:
+        raise ValueError(f"the sonar patches have {', '.join(str(v) for v in other)} m nodes but the map {grid.node_m} m; "
+                         "grid the patches on the map's nodes")
     counts: Counter = Counter()
     loop = _RecordLoop(records, params, make_estimators(estimators, prepared, params, counts), counts)
     iterator: Iterable[int] = range(len(records))

@@ -275,3 +275,19 @@ def test_von_karman_terrain_has_its_corner_and_a_repeated_tile_repeats():
     assert flat < 3.0 < steep  # flat beyond the corner, a power law well inside it
     tiled = synthetic_terrain((100, 100), seed=2, repeat_nodes=(40, 40))
     np.testing.assert_array_equal(tiled[:40, :40], tiled[40:80, 40:80])
+
+
+def test_a_grid_files_sign_and_nodata_can_be_named_in_the_scenario(tmp_path, monkeypatch):
+    import lost.host.io as io
+
+    seen = {}
+    monkeypatch.setattr(io, "read_grid", lambda path, **kwargs: seen.update(kwargs) or io.Grid(np.full((50, 60), 700.0), 0.0, 0.0, 10.0))
+    path = tmp_path / "file.toml"
+    path.write_text('[terrain]\nfile = "elevation.tif"\npositive = "up"\nnodata = -32768\n')
+    from lost.host.scenario import scenario_floor
+
+    scenario_floor(load_scenario(path))
+    assert seen == {"positive": "up", "nodata": -32768.0}
+    path.write_text('[terrain]\nfile = "elevation.tif"\npositive = "sideways"\n')
+    with pytest.raises(ValueError, match="terrain.positive"):
+        load_scenario(path)
