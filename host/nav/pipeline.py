@@ -156,7 +156,8 @@ class NavParameters:
         floors: about 1 +- 0.4 at the true position, 2.5 to 10 at a wrong one).
     usable_sigma_nodes, usable_updates : float, int
         The usable flag: the covariance's largest 1-sigma axis under this many map nodes for this many
-        terrain updates in a row. Defaults 1 node, 20 updates.
+        terrain updates in a row. Defaults 1 node, 30 updates (20 let the early minute of ``short``,
+        still some 10 m off, count as usable: measured).
     lookalike_radius_m, lookalike_margin : float
         The look-alike check of a usable filter's patches: how far around the estimate a second fit
         is looked for (default 600 m), and how much worse it must fit, in mean absolute residual
@@ -208,7 +209,7 @@ class NavParameters:
     gate_nis: float = 13.8
     misfit_gate: float = 2.2
     usable_sigma_nodes: float = 1.0
-    usable_updates: int = 20
+    usable_updates: int = 30
     lookalike_radius_m: float = 600.0
     lookalike_margin: float = 0.15
     reinit_after: int = 10
