@@ -5,7 +5,7 @@
     lost track DETECTIONS.csv [--out DIR]            recorded detections (layout: lost.host.track.detections)
     lost track SCENARIO.toml|NAME [--out DIR]        a simulated run (built-in: one_diver, two_divers, clutter_hour)
         [--baseline] [--particles N] [--seed S] [--pd P] [--clutter RATE] [--set NAME=VALUE ...]
-        [--max-range M] [--half-fov DEG] [--no-animation] [--write-detections]
+        [--max-range M] [--half-fov DEG] [--crs EPSG:...] [--no-animation] [--write-detections]
 
 Writes ``tracks.csv``, ``sector.png`` (the paper's Figure 5 at the last ping), ``tracks.gif`` (the pings
 animated) and, last, ``summary.json`` into ``--out`` (default ``runs/track/NAME``). With a scenario the truth is
@@ -72,7 +72,7 @@ def _load(source: str, args: argparse.Namespace):
     overrides.update(dict(args.settings or ()))
     if path.suffix.lower() == ".csv":
         sonar = Sonar(max_range_m=args.max_range, half_fov_deg=args.half_fov)
-        pings, report = read_detections(path, sonar=sonar)
+        pings, report = read_detections(path, sonar=sonar, crs=args.crs)
         return pings, sonar, _parameters({}, overrides, "--set"), None, path.stem, report.summary(), None
     scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.exists() else builtin_scenario_path(source))
     sim = simulate(scenario)
@@ -162,6 +162,7 @@ def add_track_command(commands: argparse._SubParsersAction) -> None:
                      help="a tracker parameter (TrackerParameters, e.g. --set confirm_m=5 --set bearing_sigma_deg=1.0); repeatable")
     sub.add_argument("--max-range", type=float, default=500.0, help="with a CSV: the sonar's range, m (default 500)")
     sub.add_argument("--half-fov", type=float, default=45.0, help="with a CSV: half the field of view, degrees (default 45)")
+    sub.add_argument("--crs", default=None, help="with a CSV of platform_lat/platform_lon: the projected CRS to work in (default its UTM zone)")
     sub.add_argument("--no-animation", action="store_true", help="skip tracks.gif (the slowest output)")
     sub.add_argument("--write-detections", action="store_true", help="with a scenario: also write its pings as detections.csv")
     sub.set_defaults(handler=run_track)
