@@ -138,3 +138,23 @@ def test_a_geographic_crs_is_refused(tmp_path):
     header = "ping,t_s,platform_lat,platform_lon,heading_deg,range_m,bearing_deg"
     with pytest.raises(ValueError, match="is not a projected"):
         read_detections(write(tmp_path, [header, "0,0.0,60.0,5.0,90.0,300.0,0.0"]), crs="EPSG:4326")
+
+
+def test_truth_is_interpolated_to_the_pings_and_checked(tmp_path):
+    from lost.host.track.truth import read_truth
+
+    pings = [Ping(i, 1.0 * i, (0.0, 0.0), 0.0, [], []) for i in range(5)]
+    truth_path = tmp_path / "truth.csv"
+    truth_path.write_text("target,t_s,x_m,y_m\nA,0.5,0.0,300.0\nA,2.5,0.0,298.0\nB,0.0,600.0,0.0\nB,4.0,600.0,8.0\n")
+    truth = read_truth(truth_path, pings)
+    np.testing.assert_allclose(truth.xy[1:3, 0, 1], [299.5, 298.5])
+    assert np.isnan(truth.xy[0, 0, 0]) and np.isnan(truth.xy[3, 0, 0])  # before the first and after the last fix
+    np.testing.assert_allclose(truth.velocity[1, 0], [0.0, -1.0])
+    assert truth.in_sector[1, 0] and not truth.in_sector[:, 1].any()  # B abeam at 600 m: never in the sector
+    assert truth.kinds == ("diver", "diver")
+    truth_path.write_text("target,t_s,x_m,y_m\nA,1.0,0.0,300.0\nA,1.0,0.0,299.0\n")
+    with pytest.raises(ValueError, match="data row 2: t_s 1.0 of target 'A' does not increase"):
+        read_truth(truth_path, pings)
+    truth_path.write_text("target,t_s,x_m\nA,1.0,0.0\n")
+    with pytest.raises(ValueError, match="lacks the truth column"):
+        read_truth(truth_path, pings)
