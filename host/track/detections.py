@@ -22,15 +22,16 @@ The detection log
                                    starboard (clockwise)
     ``strength_db``      no        detection strength (any consistent unit; kept, not used by
                                    the filters)
-    ===================  ========  ===================================================
+    ===================  ========  ===========================================================
 
     A ping with no detection is one row whose ``range_m`` and ``bearing_deg`` are both empty: a
     quiet ping still moves the platform and still counts as a ping the filters step through.
 
 Errors and skips
-    A missing file or column (a position pair counts as one), a non-numeric or empty required cell (other than the quiet-ping pair),
-    a ping number that goes back or repeats after another ping, rows of one ping disagreeing on time
-    or platform, or time not increasing from ping to ping raise ``ValueError`` naming the file, the
+    A missing file or column (a position pair counts as one), a non-numeric or empty required cell
+    (other than the quiet-ping pair), a latitude or longitude out of range, a ping number that goes
+    back or repeats after another ping, rows of one ping disagreeing on time or platform, or time not
+    increasing from ping to ping raise ``ValueError`` naming the file, the
     column and the line. Detections outside the sonar's sector (beyond ``max_range_m``, negative
     range, or a bearing beyond ``half_fov_deg``) are dropped and counted in the :class:`DetectionReport`
     by reason, never silently.
