@@ -2,14 +2,14 @@
 
 ::
 
-    lost track DETECTIONS.csv [--out DIR]            recorded detections (layout: lost.host.track.detections)
+    lost track DETECTIONS.csv [--truth T.csv] [--out DIR]   recorded detections (layout: lost.host.track.detections)
     lost track SCENARIO.toml|NAME [--out DIR]        a simulated run (built-in: one_diver, two_divers, clutter_hour)
         [--baseline] [--particles N] [--seed S] [--pd P] [--clutter RATE] [--set NAME=VALUE ...]
-        [--max-range M] [--half-fov DEG] [--no-animation] [--write-detections]
+        [--max-range M] [--half-fov DEG] [--crs EPSG:...] [--no-animation] [--write-detections]
 
 Writes ``tracks.csv``, ``sector.png`` (the paper's Figure 5 at the last ping), ``tracks.gif`` (the pings
-animated) and, last, ``summary.json`` into ``--out`` (default ``runs/track/NAME``). With a scenario the truth is
-known, so the summary holds the lock, false tracks and Stone Soup's GOSPA/OSPA/SIAP; ``--baseline`` runs Stone
+animated) and, last, ``summary.json`` into ``--out`` (default ``runs/track/NAME``). With a scenario, or a
+CSV with ``--truth``, the truth is known, so the summary holds the lock, false tracks and Stone Soup's GOSPA/OSPA/SIAP; ``--baseline`` runs Stone
 Soup's GM-PHD on the same pings and adds its figures.
 """
 
@@ -73,8 +73,13 @@ def _load(source: str, args: argparse.Namespace):
     overrides.update(dict(args.settings or ()))
     if path.suffix.lower() == ".csv":
         sonar = Sonar(max_range_m=args.max_range, half_fov_deg=args.half_fov)
-        pings, report = read_detections(path, sonar=sonar)
-        return pings, sonar, _parameters({}, overrides, "--set"), None, path.stem, report.summary(), None
+        pings, report = read_detections(path, sonar=sonar, crs=args.crs)
+        truth = None
+        if args.truth is not None:
+            from .truth import read_truth
+
+            truth = read_truth(args.truth, pings, sonar=sonar)
+        return pings, sonar, _parameters({}, overrides, "--set"), truth, path.stem, report.summary(), None
     scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.exists() else builtin_scenario_path(source))
     sim = simulate(scenario)
     model = scenario.sonar
@@ -93,7 +98,10 @@ def run_track(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").unlink(missing_ok=True)  # no stale summary beside a run that fails half-way
     if args.write_detections and sim is not None:
+        from .truth import write_truth
+
         write_detections(out / "detections.csv", pings)
+        write_truth(out / "truth.csv", truth)
     run = run_tracker(pings, sonar=sonar, parameters=params, seed=args.seed, progress=_progress(len(pings)))
     summary: dict = {
         "name": name, "input": str(args.input), "pings": len(pings), "detections": int(sum(p.detections for p in pings)),
@@ -163,8 +171,10 @@ def add_track_command(commands: argparse._SubParsersAction) -> None:
                      help="a tracker parameter (TrackerParameters, e.g. --set confirm_m=5 --set bearing_sigma_deg=1.0); repeatable")
     sub.add_argument("--max-range", type=float, default=500.0, help="with a CSV: the sonar's range, m (default 500)")
     sub.add_argument("--half-fov", type=float, default=45.0, help="with a CSV: half the field of view, degrees (default 45)")
+    sub.add_argument("--crs", default=None, help="with a CSV of platform_lat/platform_lon: the projected CRS to work in (default its UTM zone)")
     sub.add_argument("--no-animation", action="store_true", help="skip tracks.gif (the slowest output)")
-    sub.add_argument("--write-detections", action="store_true", help="with a scenario: also write its pings as detections.csv")
+    sub.add_argument("--truth", type=Path, default=None, help="with a CSV: where the targets really were (layout: lost.host.track.truth), to score the run")
+    sub.add_argument("--write-detections", action="store_true", help="with a scenario: also write its pings as detections.csv and its truth as truth.csv")
     sub.set_defaults(handler=run_track)
 
 

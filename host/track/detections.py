@@ -10,23 +10,28 @@ The detection log
     ``ping``             yes       ping number (integer); the rows of one ping are consecutive
     ``t_s``              yes       time of the ping, seconds, strictly increasing from ping to
                                    ping, equal on every row of a ping
-    ``platform_x_m``     yes       sonar (platform GPS) easting, metres, equal within a ping
-    ``platform_y_m``     yes       sonar northing, metres, equal within a ping
+    ``platform_x_m``     one pair  sonar (platform GPS) easting, metres, equal within a ping
+    ``platform_y_m``     of these  sonar northing, metres, equal within a ping
+    ``platform_lat``     or these  or latitude and longitude, degrees (WGS 84), projected with
+    ``platform_lon``               pyproj to ``crs`` (default: the UTM zone of the first fix)
     ``heading_deg``      yes       sonar axis (platform heading), degrees clockwise from north
+                                   (grid north with x/y; true north with lat/lon, turned to grid
+                                   north by the meridian convergence at each fix)
     ``range_m``          yes       detection range, metres
     ``bearing_deg``      yes       detection bearing from the sonar's axis, degrees, positive to
                                    starboard (clockwise)
     ``strength_db``      no        detection strength (any consistent unit; kept, not used by
                                    the filters)
-    ===================  ========  ===================================================
+    ===================  ========  ===========================================================
 
     A ping with no detection is one row whose ``range_m`` and ``bearing_deg`` are both empty: a
     quiet ping still moves the platform and still counts as a ping the filters step through.
 
 Errors and skips
-    A missing file or column, a non-numeric or empty required cell (other than the quiet-ping pair),
-    a ping number that goes back or repeats after another ping, rows of one ping disagreeing on time
-    or platform, or time not increasing from ping to ping raise ``ValueError`` naming the file, the
+    A missing file or column (a position pair counts as one), a non-numeric or empty required cell
+    (other than the quiet-ping pair), a latitude or longitude out of range, a ping number that goes
+    back or repeats after another ping, rows of one ping disagreeing on time or platform, or time not
+    increasing from ping to ping raise ``ValueError`` naming the file, the
     column and the line. Detections outside the sonar's sector (beyond ``max_range_m``, negative
     range, or a bearing beyond ``half_fov_deg``) are dropped and counted in the :class:`DetectionReport`
     by reason, never silently.
@@ -35,6 +40,7 @@ Errors and skips
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 from collections.abc import Iterable, Sequence
@@ -45,12 +51,15 @@ import numpy as np
 
 from .geometry import Sonar, polar_to_world
 
-__all__ = ["Ping", "DetectionReport", "read_detections", "write_detections", "DETECTION_COLUMNS"]
+__all__ = ["Ping", "DetectionReport", "read_detections", "write_detections", "DETECTION_COLUMNS", "WRITTEN_COLUMNS"]
 
-_REQUIRED = ("ping", "t_s", "platform_x_m", "platform_y_m", "heading_deg", "range_m", "bearing_deg")
+_REQUIRED = ("ping", "t_s", "heading_deg", "range_m", "bearing_deg")
+_POSITIONS = (("platform_x_m", "platform_y_m"), ("platform_lat", "platform_lon"))
 _OPTIONAL = ("strength_db",)
-DETECTION_COLUMNS = _REQUIRED + _OPTIONAL
-_PER_PING = ("t_s", "platform_x_m", "platform_y_m", "heading_deg")
+DETECTION_COLUMNS = ("ping", "t_s", *_POSITIONS[0], *_POSITIONS[1], "heading_deg", "range_m", "bearing_deg", *_OPTIONAL)
+#: The columns write_detections writes (metric positions).
+WRITTEN_COLUMNS = ("ping", "t_s", *_POSITIONS[0], "heading_deg", "range_m", "bearing_deg", *_OPTIONAL)
+_PER_PING = ("t_s", "x", "y", "heading_deg")
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,6 +121,7 @@ class DetectionReport:
     negative_range: int = 0
     outside_field_of_view: int = 0
     unknown_columns: tuple[str, ...] = ()
+    crs: str = ""
 
     @property
     def dropped(self) -> int:
@@ -130,6 +140,8 @@ class DetectionReport:
                 lines.append(f"  dropped {count} detection(s) {label}")
         if self.unknown_columns:
             lines.append("  unknown columns, not read: " + ", ".join(self.unknown_columns))
+        if self.crs:
+            lines.append(f"  note: latitude/longitude projected to {self.crs}; headings turned from true to grid north")
         return "\n".join(lines)
 
 
@@ -143,39 +155,69 @@ def _number(text: str, column: str, where: str) -> float:
     return value
 
 
-def _header(reader: Iterable[list[str]], path: Path) -> tuple[dict[str, int], tuple[str, ...]]:
+def _header(reader: Iterable[list[str]], path: Path) -> tuple[dict[str, int], tuple[str, ...], bool, int]:
+    """Column indices, unknown columns, whether positions are latitude/longitude, and the header's width."""
     for line in reader:
         if line and not line[0].lstrip().startswith("#"):
             names = [name.strip().lower() for name in line]
             break
     else:
-        raise ValueError(f"{path}: no header row (expected columns {', '.join(_REQUIRED)})")
+        raise ValueError(f"{path}: no header row (expected columns {', '.join(_REQUIRED)} and a position pair)")
     missing = [name for name in _REQUIRED if name not in names]
+    pairs = [pair for pair in _POSITIONS if all(name in names for name in pair)]
+    if not pairs:
+        missing.append("platform_x_m/platform_y_m (or platform_lat/platform_lon)")
     if missing:
         raise ValueError(f"{path} lacks the required column(s) {', '.join(missing)} (layout: lost.host.track.detections)")
+    geographic = pairs[0] == _POSITIONS[1]  # x/y first when both are given
     unknown = tuple(name for name in names if name not in DETECTION_COLUMNS)
-    return {name: names.index(name) for name in DETECTION_COLUMNS if name in names}, unknown
+    columns = {name: names.index(name) for name in DETECTION_COLUMNS if name in names}
+    x, y = ("platform_lon", "platform_lat") if geographic else pairs[0]  # x east, y north
+    columns["x"], columns["y"] = columns[x], columns[y]
+    return columns, unknown, geographic, len(names)
+
+
+def _project(pings: list[Ping], crs: str | None, path: Path) -> tuple[list[Ping], str]:
+    """Latitude/longitude (stored in platform_xy as lon, lat) to a metric CRS; headings to grid north."""
+    from pyproj import CRS, Proj, Transformer
+    from pyproj.aoi import AreaOfInterest
+    from pyproj.database import query_utm_crs_info
+
+    lon = np.array([p.platform_xy[0] for p in pings])
+    lat = np.array([p.platform_xy[1] for p in pings])
+    if crs is None:
+        aoi = AreaOfInterest(lon[0], lat[0], lon[0], lat[0])
+        crs = f"EPSG:{query_utm_crs_info(datum_name='WGS 84', area_of_interest=aoi)[0].code}"
+    target = CRS.from_user_input(crs)
+    if not target.is_projected:
+        raise ValueError(f"{path}: crs {crs!r} is not a projected (metric) CRS")
+    x, y = Transformer.from_crs("EPSG:4326", target, always_xy=True).transform(lon, lat)
+    convergence = Proj(target).get_factors(lon, lat).meridian_convergence  # grid north is this far east of true north
+    projected = [dataclasses.replace(p, platform_xy=np.array([x[i], y[i]]), heading_deg=float(p.heading_deg - convergence[i]))
+                 for i, p in enumerate(pings)]
+    return projected, crs
 
 
 class _PingBuilder:
     """Collects the rows of one ping and checks they agree on time and platform."""
 
-    def __init__(self, index: int, values: dict[str, float], where: str) -> None:
-        self.index, self.values, self.where = index, values, where
+    def __init__(self, index: int, values: dict[str, float], where: str, columns: dict[str, str]) -> None:
+        self.index, self.values, self.where, self.columns = index, values, where, columns
         self.detections: list[tuple[float, float, float]] = []
 
     def add(self, values: dict[str, float], where: str) -> None:
         for name in _PER_PING:
             if values[name] != self.values[name]:
-                raise ValueError(f"{where}: {name} {values[name]!r} differs from {self.values[name]!r} on the first row of ping {self.index} ({self.where})")
+                column = self.columns.get(name, name)
+                raise ValueError(f"{where}: {column} {values[name]!r} differs from {self.values[name]!r} on the first row of ping {self.index} ({self.where})")
 
     def build(self) -> Ping:
         rows = np.array(self.detections, dtype=float).reshape(-1, 3)
         v = self.values
-        return Ping(self.index, v["t_s"], (v["platform_x_m"], v["platform_y_m"]), v["heading_deg"], rows[:, 0], rows[:, 1], rows[:, 2])
+        return Ping(self.index, v["t_s"], (v["x"], v["y"]), v["heading_deg"], rows[:, 0], rows[:, 1], rows[:, 2])
 
 
-def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None) -> tuple[list[Ping], DetectionReport]:
+def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None, crs: str | None = None) -> tuple[list[Ping], DetectionReport]:
     """Read a detection log (layout in the module docstring) into pings and a report.
 
     Parameters
@@ -184,6 +226,9 @@ def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None) -> t
         The CSV file.
     sonar : Sonar, optional
         The sector detections must lie in (default: the paper's 500 m, +/-45 degrees).
+    crs : str, optional
+        The projected CRS latitude/longitude positions go to (default: the UTM zone of the first fix);
+        unused with x/y positions.
 
     Returns
     -------
@@ -208,16 +253,19 @@ def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None) -> t
     rows = 0
     with path.open(newline="") as handle:
         reader = csv.reader(handle)
-        columns, unknown = _header(reader, path)
+        columns, unknown, geographic, width = _header(reader, path)
+        names = {"x": "platform_lon" if geographic else "platform_x_m", "y": "platform_lat" if geographic else "platform_y_m"}
         for line in reader:
             if not line or not "".join(line).strip() or line[0].lstrip().startswith("#"):
                 continue
             rows += 1
             where = f"{path}, line {reader.line_num}"
-            if len(line) > len(columns) + len(unknown):
-                raise ValueError(f"{where}: {len(line)} cells but the header names {len(columns) + len(unknown)} columns")
+            if len(line) > width:
+                raise ValueError(f"{where}: {len(line)} cells but the header names {width} columns")
             cells = {name: (line[i].strip() if i < len(line) else "") for name, i in columns.items()}
-            values = {name: _number(cells[name], name, where) for name in _REQUIRED[:5]}
+            values = {name: _number(cells[name], names.get(name, name), where) for name in ("ping", "t_s", "x", "y", "heading_deg")}
+            if geographic and not (-90 <= values["y"] <= 90 and -180 <= values["x"] <= 360):
+                raise ValueError(f"{where}: platform_lat/platform_lon {values['y']!r}, {values['x']!r} are not a latitude and longitude")
             ping = int(values["ping"])
             if ping != values["ping"]:
                 raise ValueError(f"{where}: ping must be an integer, got {cells['ping']!r}")
@@ -231,7 +279,7 @@ def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None) -> t
                         raise ValueError(f"{where}: t_s {values['t_s']!r} of ping {ping} does not increase on ping {current.index}'s {current.values['t_s']!r}")
                     pings.append(current.build())
                 seen.add(ping)
-                current = _PingBuilder(ping, values, where)
+                current = _PingBuilder(ping, values, where, names)
             else:
                 current.add(values, where)
             if cells["range_m"] == "" and cells["bearing_deg"] == "":
@@ -251,8 +299,11 @@ def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None) -> t
         pings.append(current.build())
     if not pings:
         raise ValueError(f"{path} holds a header but no ping")
+    projected_to = ""
+    if geographic:
+        pings, projected_to = _project(pings, crs, path)
     kept = sum(p.detections for p in pings)
-    return pings, DetectionReport(str(path), rows, len(pings), kept, unknown_columns=unknown, **counts)
+    return pings, DetectionReport(str(path), rows, len(pings), kept, unknown_columns=unknown, crs=projected_to, **counts)
 
 
 def write_detections(path: str | os.PathLike, pings: Sequence[Ping]) -> Path:
@@ -260,7 +311,7 @@ def write_detections(path: str | os.PathLike, pings: Sequence[Ping]) -> Path:
     path = Path(path)
     with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(DETECTION_COLUMNS)
+        writer.writerow(WRITTEN_COLUMNS)
         for ping in pings:
             head = [ping.index, repr(ping.t_s), repr(float(ping.platform_xy[0])), repr(float(ping.platform_xy[1])), repr(ping.heading_deg)]
             if ping.detections == 0:

@@ -32,7 +32,7 @@ def scenario_run(tmp_path_factory):
 
 
 def test_a_scenario_run_writes_every_output(scenario_run, capsys):
-    for name in ("tracks.csv", "sector.png", "tracks.gif", "summary.json", "detections.csv"):
+    for name in ("tracks.csv", "sector.png", "tracks.gif", "summary.json", "detections.csv", "truth.csv"):
         assert (scenario_run / name).stat().st_size > 0
     assert not list(scenario_run.glob("*.partial"))
     summary = json.loads((scenario_run / "summary.json").read_text())
@@ -87,3 +87,13 @@ def test_set_reaches_the_tracker_and_unknown_names_are_refused(scenario_run, tmp
     assert (summary["tracker"]["confirm_m"], summary["tracker"]["confirm_n"]) == (5, 5)
     assert main(["track", detections, "--out", str(out), "--set", "confirm=3"]) == 2
     assert "--set names no tracker parameter: confirm" in capsys.readouterr().err
+
+
+def test_a_recorded_log_with_its_truth_scores_as_the_simulation_did(scenario_run, tmp_path):
+    out = tmp_path / "scored"
+    args = ["track", str(scenario_run / "detections.csv"), "--truth", str(scenario_run / "truth.csv"), "--out", str(out), "--particles", "2000"]
+    assert main([*args, "--no-animation"]) == 0
+    recorded = json.loads((out / "summary.json").read_text())
+    simulated = json.loads((scenario_run / "summary.json").read_text())
+    assert recorded["truth_known"] and recorded["pings_to_lock"] == simulated["pings_to_lock"]
+    assert recorded["gospa_mean"] == pytest.approx(simulated["gospa_mean"], abs=0.5)  # velocities from the fixes differ a little

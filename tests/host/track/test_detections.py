@@ -60,7 +60,8 @@ def test_header_is_case_and_space_blind_and_unknown_columns_are_reported(tmp_pat
 @pytest.mark.parametrize(
     "lines, message",
     [
-        (["ping,t_s,platform_x_m,heading_deg,range_m,bearing_deg", "0,0,0,0,1,0"], "lacks the required column.*platform_y_m"),
+        (["ping,t_s,platform_x_m,heading_deg,range_m,bearing_deg", "0,0,0,0,1,0"],
+         r"lacks the required column.*platform_x_m/platform_y_m \(or platform_lat/platform_lon\)"),
         ([HEADER, "0,0.0,100.0,200.0,90.0,abc,0.0,"], r"line 2: range_m is not a number: 'abc'"),
         ([HEADER, "0,0.0,100.0,,90.0,10.0,0.0,"], r"line 2: platform_y_m is not a number: ''"),
         ([HEADER, "0,0.0,100.0,200.0,90.0,10.0,,"], r"line 2: bearing_deg is not a number"),
@@ -102,3 +103,58 @@ def test_polar_and_world_frames_are_inverse_and_oriented():
 def test_ping_rejects_mismatched_detections():
     with pytest.raises(ValueError, match="2 ranges but 1 bearings"):
         Ping(0, 0.0, (0, 0), 0.0, [1.0, 2.0], [0.0])
+
+
+def test_latitude_longitude_are_projected_and_headings_turned_to_grid_north(tmp_path):
+    from pyproj import Proj, Transformer
+
+    header = "ping,t_s,platform_lat,platform_lon,heading_deg,range_m,bearing_deg"
+    rows = ["0,0.0,60.0,5.0,90.0,300.0,0.0", "1,1.3,60.0001,5.0,90.0,299.0,0.0"]
+    pings, report = read_detections(write(tmp_path, [header, *rows]))
+    assert report.crs == "EPSG:32631" and "projected to EPSG:32631" in report.summary()
+    x, y = Transformer.from_crs("EPSG:4326", "EPSG:32631", always_xy=True).transform(5.0, 60.0)
+    np.testing.assert_allclose(pings[0].platform_xy, [x, y])
+    convergence = Proj("EPSG:32631").get_factors(5.0, 60.0).meridian_convergence
+    assert pings[0].heading_deg == pytest.approx(90.0 - convergence) and abs(convergence) > 1.0
+    _, utm32 = read_detections(write(tmp_path, [header, *rows], "b.csv"), crs="EPSG:32632")
+    assert utm32.crs == "EPSG:32632"
+
+
+@pytest.mark.parametrize(
+    "rows, message",
+    [
+        (["0,0.0,95.0,5.0,90.0,300.0,0.0"], "line 2: platform_lat/platform_lon 95.0, 5.0 are not a latitude and longitude"),
+        (["0,0.0,,5.0,90.0,300.0,0.0"], "line 2: platform_lat is not a number"),
+        (["0,0.0,60.0,5.0,90.0,300.0,0.0", "0,0.0,60.0,5.1,90.0,300.0,0.0"], "line 3: platform_lon 5.1 differs from 5.0"),
+    ],
+)
+def test_bad_latitude_longitude_are_named(tmp_path, rows, message):
+    header = "ping,t_s,platform_lat,platform_lon,heading_deg,range_m,bearing_deg"
+    with pytest.raises(ValueError, match=message):
+        read_detections(write(tmp_path, [header, *rows]))
+
+
+def test_a_geographic_crs_is_refused(tmp_path):
+    header = "ping,t_s,platform_lat,platform_lon,heading_deg,range_m,bearing_deg"
+    with pytest.raises(ValueError, match="is not a projected"):
+        read_detections(write(tmp_path, [header, "0,0.0,60.0,5.0,90.0,300.0,0.0"]), crs="EPSG:4326")
+
+
+def test_truth_is_interpolated_to_the_pings_and_checked(tmp_path):
+    from lost.host.track.truth import read_truth
+
+    pings = [Ping(i, 1.0 * i, (0.0, 0.0), 0.0, [], []) for i in range(5)]
+    truth_path = tmp_path / "truth.csv"
+    truth_path.write_text("target,t_s,x_m,y_m\nA,0.5,0.0,300.0\nA,2.5,0.0,298.0\nB,0.0,600.0,0.0\nB,4.0,600.0,8.0\n")
+    truth = read_truth(truth_path, pings)
+    np.testing.assert_allclose(truth.xy[1:3, 0, 1], [299.5, 298.5])
+    assert np.isnan(truth.xy[0, 0, 0]) and np.isnan(truth.xy[3, 0, 0])  # before the first and after the last fix
+    np.testing.assert_allclose(truth.velocity[1, 0], [0.0, -1.0])
+    assert truth.in_sector[1, 0] and not truth.in_sector[:, 1].any()  # B abeam at 600 m: never in the sector
+    assert truth.kinds == ("diver", "diver")
+    truth_path.write_text("target,t_s,x_m,y_m\nA,1.0,0.0,300.0\nA,1.0,0.0,299.0\n")
+    with pytest.raises(ValueError, match="data row 2: t_s 1.0 of target 'A' does not increase"):
+        read_truth(truth_path, pings)
+    truth_path.write_text("target,t_s,x_m\nA,1.0,0.0\n")
+    with pytest.raises(ValueError, match="lacks the truth column"):
+        read_truth(truth_path, pings)
