@@ -66,7 +66,7 @@ def run_usbl(args: argparse.Namespace) -> int:
         cast_path.write_text(Path(sim.cast.source).read_text())
         args.svp = cast_path
         config = UsblConfig(array=scenario.usbl, imu=scenario.imu, gate_probability=scenario.gate_probability)
-    log = read_log(log_path)
+    log = read_log(log_path, turnaround_s=config.array.turnaround_s)
     imu = read_imu(imu_path)
     cast = read_cast(args.svp, default_position=(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0])))
     run = process(log, imu, cast, config)

@@ -80,11 +80,15 @@ def _numeric(table: pd.DataFrame, column: str, source: str, *, allow_empty: bool
 
 #: A reply's direction: the phase differences (rad) or the direction cosines, across the array's x and y baselines.
 DIRECTION_COLUMNS = (("phase_x_rad", "phase_y_rad"), ("dir_x", "dir_y"))
-REQUIRED_LOG_COLUMNS = [c for c in LOG_COLUMNS if c not in DIRECTION_COLUMNS[0]]
+#: The reply's travel time: one way, or the interrogation's round trip (halved after the transponder's turnaround).
+TRAVEL_COLUMNS = ("travel_time_s", "two_way_travel_time_s")
+REQUIRED_LOG_COLUMNS = [c for c in LOG_COLUMNS if c not in DIRECTION_COLUMNS[0] and c != TRAVEL_COLUMNS[0]]
 
 
-def read_log(path: str | Path) -> pd.DataFrame:
+def read_log(path: str | Path, *, turnaround_s: float = 0.0) -> pd.DataFrame:
     """Read the USBL log CSV (docs/usbl.md): one row per ping; empty travel time and direction for a ping without a reply.
+
+    A log with ``two_way_travel_time_s`` gets the one-way ``travel_time_s = (two way - turnaround_s) / 2``.
 
     Raises
     ------
@@ -97,10 +101,20 @@ def read_log(path: str | Path) -> pd.DataFrame:
     if len(pairs) != 1:
         raise ValueError(f"{source}: needs the reply's direction as phase_x_rad, phase_y_rad or as dir_x, dir_y (exactly one pair); "
                          f"has {list(table.columns)}")
+    travel = [c for c in TRAVEL_COLUMNS if c in table.columns]
+    if len(travel) != 1:
+        raise ValueError(f"{source}: needs exactly one of travel_time_s (one way) and two_way_travel_time_s; has {list(table.columns)}")
     table.attrs["direction_columns"] = pairs[0]
-    optional_empty = {"travel_time_s", *pairs[0]}
-    for column in REQUIRED_LOG_COLUMNS + list(pairs[0]):
+    optional_empty = {travel[0], *pairs[0]}
+    for column in REQUIRED_LOG_COLUMNS + list(pairs[0]) + travel:
         table[column] = _numeric(table, column, source, allow_empty=column in optional_empty)
+    if travel[0] == "two_way_travel_time_s":
+        one_way = (table["two_way_travel_time_s"] - turnaround_s) / 2.0
+        if (one_way <= 0.0).any():
+            row = int(np.flatnonzero((one_way <= 0.0).to_numpy())[0]) + 1
+            raise ValueError(f"{source}: row {row}: two-way travel time {table['two_way_travel_time_s'].iloc[row - 1]} s is not longer "
+                             f"than the turnaround {turnaround_s} s")
+        table["travel_time_s"] = one_way
     for column in ("true_lat_deg", "true_lon_deg", "true_depth_m"):
         if column in table.columns:
             table[column] = _numeric(table, column, source, allow_empty=True)
