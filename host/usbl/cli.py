@@ -31,7 +31,7 @@ def add_usbl_command(commands) -> None:
     usbl.add_argument("source", help="USBL log CSV, or a scenario TOML file, or a shipped scenario's name (usbl_turns)")
     usbl.add_argument("--svp", type=Path, help="CTD or SVP cast CSV (required with a log)")
     usbl.add_argument("--imu", type=Path, help="IMU CSV (default: imu.csv beside the log)")
-    usbl.add_argument("--config", type=Path, help="processing settings TOML: [usbl], [imu], gate_probability, align_window_s")
+    usbl.add_argument("--config", type=Path, help="processing settings TOML: [usbl], [imu], gate_probability, align_window_s, earth_rotation")
     usbl.add_argument("--out", type=Path, default=None, help="output folder (default runs/usbl-NAME)")
     usbl.set_defaults(handler=run_usbl)
 
