@@ -90,5 +90,7 @@ def _print(summary: dict, out: Path) -> None:
             print(f"bad fixes caught {caught:.1%} of {gating['injected_bad']}; good fixes rejected {gating['good_rejected_fraction']:.2%} of {gating['good']}")
         nees = summary["nees"]
         print(f"NEES (3 dof) inside its 95 % band at {nees['fraction_inside']:.1%} of epochs (mean {nees['mean']:.2f})")
+        if "goals" in summary:
+            print("goals: " + ", ".join(f"{name} {'met' if met else 'NOT met'}" for name, met in summary["goals"].items()))
     print(f"wrote {out}/track.csv, summary.json and plots")
 

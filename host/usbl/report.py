@@ -115,7 +115,22 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
         for method in ("fused", "usbl", "ins", "dead_reckoning"):
             methods[method] = {"rms_m": None, "p95_m": None, "max_m": None, "n": 0}
     summary["methods"] = methods
+    if run.truth is not None and run.injected is not None:
+        summary["goals"] = _goals(summary)
     return summary
+
+
+def _goals(summary: dict[str, Any]) -> dict[str, bool]:
+    """Issue #14's goals on a simulated run, each met or not."""
+    methods, gating = summary["methods"], summary["gating"]
+    caught, good_rejected = gating["injected_bad_caught_fraction"], gating["good_rejected_fraction"]
+    return {
+        "fused_position_at_every_epoch": summary["epochs_without_fused_position"] == 0,
+        "fused_rms_at_most_half_raw_usbl": methods["fused"]["rms_m"] <= 0.5 * methods["usbl"]["rms_m"],
+        "bad_fixes_caught_at_least_95_percent": caught is None or caught >= 0.95,
+        "good_fixes_rejected_at_most_1_percent": good_rejected is None or good_rejected <= 0.01,
+        "nees_inside_band_at_least_90_percent": summary["nees"]["fraction_inside"] >= 0.90,
+    }
 
 
 def _injected_counts(run: UsblRun, status: np.ndarray) -> dict[str, Any]:
