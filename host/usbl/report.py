@@ -48,10 +48,6 @@ def _status(run: UsblRun) -> np.ndarray:
     return status
 
 
-def _usbl_positions(run: UsblRun) -> np.ndarray:
-    return np.array([[f.north_m, f.east_m, f.depth_m] if f is not None else [np.nan] * 3 for f in run.fixes])
-
-
 def track_table(run: UsblRun) -> pd.DataFrame:
     """One row per ping from the alignment on: the fused position (local, geographic, UTM) with its covariance,
     the ping's status and NIS, the raw USBL fix, and the truth and errors when known."""
@@ -59,7 +55,7 @@ def track_table(run: UsblRun) -> pd.DataFrame:
     north, east, down = fused.position.T
     lat, lon = run.frame.to_geographic(north, east)
     easting, northing = run.frame.to_utm(north, east)
-    usbl = _usbl_positions(run)[s:]
+    usbl = run.usbl_position[s:]
     table = pd.DataFrame({
         "time_s": fused.time_s, "lat_deg": lat, "lon_deg": lon, "utm_easting_m": easting, "utm_northing_m": northing,
         "north_m": north, "east_m": east, "depth_m": down,
@@ -97,7 +93,7 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
     methods: dict[str, Any] = {}
     if run.truth is not None:
         truth = run.truth[s:]
-        usbl = _usbl_positions(run)
+        usbl = run.usbl_position
         horizontal = lambda p, t: np.hypot(p[:, 0] - t[:, 0], p[:, 1] - t[:, 1])  # noqa: E731
         methods["fused"] = _stats(horizontal(fused.position, truth))
         methods["usbl"] = _stats(horizontal(usbl, run.truth))
