@@ -21,12 +21,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--first-seed", type=int, default=100)
+    parser.add_argument("--gate-probability", type=float, default=None, help="override the scenario's chi-square gate")
     args = parser.parse_args()
     base = load_usbl_scenario("usbl_turns")
     rows = []
     print(f"{'seed':>5s} {'fused_rms':>9s} {'usbl_rms':>9s} {'good_rms':>9s} {'bad_caught':>10s} {'good_rej':>8s} {'nees_in':>7s} {'gaps':>4s}")
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         scenario = dataclasses.replace(base, seed=seed)
+        if args.gate_probability is not None:
+            scenario = dataclasses.replace(scenario, gate_probability=args.gate_probability)
         sim = simulate_tow(scenario)
         imu = ImuSamples(sim.imu.time_s.to_numpy(), sim.imu[["fx_m_s2", "fy_m_s2", "fz_m_s2"]].to_numpy(),
                          sim.imu[["wx_rad_s", "wy_rad_s", "wz_rad_s"]].to_numpy())

@@ -12,7 +12,7 @@ import numpy as np
 
 from lost.host.usbl.filter import ImuNoise, InsUsblFilter
 from lost.host.usbl.fix import UsblArray, reply_from_geometry, usbl_fix
-from lost.host.usbl.ins import ImuSamples, NavState
+from lost.host.usbl.ins import EarthModel, ImuSamples, NavState
 from lost.host.usbl.pipeline import UsblConfig, process
 from lost.host.usbl.rays import solve_ray, trace_to_depth
 from lost.host.usbl.scenario import load_usbl_scenario
@@ -45,7 +45,7 @@ def main() -> None:
     fix_time = best(lambda: usbl_fix(thin, array, travel_time_s=reply[0], phase_x_rad=reply[1], phase_y_rad=reply[2], **ship,
                                      target_depth_m=1000.0), number=20)
     print(f"usbl_fix (1000 m, thinned profile, with covariance): {fix_time * 1e3:.2f} ms")
-    filt = InsUsblFilter(NavState(np.zeros(3), np.zeros(3), np.eye(3)), np.eye(15) * 1e-4, ImuNoise(), 9.785)
+    filt = InsUsblFilter(NavState(np.zeros(3), np.zeros(3), np.eye(3)), np.eye(15) * 1e-4, ImuNoise(), EarthModel.at(18.0))
     force, rate = np.array([0.0, 0.0, -9.785]), np.zeros(3)
     print(f"filter predict (strapdown + 15x15 covariance): {best(lambda: filt.predict(force, rate, 0.1), number=2000) * 1e6:.1f} us")
     sim_time = best(lambda: simulate_tow(scenario), repeats=2)

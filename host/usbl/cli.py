@@ -32,7 +32,7 @@ def add_usbl_command(commands) -> None:
     usbl.add_argument("source", help="USBL log CSV, or a scenario TOML file, or a shipped scenario's name (usbl_turns)")
     usbl.add_argument("--svp", type=Path, help="CTD or SVP cast CSV (required with a log)")
     usbl.add_argument("--imu", type=Path, help="IMU CSV (default: imu.csv beside the log)")
-    usbl.add_argument("--config", type=Path, help="processing settings TOML: [usbl], [imu], gate_probability, align_window_s")
+    usbl.add_argument("--config", type=Path, help="processing settings TOML: [usbl], [imu], gate_probability, align_window_s, earth_rotation")
     usbl.add_argument("--out", type=Path, default=None, help="output folder (default runs/usbl-NAME)")
     usbl.set_defaults(handler=run_usbl)
 
@@ -67,7 +67,7 @@ def run_usbl(args: argparse.Namespace) -> int:
         cast_path.write_text(Path(sim.cast.source).read_text())
         args.svp = cast_path
         config = UsblConfig(array=scenario.usbl, imu=scenario.imu, gate_probability=scenario.gate_probability)
-    log = read_log(log_path)
+    log = read_log(log_path, turnaround_s=config.array.turnaround_s)
     imu = read_imu(imu_path)
     cast = read_cast(args.svp, default_position=(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0])))
     run = process(log, imu, cast, config)
@@ -91,5 +91,7 @@ def _print(summary: dict, out: Path) -> None:
             print(f"bad fixes caught {caught:.1%} of {gating['injected_bad']}; good fixes rejected {gating['good_rejected_fraction']:.2%} of {gating['good']}")
         nees = summary["nees"]
         print(f"NEES (3 dof) inside its 95 % band at {nees['fraction_inside']:.1%} of epochs (mean {nees['mean']:.2f})")
+        if "goals" in summary:
+            print("goals: " + ", ".join(f"{name} {'met' if met else 'NOT met'}" for name, met in summary["goals"].items()))
     print(f"wrote {out}/track.csv, summary.json and plots")
 

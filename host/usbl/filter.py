@@ -80,6 +80,8 @@ class InsUsblFilter:
         Gravity and the Earth's rotation on the local plane.
     gate_probability : float
         Fixes whose innovation lies beyond this chi-square quantile (3 dof) are rejected.
+    transponder_lever_arm_m : numpy.ndarray
+        From the INS (and its pressure sensor) to the USBL transponder, body frame (forward, starboard, down), m.
     """
 
     state: NavState
@@ -87,12 +89,14 @@ class InsUsblFilter:
     noise: ImuNoise
     earth: EarthModel
     gate_probability: float = 0.999
+    transponder_lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gyro_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
         if self.covariance.shape != (15, 15):
             raise ValueError(f"the filter's covariance must be 15 x 15, got {self.covariance.shape}")
+        self.transponder_lever_arm_m = np.asarray(self.transponder_lever_arm_m, dtype=float)
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must lie in (0, 1), got {self.gate_probability}")
         self._gate = float(chi2.ppf(self.gate_probability, 3))
@@ -123,18 +127,26 @@ class InsUsblFilter:
         self.covariance = transition @ self.covariance @ transition.T + np.diag(self._density * dt)
 
     def update(self, fix: UsblFix) -> tuple[bool, float]:
-        """Eqs. 14, 15, 17 with a USBL fix, after the chi-square gate; returns (accepted, normalised innovation squared)."""
+        """Eqs. 14, 15, 17 with a USBL fix, after the chi-square gate; returns (accepted, normalised innovation squared).
+
+        The fix is the transponder's position, ``transponder_lever_arm_m`` from the INS in the body frame: the
+        predicted one is ``p + C l``, whose error ``dp + [(C l) x] phi`` gives ``H`` its attitude columns.
+        """
+        lever = self.state.attitude @ self.transponder_lever_arm_m
         measured = np.array([fix.north_m, fix.east_m, fix.depth_m])
-        innovation = self.state.position - measured  # eq. 11: INS minus USBL; the predicted error state is zero
+        innovation = self.state.position + lever - measured  # eq. 11: INS minus USBL; the predicted error state is zero
+        observation = np.zeros((3, 15))
+        observation[:, POSITION] = np.eye(3)
+        observation[:, ATTITUDE] = skew(lever)
         noise = fix.covariance_ned
-        innovation_cov = self.covariance[POSITION, POSITION] + noise
+        projected = observation @ self.covariance
+        innovation_cov = projected @ observation.T + noise
         nis = float(innovation @ np.linalg.solve(innovation_cov, innovation))
         if nis > self._gate:
             return False, nis
-        gain = np.linalg.solve(innovation_cov, self.covariance[POSITION, :]).T  # eq. 15 (S symmetric)
+        gain = np.linalg.solve(innovation_cov, projected).T  # eq. 15 (S symmetric)
         error = gain @ innovation  # eq. 14
-        keep = np.eye(15)
-        keep[:, POSITION] -= gain
+        keep = np.eye(15) - gain @ observation
         self.covariance = keep @ self.covariance @ keep.T + gain @ noise @ gain.T  # eq. 17, Joseph form
         self._feed_back(error)
         return True, nis

@@ -45,6 +45,11 @@ class UsblArray:
     noise_growth_per_km : float
         The reply's signal weakens with range: the phase (or direction) noise is multiplied by
         ``1 + noise_growth_per_km * slant range in km``.
+    turnaround_s : float
+        The transponder's delay between hearing the interrogation and replying, for logs of two-way travel times.
+    transponder_lever_arm_m : tuple
+        From the towfish's INS (and its pressure sensor) to its transponder, in the towfish's frame (forward,
+        starboard, down), m.
     """
 
     frequency_hz: float = 20000.0
@@ -59,6 +64,8 @@ class UsblArray:
     depth_noise_m: float = 0.5
     direction_noise: float | None = None
     noise_growth_per_km: float = 0.0
+    turnaround_s: float = 0.0
+    transponder_lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         for name in ("frequency_hz", "baseline_m", "phase_noise_rad", "travel_time_noise_s", "gnss_noise_m", "depth_noise_m"):

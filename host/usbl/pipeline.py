@@ -51,6 +51,7 @@ class UsblRun:
     truth: np.ndarray | None
     injected: np.ndarray | None
     ship: np.ndarray
+    usbl_position: np.ndarray  # each fix moved from the transponder to the INS by the logged attitude (NaN without one)
 
 
 def _read_table(path: str | Path, kind: str, required: list[str]) -> pd.DataFrame:
@@ -80,11 +81,15 @@ def _numeric(table: pd.DataFrame, column: str, source: str, *, allow_empty: bool
 
 #: A reply's direction: the phase differences (rad) or the direction cosines, across the array's x and y baselines.
 DIRECTION_COLUMNS = (("phase_x_rad", "phase_y_rad"), ("dir_x", "dir_y"))
-REQUIRED_LOG_COLUMNS = [c for c in LOG_COLUMNS if c not in DIRECTION_COLUMNS[0]]
+#: The reply's travel time: one way, or the interrogation's round trip (halved after the transponder's turnaround).
+TRAVEL_COLUMNS = ("travel_time_s", "two_way_travel_time_s")
+REQUIRED_LOG_COLUMNS = [c for c in LOG_COLUMNS if c not in DIRECTION_COLUMNS[0] and c != TRAVEL_COLUMNS[0]]
 
 
-def read_log(path: str | Path) -> pd.DataFrame:
+def read_log(path: str | Path, *, turnaround_s: float = 0.0) -> pd.DataFrame:
     """Read the USBL log CSV (docs/usbl.md): one row per ping; empty travel time and direction for a ping without a reply.
+
+    A log with ``two_way_travel_time_s`` gets the one-way ``travel_time_s = (two way - turnaround_s) / 2``.
 
     Raises
     ------
@@ -97,10 +102,20 @@ def read_log(path: str | Path) -> pd.DataFrame:
     if len(pairs) != 1:
         raise ValueError(f"{source}: needs the reply's direction as phase_x_rad, phase_y_rad or as dir_x, dir_y (exactly one pair); "
                          f"has {list(table.columns)}")
+    travel = [c for c in TRAVEL_COLUMNS if c in table.columns]
+    if len(travel) != 1:
+        raise ValueError(f"{source}: needs exactly one of travel_time_s (one way) and two_way_travel_time_s; has {list(table.columns)}")
     table.attrs["direction_columns"] = pairs[0]
-    optional_empty = {"travel_time_s", *pairs[0]}
-    for column in REQUIRED_LOG_COLUMNS + list(pairs[0]):
+    optional_empty = {travel[0], *pairs[0]}
+    for column in REQUIRED_LOG_COLUMNS + list(pairs[0]) + travel:
         table[column] = _numeric(table, column, source, allow_empty=column in optional_empty)
+    if travel[0] == "two_way_travel_time_s":
+        one_way = (table["two_way_travel_time_s"] - turnaround_s) / 2.0
+        if (one_way <= 0.0).any():
+            row = int(np.flatnonzero((one_way <= 0.0).to_numpy())[0]) + 1
+            raise ValueError(f"{source}: row {row}: two-way travel time {table['two_way_travel_time_s'].iloc[row - 1]} s is not longer "
+                             f"than the turnaround {turnaround_s} s")
+        table["travel_time_s"] = one_way
     for column in ("true_lat_deg", "true_lon_deg", "true_depth_m"):
         if column in table.columns:
             table[column] = _numeric(table, column, source, allow_empty=True)
@@ -137,6 +152,9 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
     fixes: list[UsblFix | None] = []
     failures: dict[int, str] = {}
     first, second = log.attrs.get("direction_columns", DIRECTION_COLUMNS[0])
+    # The ray ends at the transponder: the pressure depth plus the lever arm's vertical share at the towfish's attitude.
+    fish_attitude = body_to_ned(*np.radians(log[["fish_roll_deg", "fish_pitch_deg", "fish_heading_deg"]].to_numpy().T))
+    transponder_depth = log["fish_depth_m"].to_numpy() + fish_attitude[:, 2, :] @ np.asarray(array.transponder_lever_arm_m)
     for i, row in enumerate(log.itertuples(index=False)):
         if not np.isfinite(row.travel_time_s):
             fixes.append(None)
@@ -147,7 +165,7 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
             fixes.append(usbl_fix(profile, array, travel_time_s=row.travel_time_s, **direction,
                                   roll_rad=np.radians(row.ship_roll_deg), pitch_rad=np.radians(row.ship_pitch_deg),
                                   heading_rad=np.radians(row.ship_heading_deg), antenna_north_m=float(north[i]), antenna_east_m=float(east[i]),
-                                  target_depth_m=row.fish_depth_m))
+                                  target_depth_m=float(transponder_depth[i])))
         except ValueError as error:
             fixes.append(None)
             failures[i] = str(error)
@@ -166,6 +184,9 @@ def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFram
         window = valid[:5]
     t = time[window] - row_time[first]
     points = np.array([[fixes[i].north_m, fixes[i].east_m, fixes[i].depth_m] for i in window])
+    # The fixes place the transponder; the INS is the lever arm away from it, at each row's attitude.
+    attitudes = body_to_ned(*np.radians(log[["fish_roll_deg", "fish_pitch_deg", "fish_heading_deg"]].to_numpy()[window].T))
+    points -= attitudes @ np.asarray(config.array.transponder_lever_arm_m, dtype=float)
     # Theil-Sen finds the line despite a bad fix; least squares on the fixes near it gives the estimate whose
     # variance the covariance below states.
     inliers = np.ones(t.size, dtype=bool)
@@ -228,7 +249,8 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         raise ValueError(f"the IMU ({imu.time_s[0]:.2f} to {imu.time_s[-1]:.2f} s) must cover the pings from {begin:.2f} to {time[-1]:.2f} s")
     earth = EarthModel.at(frame.latitude0_deg, rotating=config.earth_rotation)
     trimmed = _trim(imu, begin)
-    filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), earth, config.gate_probability)
+    filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), earth, config.gate_probability,
+                         transponder_lever_arm_m=np.asarray(config.array.transponder_lever_arm_m, dtype=float))
     fused = fuse(trimmed, time[start:], fixes[start:], filt, depths_m=log["fish_depth_m"].to_numpy()[start:],
                  depth_variance_m2=config.array.depth_noise_m**2)
     free_position, _, _ = strapdown(trimmed, state, earth)
@@ -241,7 +263,14 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         truth = np.column_stack([north, east, log["true_depth_m"].to_numpy()])
     if "injected" in log.columns:
         injected = log["injected"].to_numpy() != ""
-    return UsblRun(frame, profile, time, fixes, failures, fused, start, ins, dead, truth, injected, ship)
+    return UsblRun(frame, profile, time, fixes, failures, fused, start, ins, dead, truth, injected, ship, _usbl_positions(fixes, log, config))
+
+
+def _usbl_positions(fixes: list, log: pd.DataFrame, config: UsblConfig) -> np.ndarray:
+    attitude = body_to_ned(*np.radians(log[["fish_roll_deg", "fish_pitch_deg", "fish_heading_deg"]].to_numpy().T))
+    lever = attitude @ np.asarray(config.array.transponder_lever_arm_m, dtype=float)
+    raw = np.array([[f.north_m, f.east_m, f.depth_m] if f is not None else [np.nan] * 3 for f in fixes])
+    return raw - lever
 
 
 def _dead_reckoning(time: np.ndarray, imu: ImuSamples, log: pd.DataFrame, start: NavState, gravity: float) -> np.ndarray:

@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .sound import SoundSpeedProfile, _log1p_ratio
 
@@ -127,14 +126,26 @@ def trace_for_time(profile: SoundSpeedProfile, launch_angle_rad: float, start_de
         seg_dx, seg_dt, _ = _segments(np.array([top, bottom]), np.interp([top, bottom], depth, speed), p)
         return float(seg_dx[0]), float(seg_dt[0])
 
-    bottom = depth[layer + 1]
-    if remaining <= 0.0 or part(bottom)[1] <= remaining:  # on a boundary, up to rounding
-        end = top if remaining <= 0.0 else bottom
-    else:
-        end = brentq(lambda z: part(z)[1] - remaining, top, bottom, xtol=1e-10, rtol=1e-14)
+    end = min(_depth_after(top, speed[layer], (speed[layer + 1] - speed[layer]) / (depth[layer + 1] - top), p, max(remaining, 0.0)),
+              depth[layer + 1])
     seg_dx, _ = part(end)
     cos_end = np.sqrt(1.0 - (p * np.interp(end, depth, speed)) ** 2)
     return RayEnd(offset + seg_dx, float(end), float(time_s), float(np.arccos(cos_end)))
+
+
+def _depth_after(top: float, speed: float, gradient: float, p: float, time: float) -> float:
+    """Depth a ray reaches ``time`` seconds after crossing ``top`` inside a constant-gradient layer, in closed form.
+
+    Along the arc ``tan(theta / 2)`` grows as ``exp(g t)``, so with ``u = tan(theta_top / 2)`` the speed is
+    ``c = c_top e^(gt) (1 + u^2) / (1 + u^2 e^(2gt))`` and the depth ``top + (c - c_top) / g``, written as
+    ``c_top t (expm1(gt) / gt) (1 - u^2 e^(gt)) / (1 + u^2 e^(2gt))`` so that ``g -> 0`` gives ``c t cos(theta)``.
+    """
+    sine = p * speed
+    u2 = (sine / (1.0 + np.sqrt(1.0 - sine * sine))) ** 2
+    x = gradient * time
+    growth = np.exp(x)
+    ratio = 1.0 + x / 2.0 if abs(x) < 1e-12 else np.expm1(x) / x
+    return float(top + speed * time * ratio * (1.0 - u2 * growth) / (1.0 + u2 * growth * growth))
 
 
 def solve_ray(profile: SoundSpeedProfile, start_depth_m: float, target_depth_m: float, travel_time_s: float, *,

@@ -48,10 +48,6 @@ def _status(run: UsblRun) -> np.ndarray:
     return status
 
 
-def _usbl_positions(run: UsblRun) -> np.ndarray:
-    return np.array([[f.north_m, f.east_m, f.depth_m] if f is not None else [np.nan] * 3 for f in run.fixes])
-
-
 def track_table(run: UsblRun) -> pd.DataFrame:
     """One row per ping from the alignment on: the fused position (local, geographic, UTM) with its covariance,
     the ping's status and NIS, the raw USBL fix, and the truth and errors when known."""
@@ -59,7 +55,7 @@ def track_table(run: UsblRun) -> pd.DataFrame:
     north, east, down = fused.position.T
     lat, lon = run.frame.to_geographic(north, east)
     easting, northing = run.frame.to_utm(north, east)
-    usbl = _usbl_positions(run)[s:]
+    usbl = run.usbl_position[s:]
     table = pd.DataFrame({
         "time_s": fused.time_s, "lat_deg": lat, "lon_deg": lon, "utm_easting_m": easting, "utm_northing_m": northing,
         "north_m": north, "east_m": east, "depth_m": down,
@@ -97,7 +93,7 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
     methods: dict[str, Any] = {}
     if run.truth is not None:
         truth = run.truth[s:]
-        usbl = _usbl_positions(run)
+        usbl = run.usbl_position
         horizontal = lambda p, t: np.hypot(p[:, 0] - t[:, 0], p[:, 1] - t[:, 1])  # noqa: E731
         methods["fused"] = _stats(horizontal(fused.position, truth))
         methods["usbl"] = _stats(horizontal(usbl, run.truth))
@@ -115,7 +111,22 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
         for method in ("fused", "usbl", "ins", "dead_reckoning"):
             methods[method] = {"rms_m": None, "p95_m": None, "max_m": None, "n": 0}
     summary["methods"] = methods
+    if run.truth is not None and run.injected is not None:
+        summary["goals"] = _goals(summary)
     return summary
+
+
+def _goals(summary: dict[str, Any]) -> dict[str, bool]:
+    """Issue #14's goals on a simulated run, each met or not."""
+    methods, gating = summary["methods"], summary["gating"]
+    caught, good_rejected = gating["injected_bad_caught_fraction"], gating["good_rejected_fraction"]
+    return {
+        "fused_position_at_every_epoch": summary["epochs_without_fused_position"] == 0,
+        "fused_rms_at_most_half_raw_usbl": methods["fused"]["rms_m"] <= 0.5 * methods["usbl"]["rms_m"],
+        "bad_fixes_caught_at_least_95_percent": caught is None or caught >= 0.95,
+        "good_fixes_rejected_at_most_1_percent": good_rejected is None or good_rejected <= 0.01,
+        "nees_inside_band_at_least_90_percent": summary["nees"]["fraction_inside"] >= 0.90,
+    }
 
 
 def _injected_counts(run: UsblRun, status: np.ndarray) -> dict[str, Any]:

@@ -139,9 +139,10 @@ def _ping(scenario: UsblScenario, rng: np.random.Generator, profile: SoundSpeedP
         distance = np.hypot(np.hypot(*(ship - position[k, :2])), depth_now - array.lever_arm_m[2] + array.antenna_height_m)
         before = t - distance / profile.harmonic_mean_m_s(0.0, depth_now)
         fish = np.array([np.interp(before, time, position[:, axis]) for axis in range(3)])
+        transponder = fish + attitude[int(round(before / (time[1] - time[0])))] @ np.asarray(array.transponder_lever_arm_m)
         travel, phase_x, phase_y = reply_from_geometry(profile, array, roll_rad=ship_roll, pitch_rad=ship_pitch, heading_rad=ship_heading,
-                                                       antenna_north_m=ship[0], antenna_east_m=ship[1], target_north_m=fish[0],
-                                                       target_east_m=fish[1], target_depth_m=fish[2])
+                                                       antenna_north_m=ship[0], antenna_east_m=ship[1], target_north_m=transponder[0],
+                                                       target_east_m=transponder[1], target_depth_m=transponder[2])
         travel += rng.normal(0.0, array.travel_time_noise_s)
         phase_noise = array.phase_noise_at(float(distance))
         phase_x += rng.normal(0.0, phase_noise)

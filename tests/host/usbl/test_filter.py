@@ -6,6 +6,7 @@ from scipy.stats import chi2
 
 from lost.host.usbl.filter import ImuNoise, InsUsblFilter
 from lost.host.usbl.fix import UsblFix
+from lost.host.usbl.frames import body_to_ned
 from lost.host.usbl.ins import EarthModel, NavState, strapdown
 from lost.host.usbl.pipeline import UsblConfig, process
 from lost.host.usbl.scenario import ImuSpec
@@ -84,3 +85,38 @@ def test_a_depth_alone_updates_only_through_its_correlations():
     np.testing.assert_allclose(filt.state.position[:2], [0.0, 0.0], atol=1e-12)  # no correlation yet: north and east stay
     assert filt.covariance[2, 2] == pytest.approx(0.5)
     assert not filt.update_depth(520.0, 0.01)[0]  # 28 sigma: gated
+
+
+def test_the_transponder_lever_arm_enters_through_the_attitude():
+    filt = _filter(sigma_m=1.0)
+    filt.transponder_lever_arm_m = np.array([2.0, 0.0, -1.0])
+    filt.covariance[6:9, 6:9] = np.eye(3) * 0.01**2
+    # A fix exactly where the transponder is predicted: no innovation, nothing moves.
+    predicted = filt.state.position + filt.state.attitude @ filt.transponder_lever_arm_m
+    before = filt.state.position.copy()
+    accepted, nis = filt.update(_fix(*predicted))
+    assert accepted and nis == pytest.approx(0.0, abs=1e-18)
+    np.testing.assert_allclose(filt.state.position, before, atol=1e-12)
+    # A fix off by the lever arm's rotation under a yaw error: the update moves heading as well as position.
+    yaw = 0.005
+    rotated = filt.state.position + body_to_ned(0.0, 0.0, yaw) @ filt.transponder_lever_arm_m
+    heading_before = np.arctan2(filt.state.attitude[1, 0], filt.state.attitude[0, 0])
+    filt.update(_fix(*rotated))
+    assert np.arctan2(filt.state.attitude[1, 0], filt.state.attitude[0, 0]) - heading_before > 0.0
+
+
+def test_a_short_tow_with_a_transponder_lever_arm(short_scenario, imu_samples):
+    import dataclasses
+
+    scenario = short_scenario()
+    scenario = dataclasses.replace(scenario, usbl=dataclasses.replace(scenario.usbl, transponder_lever_arm_m=(3.0, 1.0, -2.0)))
+    sim = simulate_tow(scenario)
+    config = UsblConfig(array=scenario.usbl, imu=scenario.imu)
+    run = process(sim.log, imu_samples(sim.imu), sim.cast, config)
+    error = run.fused.position - run.truth[run.start_index:]
+    nees = np.einsum("ki,ki->k", error, np.linalg.solve(run.fused.covariance, error[..., None])[..., 0])
+    assert 1.5 < nees.mean() < 5.0
+    ignoring = process(sim.log, imu_samples(sim.imu), sim.cast, UsblConfig(array=dataclasses.replace(scenario.usbl, transponder_lever_arm_m=(0.0, 0.0, 0.0)),
+                                                                           imu=scenario.imu))
+    wrong = ignoring.fused.position - run.truth[run.start_index:]
+    assert np.sqrt(np.mean(np.sum(error[:, :2] ** 2, axis=1))) < 0.5 * np.sqrt(np.mean(np.sum(wrong[:, :2] ** 2, axis=1)))

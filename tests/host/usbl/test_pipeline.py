@@ -133,3 +133,22 @@ def test_fixes_that_cannot_be_computed_are_counted_and_named(recording, tmp_path
     gating = json.loads((out / "summary.json").read_text())["gating"]
     assert gating["failed"] == 1
     assert gating["failed_examples"][0]["row"] == 6 and "no downward component" in gating["failed_examples"][0]["reason"]
+
+
+def test_a_two_way_travel_time_is_halved_after_the_turnaround(recording, tmp_path):
+    def two_way(lines):
+        header = lines[0].split(",")
+        column = header.index("travel_time_s")
+        header[column] = "two_way_travel_time_s"
+        rows = []
+        for line in lines[1:]:
+            parts = line.split(",")
+            parts[column] = "" if parts[column] == "" else repr(2 * float(parts[column]) + 0.05)
+            rows.append(",".join(parts))
+        return [",".join(header)] + rows
+
+    converted = read_log(_edit(recording / "log.csv", tmp_path / "two_way.csv", two_way), turnaround_s=0.05)
+    original = read_log(recording / "log.csv")
+    np.testing.assert_allclose(converted["travel_time_s"], original["travel_time_s"], rtol=1e-12)
+    with pytest.raises(ValueError, match="not longer than the turnaround"):
+        read_log(tmp_path / "two_way.csv", turnaround_s=5.0)

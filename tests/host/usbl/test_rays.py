@@ -51,6 +51,8 @@ def test_isovelocity_is_the_straight_line(angle_deg):
     ray = trace_to_depth(water, theta, 3.0, 903.0)
     assert ray.horizontal_m == pytest.approx(900.0 * np.tan(theta), rel=1e-12, abs=1e-12)
     assert ray.time_s == pytest.approx(900.0 / (1500.0 * np.cos(theta)), rel=1e-12)
+    end = trace_for_time(water, theta, 3.0, ray.time_s / 2)
+    assert end.depth_m == pytest.approx(453.0, abs=1e-9) and end.horizontal_m == pytest.approx(450.0 * np.tan(theta), abs=1e-9)
     solution = solve_ray(water, 3.0, 903.0, ray.time_s, tolerance_m=1e-6)
     assert solution.slant_range_m == pytest.approx(1500.0 * ray.time_s, abs=1e-6)
     assert solution.launch_angle_rad == pytest.approx(theta, abs=1e-8)

@@ -50,3 +50,8 @@ def test_outputs_are_written(turns):
         assert (out / name).stat().st_size > 0
     assert set(track.status) <= {"alignment", "accepted", "rejected", "failed", "dropout"}
     assert track.lat_deg.between(17.9, 18.1).all() and track.utm_northing_m.between(1.9e6, 2.1e6).all()
+
+
+def test_the_summary_states_each_goal(turns):
+    goals = turns[0]["goals"]
+    assert len(goals) == 5 and all(goals.values())
