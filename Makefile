@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-nav bench-track synth clean verilog lint sim-full cycles
+.PHONY: setup demo test bench bench-nav bench-track bench-usbl synth clean verilog lint sim-full cycles
 
 setup: $(STAMP)
 
@@ -39,6 +39,12 @@ bench-nav: setup
 # included (about 5 minutes here): a table on stdout and build/track/goals.json.
 bench-track: setup
 	$(BIN)/python benchmarks/track_goals.py --out build/track $(TRACK_ARGS)
+
+# INS+USBL: the goals over 20 seeds, the paper's Table 1 on our cast, the speed of each step.
+bench-usbl: setup
+	$(BIN)/python benchmarks/usbl_goals.py --seeds 20
+	$(BIN)/python benchmarks/usbl_table1.py
+	$(BIN)/python benchmarks/usbl_speed.py
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)
