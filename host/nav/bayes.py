@@ -82,12 +82,16 @@ class BayesFilter:
             self._range_update(observation)
         self._trust.watch(self._moments()[1])
 
+    def _before_patch(self, patch, weight: float) -> None:
+        """A hook before a patch is weighed: a particle cloud may redraw itself where the patch fits."""
+
     def _terrain_update(self, observation: Observation) -> None:
         patch = observation.patch
-        x, y, mass = self._candidates()
         length = max(patch.depth_m.shape) * patch.node_m
-        result = self._lik.patch(x, y, patch, weight=self._trust.patch_weight(length), sigma_scale=self._trust.misfit_level,
-                                 spacing_m=self._spacing())
+        weight = self._trust.patch_weight(length)
+        self._before_patch(patch, weight)
+        x, y, mass = self._candidates()
+        result = self._lik.patch(x, y, patch, weight=weight, sigma_scale=self._trust.misfit_level, spacing_m=self._spacing())
         if result is None or result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
             self.counts["patch_too_sparse"] += 1
             return

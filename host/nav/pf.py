@@ -57,6 +57,7 @@ class ParticleFilter(BayesFilter):
         self._n = int(params.pf_particles)
         self._pending_var = 0.0  # floor variance owed to the cloud, spread in the next prediction
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
+        self._search: tuple[np.ndarray, float] | None = None  # after a re-initialization: the square to search
 
     def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None) -> None:
         """Particles around ``centre``: Gaussian of ``sigma_m``, or flat over a square of ``half_width_m``."""
@@ -138,4 +139,35 @@ class ParticleFilter(BayesFilter):
 
     def _reinitialize(self) -> None:
         mean, _ = self._moments()
-        self._spawn(mean, self._p.pmf_sigmas * self._p.initial_sigma_m, None)
+        half = self._p.pmf_sigmas * self._p.initial_sigma_m
+        self._spawn(mean, half, None)
+        self._search = (mean, half)
+
+    def _before_patch(self, patch, weight: float) -> None:
+        """After a re-initialization, draw the cloud where the next patch fits (importance sampling).
+
+        A flat cloud over kilometres is too sparse to land on a narrow peak, so the particles are drawn
+        from the patch's likelihood over a lattice of cells covering the search square, and weighted
+        by the inverse of that density: the update that follows multiplies the likelihood in, and the
+        two cancel, leaving samples of the flat prior times the likelihood (the ML mode of section 5).
+        """
+        if self._search is None:
+            return
+        (cx, cy), half = self._search
+        self._search = None
+        cells = self._p.pmf_cells
+        size = 2.0 * half / cells
+        centres = (np.arange(cells) - (cells - 1) / 2.0) * size
+        x, y = np.meshgrid(cx + centres, cy + centres)
+        result = self._lik.patch(x, y, patch, weight=weight, sigma_scale=self._trust.misfit_level, spacing_m=size)
+        if result is None:
+            return
+        q = np.exp(result.log_likelihood - result.log_likelihood.max()).ravel()
+        q /= q.sum()
+        pick = self._rng.choice(q.size, size=self._n, p=q)
+        jitter = self._rng.uniform(-size / 2.0, size / 2.0, (2, self._n))
+        self._x, self._y = x.ravel()[pick] + jitter[0], y.ravel()[pick] + jitter[1]
+        self._w = 1.0 / q[pick]
+        self._w /= self._w.sum()
+        self._cached = None
+        self.counts["redrawn_from_likelihood"] += 1

@@ -138,10 +138,12 @@ def test_an_injected_outlier_patch_is_gated_and_counted():
     assert np.hypot(*(after.position - before.position - (0.0, 10.0))) < 1.0
 
 
-def test_refusals_reinitialize_wide_and_the_filter_recovers():
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_refusals_reinitialize_wide_and_the_filter_recovers(kind):
     grid = _map(shape=(140, 100))
-    params = _quiet(reinit_after=3, initial_sigma_m=100.0)
-    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+    params = _quiet(reinit_after=3, initial_sigma_m=100.0, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    pmf = PointMassFilter(likelihood, params, grid=grid) if kind == "pmf" else ParticleFilter(likelihood, params, grid=grid, seed=5)
     pmf.start(0.0, np.array([500.0, 300.0]), _observation())
     position = _track(pmf, grid, (500.0, 300.0), 4)
     # From now on the vehicle is really 150 m east of where its motion says (a jump the motion did not see).
@@ -151,6 +153,8 @@ def test_refusals_reinitialize_wide_and_the_filter_recovers():
         stages.append(pmf.estimate().stage)
     assert "reinitialized" in stages and pmf.counts["reinitializations"] == 1
     assert np.hypot(*(pmf.estimate().position - position - (150.0, 0.0))) < 3.0
+    if kind == "pf":
+        assert pmf.counts["redrawn_from_likelihood"] == 1  # the flat cloud was drawn where the next patch fits
 
 
 def test_particle_and_point_mass_filters_agree_on_a_unimodal_case():
