@@ -27,7 +27,6 @@ from __future__ import annotations
 import math
 import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -38,6 +37,7 @@ from scipy import ndimage
 from .config import ConfigError, Fraction, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, navigation_parameters, validate_fields
 from .grid import Grid
 from .records import NavRecords, SonarPatch
+from .shipped import shipped_names, shipped_path
 from .terrain import synthetic_terrain
 
 __all__ = [
@@ -369,16 +369,12 @@ def load_scenario(path: str | Path) -> Scenario:
 
 def builtin_scenarios() -> list[str]:
     """Names of the scenarios shipped in the package."""
-    folder = resources.files("lost.host") / "scenarios"
-    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+    return shipped_names("lost.host")
 
 
 def builtin_scenario_path(name: str) -> Path:
     """Path of a shipped scenario by name (``"demo"``)."""
-    path = Path(str(resources.files("lost.host") / "scenarios" / f"{name}.toml"))
-    if not path.is_file():
-        raise ValueError(f"no built-in scenario {name!r}; the shipped ones are {builtin_scenarios()}")
-    return path
+    return shipped_path("lost.host", name, what="scenario")
 
 
 def scenario_floor(scenario: Scenario) -> Grid:

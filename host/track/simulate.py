@@ -31,12 +31,12 @@ from __future__ import annotations
 import math
 import tomllib
 from dataclasses import dataclass, field, fields
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..shipped import shipped_names, shipped_path
 from .detections import Ping
 from .geometry import Sonar, polar_to_world, world_to_polar
 
@@ -188,16 +188,12 @@ def load_scenario(path: str | Path) -> TrackScenario:
 
 def builtin_scenarios() -> list[str]:
     """Names of the tracking scenarios shipped in the package."""
-    folder = resources.files("lost.host.track") / "scenarios"
-    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+    return shipped_names("lost.host.track")
 
 
 def builtin_scenario_path(name: str) -> Path:
     """Path of a shipped tracking scenario by name (``"one_diver"``)."""
-    path = Path(str(resources.files("lost.host.track") / "scenarios" / f"{name}.toml"))
-    if not path.is_file():
-        raise ValueError(f"no built-in tracking scenario {name!r}; the shipped ones are {builtin_scenarios()}")
-    return path
+    return shipped_path("lost.host.track", name, what="tracking scenario")
 
 
 def _platform(spec: PlatformSpec, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

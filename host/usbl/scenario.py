@@ -20,12 +20,12 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass, field, fields
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..shipped import shipped_names, shipped_path
 from .filter import ImuNoise
 from .fix import UsblArray
 
@@ -123,10 +123,7 @@ class UsblScenario:
 
 
 def shipped_cast_path(name: str) -> Path:
-    path = Path(str(resources.files("lost.host.usbl") / "data" / f"{name}.csv"))
-    if not path.exists():
-        raise ValueError(f"no shipped cast {name!r}; give a CSV path instead")
-    return path
+    return shipped_path("lost.host.usbl", name, what="cast (give a CSV path instead)", folder="data", suffix=".csv")
 
 
 def _tuples(value: Any) -> Any:
@@ -147,10 +144,7 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
     """Read a scenario TOML (a file, or the name of a shipped scenario such as ``usbl_turns``)."""
     path = Path(path)
     if not path.exists() and path.suffix == "":
-        shipped = Path(str(resources.files("lost.host.usbl") / "scenarios" / f"{path.name}.toml"))
-        if not shipped.exists():
-            raise ValueError(f"no scenario file {path} and no shipped scenario of that name; shipped: {builtin_usbl_scenarios()}")
-        path = shipped
+        path = shipped_path("lost.host.usbl", path.name, what="usbl scenario, nor a scenario file,")
     if not path.exists():
         raise FileNotFoundError(f"scenario file {path} does not exist")
     try:
@@ -188,5 +182,4 @@ def load_processing_config(path: str | Path) -> dict[str, Any]:
 
 
 def builtin_usbl_scenarios() -> list[str]:
-    folder = resources.files("lost.host.usbl") / "scenarios"
-    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+    return shipped_names("lost.host.usbl")
