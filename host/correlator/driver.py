@@ -44,6 +44,23 @@ log = logging.getLogger(__name__)
 RETRIED_ERRORS = (ErrorCode.CRC, ErrorCode.TIMEOUT)
 
 
+#: Unchanged words between two changed ones that are sent anyway rather than opening a new frame (its 11 bytes).
+_MERGE_GAP = 6
+
+
+def _changed_runs(new: np.ndarray, old: np.ndarray | None) -> list[tuple[int, int]]:
+    """``[(first, end), ...]`` index runs of ``new`` that differ from ``old`` (all of it without ``old``)."""
+    if old is None:
+        return [(0, new.size)]
+    changed = np.flatnonzero(new != old)
+    if changed.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(changed) > _MERGE_GAP)
+    firsts = np.concatenate(([changed[0]], changed[breaks + 1]))
+    lasts = np.concatenate((changed[breaks], [changed[-1]]))
+    return [(int(a), int(b) + 1) for a, b in zip(firsts, lasts)]
+
+
 class DeviceError(RuntimeError):
     """The device refused a request; ``code`` is its :class:`~lost.model.protocol.ErrorCode`."""
 
@@ -162,15 +179,20 @@ class CorrelatorDriver:
         return self._info if self._info is not None else self.identify()
 
     def load_tile(self, words: np.ndarray, origin: tuple[int, int] = (0, 0)) -> None:
-        """Write a whole tile (the device's tile shape, int16) and record its origin in the map."""
+        """Make the tile hold ``words`` (the device's tile shape) and record its origin in the map.
+
+        Only the words that differ from what the tile is known to hold are sent (runs of them, gaps
+        shorter than a frame's overhead merged), so a tile reload costs what changed.
+        """
         words = np.asarray(words)
         if words.shape != self.info.tile_shape:
             raise ValueError(f"a tile is {self.info.tile_shape}, got {words.shape}")
-        flat = words.astype("<i2").ravel()
+        new = words.astype("<i2").ravel()
+        old, self._tile = self._tile, None  # unknown until every chunk is acknowledged
         chunk = (MAX_PAYLOAD - 4) // 2
-        self._tile = None  # unknown until every chunk is acknowledged
-        for start in range(0, flat.size, chunk):
-            self.transact(Command.LOAD_TILE, struct.pack("<I", start) + flat[start : start + chunk].tobytes())
+        for first, end in _changed_runs(new, None if old is None else old.ravel()):
+            for start in range(first, end, chunk):
+                self.transact(Command.LOAD_TILE, struct.pack("<I", start) + new[start : min(start + chunk, end)].tobytes())
         self.origin(origin)
         self._tile = words.astype(np.int16, copy=True)
         self.stats["tile_loads"] += 1

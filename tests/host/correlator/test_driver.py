@@ -168,3 +168,18 @@ def test_reset_forgets_the_patch():
     driver.reset()
     with pytest.raises(DeviceError, match="READ_RESULT: error STATE"):
         driver.read_result()
+
+
+def test_a_tile_reload_sends_only_the_changed_words():
+    driver, device = _driver()
+    terrain = _map((40, 40))
+    patch, mask = terrain[:4, :4].copy(), np.ones((4, 4), bool)
+    driver.correlate(terrain, patch, mask, True, area=(0, 0, 13, 13))
+    sent = driver.stats["bytes_out"]
+    terrain[3, 5] += 1
+    terrain[20, 1] -= 1
+    out = driver.correlate(terrain, patch, mask, True, area=(0, 0, 13, 13))
+    np.testing.assert_array_equal(device.tile, terrain[:32, :32])
+    np.testing.assert_array_equal(out.surface, model.correlate(terrain[:16, :16], patch))
+    # Two one-word LOAD_TILE frames (13 bytes each), ORIGIN, START and the surface reads; no tile.
+    assert driver.stats["bytes_out"] - sent < 300
