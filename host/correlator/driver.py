@@ -218,20 +218,28 @@ class CorrelatorDriver:
         return Result.decode(self.transact(Command.READ_RESULT), self.info.value_bytes)
 
     def read_surface(self, rows: int | None = None, cols: int | None = None) -> np.ndarray:
-        """The last correlation's surface, its first ``rows`` x ``cols`` placements (default all)."""
+        """The last correlation's surface, its first ``rows`` x ``cols`` placements (default all).
+
+        Whole rows are read as one raster range in frames of up to ``MAX_PAYLOAD`` bytes (one round
+        trip each); a narrower block row by row.
+        """
         full_rows, full_cols = self.info.surface_shape
         rows, cols = rows or full_rows, cols or full_cols
+        if cols == full_cols:
+            return self._read_values(0, rows * cols).reshape(rows, cols)
+        return np.stack([self._read_values(r * full_cols, cols) for r in range(rows)])
+
+    def _read_values(self, first: int, count: int) -> np.ndarray:
         nbytes = self.info.value_bytes
         per_frame = MAX_PAYLOAD // nbytes
-        out = np.empty((rows, cols), dtype=np.int64)
-        for r in range(rows):
-            for c in range(0, cols, per_frame):
-                count = min(per_frame, cols - c)
-                payload = self.transact(Command.READ_SURFACE, struct.pack("<HH", r * full_cols + c, count))
-                if len(payload) != count * nbytes:
-                    raise DeviceError(f"READ_SURFACE returned {len(payload)} bytes for {count} values")
-                values = np.frombuffer(payload, np.uint8).reshape(count, nbytes).astype(np.int64)
-                out[r, c : c + count] = (values << (8 * np.arange(nbytes))).sum(axis=1)
+        out = np.empty(count, dtype=np.int64)
+        for at in range(0, count, per_frame):
+            n = min(per_frame, count - at)
+            payload = self.transact(Command.READ_SURFACE, struct.pack("<HH", first + at, n))
+            if len(payload) != n * nbytes:
+                raise DeviceError(f"READ_SURFACE returned {len(payload)} bytes for {n} values")
+            values = np.frombuffer(payload, np.uint8).reshape(n, nbytes).astype(np.int64)
+            out[at : at + n] = (values << (8 * np.arange(nbytes))).sum(axis=1)
         return out
 
     def reset(self) -> None:
