@@ -1,8 +1,9 @@
 """The correlator device: UART, framing, a map tile in block RAM, the correlator core and control.
 
 The host speaks :mod:`lost.model.protocol` over the UART; :class:`lost.model.device.DeviceModel` is
-the executable reference of every reply (``docs/device.md`` has the tables). One request at a time:
-while the device executes a request and sends its reply it ignores the line.
+the executable reference of every reply (``docs/device.md`` has the tables). Requests execute one at
+a time; one more frame is received while a request executes (outside the clocks that read the frame
+buffer), bytes beyond it are dropped. The device never waits for the host to read.
 
 * **Tile.** ``tile_shape`` words of the host's map (LOAD_TILE), with its origin in the map (ORIGIN).
 * **Search area.** START copies the ``area_shape`` window at a tile node into the core's own map
@@ -137,7 +138,6 @@ class CorrelatorDevice(wiring.Component):
         byte_index = Signal(range(max(vb, 8)))
         cycles, counting = Signal(32), Signal()
 
-        m.d.comb += self.busy.eq(receiver.hold)
 
         def refuse(code):
             m.d.sync += [reply_bits.eq(Cat(_zext(code, 8), request.command)), reply_command.eq(ERROR),
@@ -207,7 +207,11 @@ class CorrelatorDevice(wiring.Component):
             with m.State("DRAIN"):
                 with m.If(sender.idle & ~sender.header.valid):
                     m.next = "IDLE"
-        m.d.comb += receiver.hold.eq(~fsm.ongoing("IDLE"))
+        # The buffer is read from FETCH to the last patch node; a next frame may arrive during the rest.
+        reading = ("FETCH", "DISPATCH", "TILE_LO", "TILE_HI", "TILE_WRITE", "MASK", "MASK_CHECK", "NODE_MASK",
+                   "NODE_LO", "NODE_HI", "NODE_PUT")
+        m.d.comb += [receiver.hold.eq(Cat(*(fsm.ongoing(state) for state in reading)).any()),
+                     self.busy.eq(~fsm.ongoing("IDLE"))]
         with m.If(counting):
             m.d.sync += cycles.eq(cycles + 1)
         return m

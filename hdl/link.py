@@ -10,8 +10,9 @@ receiver behaves as its :class:`~lost.model.protocol.FrameDecoder` does, plus a 
 * a CRC mismatch drops the frame with a CRC error; nothing of it is executed.
 
 A good frame's payload is in the buffer (a :class:`lib.memory.Memory` of ``MAX_PAYLOAD`` bytes the
-caller owns) when its :class:`Request` beat is offered; the receiver ignores the line while
-``hold`` is high (the device executes a request and sends its reply: one request at a time).
+caller owns) when its :class:`Request` beat is offered. The receiver drops every byte while ``hold``
+is high (the caller reads the buffer) and while its request waits to be taken (the buffer holds that
+frame): one frame is buffered while the previous one executes, bytes beyond it are lost.
 """
 
 from typing import Any
@@ -62,7 +63,7 @@ class FrameReceiver(wiring.Component):
     buffer : ``In(memory.WritePort.Signature(addr_width=..., shape=8))``
         Where payload byte ``k`` is written, at address ``k``.
     hold : ``In(1)``
-        Drop every byte while high.
+        Drop every byte while high (the caller is reading the buffer).
     """
 
     def __init__(self, *, timeout: int):
@@ -80,7 +81,7 @@ class FrameReceiver(wiring.Component):
         m = Module()
         byte = self.bytes_in.payload
         got = Signal()
-        m.d.comb += [self.bytes_in.ready.eq(1), got.eq(self.bytes_in.valid & ~self.hold)]
+        m.d.comb += [self.bytes_in.ready.eq(1), got.eq(self.bytes_in.valid & ~self.hold & ~self.request.valid)]
 
         header = Signal(Request)
         crc = Signal(16, init=0xFFFF)

@@ -1,7 +1,7 @@
 """The device top-level's Verilog on Verilator, driven through its UART pins by the host's driver.
 
-One build (``lost.sim.cosim.DeviceConfig()``'s defaults: the 1-lane window core, 32 x 32 tile,
-24 x 24 area, 10 x 10 patch) serves every test here: every command's reply against the reference
+One build (the 1-lane window core, 20 x 20 tile, 16 x 16 area, 6 x 6 patch: small, so that the
+Verilator build and the bit-level UART stay quick) serves every test here: every command's reply against the reference
 device, the protocol's robustness, and a short ``lost run`` bit for bit against the golden model.
 """
 
@@ -20,12 +20,13 @@ from lost.model.protocol import ERROR, Command, ErrorCode, FrameDecoder, encode_
 from lost.sim.cosim import DeviceConfig
 
 BUILD = Path(__file__).resolve().parents[2] / "build" / "sim" / "cosim"
-CONFIG = DeviceConfig()
+SIZES = {"tile_shape": (20, 20), "area_shape": (16, 16), "patch_shape": (6, 6), "exclusion_radius": 3}
+CONFIG = DeviceConfig(**SIZES)
 
 
 @pytest.fixture(scope="module")
 def device():
-    backend = configure_backend("rtl", build_dir=BUILD)
+    backend = configure_backend("rtl", build_dir=BUILD, **SIZES)
     driver = backend.driver
     yield driver
     backend.close()
@@ -60,9 +61,9 @@ def test_every_command_answers_as_the_reference_device(device):
     reference = DeviceModel(info)
     rng = np.random.default_rng(5)
     tile = rng.integers(-32768, 32768, info.tile_shape).astype(np.int16)
-    patch = tile[7:17, 3:13].copy()
-    patch[0, 0], patch[9, 9] = -32768, 32767
-    mask = rng.random((10, 10)) < 0.85
+    patch = tile[7:13, 3:9].copy()
+    patch[0, 0], patch[5, 5] = -32768, 32767
+    mask = rng.random((6, 6)) < 0.85
     flat = tile.astype("<i2").ravel()
     requests = [encode_frame(1, Command.LOAD_TILE, struct.pack("<I", a) + flat[a : a + 510].tobytes()) for a in range(0, flat.size, 510)]
     requests += [
@@ -70,16 +71,16 @@ def test_every_command_answers_as_the_reference_device(device):
         encode_frame(3, Command.ORIGIN),
         encode_frame(4, Command.READ_RESULT),  # no result yet: STATE
         encode_frame(5, Command.LOAD_PATCH, patch_payload(patch, mask, True)),
-        encode_frame(6, Command.START, struct.pack("<HH", 8, 0)),  # past the tile: RANGE
-        encode_frame(7, Command.START, struct.pack("<HH", 5, 2)),
-        encode_frame(8, Command.READ_SURFACE, struct.pack("<HH", 0, 225)),
-        encode_frame(9, Command.READ_SURFACE, struct.pack("<HH", 200, 26)),  # past the surface: RANGE
+        encode_frame(6, Command.START, struct.pack("<HH", 5, 0)),  # past the tile: RANGE
+        encode_frame(7, Command.START, struct.pack("<HH", 3, 2)),
+        encode_frame(8, Command.READ_SURFACE, struct.pack("<HH", 0, 121)),
+        encode_frame(9, Command.READ_SURFACE, struct.pack("<HH", 100, 22)),  # past the surface: RANGE
         encode_frame(10, Command.READ_SURFACE, struct.pack("<HH", 0, 257)),  # over a frame: LENGTH
         encode_frame(11, Command.READ_RESULT),
-        encode_frame(12, Command.LOAD_PATCH, patch_payload(patch, np.zeros((10, 10), bool), False)),  # ARGUMENT
+        encode_frame(12, Command.LOAD_PATCH, patch_payload(patch, np.zeros((6, 6), bool), False)),  # ARGUMENT
         encode_frame(13, Command.LOAD_PATCH, patch_payload(patch, mask, False)),
-        encode_frame(14, Command.START, struct.pack("<HH", 0, 8)),
-        encode_frame(15, Command.READ_SURFACE, struct.pack("<HH", 100, 125)),
+        encode_frame(14, Command.START, struct.pack("<HH", 0, 4)),
+        encode_frame(15, Command.READ_SURFACE, struct.pack("<HH", 50, 71)),
         encode_frame(16, Command.IDENTIFY, b"x"),  # LENGTH
         encode_frame(17, Command.RESET),
         encode_frame(18, Command.START, struct.pack("<HH", 0, 0)),  # no patch after the reset: STATE
@@ -97,8 +98,8 @@ def test_start_takes_the_cycles_of_the_copy_and_the_cores_schedule(device):
     rng = np.random.default_rng(2)
     tile = rng.integers(-3000, 3000, info.tile_shape).astype(np.int16)
     device.load_tile(tile)
-    mask = rng.random((10, 10)) < 0.7
-    device.load_patch(tile[:10, :10], mask, True)
+    mask = rng.random((6, 6)) < 0.7
+    device.load_patch(tile[:6, :6], mask, True)
     result = device.start(1, 1)
     schedule = variant(CONFIG.variant).schedule(info.area_shape, info.patch_shape, mask, True, exclusion_radius=info.exclusion_radius)
     AH, AW = info.area_shape
@@ -152,24 +153,26 @@ def test_a_host_that_stops_reading_gets_the_next_answer(device):
     transport = device._transport
     info = device.identify()
     device.load_tile(np.zeros(info.tile_shape, np.int16))
-    device.load_patch(np.ones((10, 10), np.int16), np.ones((10, 10), bool), True)
+    device.load_patch(np.ones((6, 6), np.int16), np.ones((6, 6), bool), True)
     device.start(0, 0)
-    transport.write(encode_frame(70, Command.READ_SURFACE, struct.pack("<HH", 0, 200)))  # never read
-    time.sleep(0.5)
+    transport.write(encode_frame(70, Command.READ_SURFACE, struct.pack("<HH", 0, 121)))  # its reply is never read
+    # The next request arrives while the device still sends that reply: it is received and answered after it.
+    start = time.monotonic()
     assert device.identify() == info  # the stale reply is dropped by its sequence number
+    assert time.monotonic() - start < device._transport.timeout_s and device.stats["retries"] == 0
     assert device.stats["stale_replies"] >= 1
 
 
 def test_correlation_on_the_device_is_the_models_with_its_own_best_fit(device):
     rng = np.random.default_rng(9)
     terrain = rng.integers(-32768, 32768, (40, 45)).astype(np.int16)
-    patch = terrain[20:30, 11:21].copy()
-    mask = rng.random((10, 10)) < 0.9
-    result = correlation(terrain, patch, mask=mask, backend="rtl", area=(14, 4, 15, 15), exclusion_radius=5)
-    expected = model.correlate(terrain[14:38, 4:28], patch, mask=mask)
+    patch = terrain[20:26, 11:17].copy()
+    mask = rng.random((6, 6)) < 0.9
+    result = correlation(terrain, patch, mask=mask, backend="rtl", area=(14, 4, 11, 11), exclusion_radius=3)
+    expected = model.correlate(terrain[14:30, 4:20], patch, mask=mask)
     np.testing.assert_array_equal(result.surface, expected)
     assert result.best_from == "hardware" and result.best == model.Placement(20, 11, int(expected[6, 7]))
-    fit = model.best_fit(expected, exclusion_radius=5)
+    fit = model.best_fit(expected, exclusion_radius=3)
     assert result.runner_up == model.Placement(fit.runner_up.i + 14, fit.runner_up.j + 4, fit.runner_up.value)
 
 
@@ -178,19 +181,19 @@ def test_a_short_lost_run_is_bit_identical_to_the_golden_model(device):
     from lost.host.scenario import CableSpec, Scenario, SensorSpec, ShipSpec, SonarSpec, TerrainSpec
 
     scenario = Scenario(
-        seed=4, duration_s=24.0,
+        seed=4, duration_s=14.0,
         terrain=TerrainSpec(shape=(80, 120), roughness_m=10.0, hurst=0.5),
         ship=ShipSpec(waypoints_m=((300.0, 400.0), (1100.0, 400.0))),
         cable=CableSpec(out_m=200.0),
-        sensors={"sonar": SonarSpec(noise=0.2, interval_s=2.0), "velocity": SensorSpec(noise=0.02)},
+        sensors={"sonar": SonarSpec(noise=0.2, interval_s=2.0, shape=(6, 6)), "velocity": SensorSpec(noise=0.02)},
     )
     from lost.host.scenario import simulate
 
     grid, records = simulate(scenario)
     tracks = {}
     for backend in ("model", "rtl"):
-        tracks[backend] = run_lost(records, grid, NavParameters(backend=backend, search_half_width_m=60.0))
+        tracks[backend] = run_lost(records, grid, NavParameters(backend=backend, search_half_width_m=40.0))
     golden, device_run = tracks["model"], tracks["rtl"]
-    assert (golden.mle_source == "patch").sum() >= 8
+    assert (golden.mle_source == "patch").sum() >= 5
     np.testing.assert_array_equal(device_run.estimate, golden.estimate)
     np.testing.assert_array_equal(device_run.mle_source, golden.mle_source)
