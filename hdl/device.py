@@ -23,7 +23,7 @@ from amaranth.lib import memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
-from lost.model.protocol import ERROR, MAX_PAYLOAD, PROTOCOL_VERSION, REPLY, Command, DeviceInfo, ErrorCode
+from lost.model.protocol import ERROR, MAX_PAYLOAD, MAX_REPLY, PROTOCOL_VERSION, REPLY, Command, DeviceInfo, ErrorCode
 
 from .interface import CorrelatorParameters
 from .link import FrameReceiver, FrameSender
@@ -130,7 +130,7 @@ class CorrelatorDevice(wiring.Component):
         patch_loaded, result_ready, mode = Signal(), Signal(), Signal()
         result_bits = Signal(8 * (13 + 2 * vb))
         reply_bits = Signal(8 * max(len(info.encode()), 8, 13 + 2 * vb, 2))
-        reply_command, reply_length = Signal(8), Signal(range(MAX_PAYLOAD + 1))
+        reply_command, reply_length = Signal(8), Signal(range(MAX_REPLY + 1))
         from_surface = Signal()  # the reply's payload is surface values, not reply_bits
         lo, mask_bit, any_valid = Signal(8), Signal(), Signal()
         address, last = Signal(range(TH * TW + 1)), Signal(range(TH * TW + 1))
@@ -271,7 +271,7 @@ class CorrelatorDevice(wiring.Component):
                     answer(result_bits, len(result_bits) // 8)
             with m.Case(Command.READ_SURFACE):
                 first, count = args[:16], args[16:32]
-                with m.If((length != 4) | (count * vb > MAX_PAYLOAD)):
+                with m.If((length != 4) | (count * vb > MAX_REPLY)):
                     refuse(ErrorCode.LENGTH)
                 with m.Elif((count == 0) | (first + count > rows * cols)):
                     refuse(ErrorCode.RANGE)
@@ -384,10 +384,11 @@ class CorrelatorDevice(wiring.Component):
                          surface_write.data.eq(core.surface.payload.values[0]), surface_write.en.eq(core.surface.valid)]
             with m.If(core.surface.valid):
                 m.d.sync += [beat.eq(core.surface.payload), lane.eq(1), k.eq(k + 1)]
-                with m.If(core.surface.payload.count > 1):
-                    m.next = "SURFACE_WRITE"
-                with m.Elif(core.surface.payload.last):
+                with m.If(core.surface.payload.last):
                     m.next = "BEST"
+                if info.lanes > 1:  # (a one-lane beat has one value: no comparison that is always false)
+                    with m.If(core.surface.payload.count > 1):
+                        m.next = "SURFACE_WRITE"
         with m.State("SURFACE_WRITE"):  # the other lanes, one value a clock, in raster order
             m.d.comb += [counting.eq(1), surface_write.addr.eq(k), surface_write.en.eq(1),
                          surface_write.data.eq(beat.values[lane])]

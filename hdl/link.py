@@ -10,9 +10,10 @@ receiver behaves as its :class:`~lost.model.protocol.FrameDecoder` does, plus a 
 * a CRC mismatch drops the frame with a CRC error; nothing of it is executed.
 
 A good frame's payload is in the buffer (a :class:`lib.memory.Memory` of ``MAX_PAYLOAD`` bytes the
-caller owns) when its :class:`Request` beat is offered. The receiver drops every byte while ``hold``
-is high (the caller reads the buffer) and while its request waits to be taken (the buffer holds that
-frame): one frame is buffered while the previous one executes, bytes beyond it are lost.
+caller owns) when its :class:`Request` beat is offered. The receiver takes no byte while ``hold`` is
+high (the caller reads the buffer) or while its request waits to be taken (the buffer holds that
+frame); the UART keeps one byte meanwhile and drops later ones (an overrun). So one frame is received
+while the previous one executes.
 """
 
 from typing import Any
@@ -22,7 +23,7 @@ from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
-from lost.model.protocol import MAX_PAYLOAD, SYNC, ErrorCode
+from lost.model.protocol import MAX_PAYLOAD, MAX_REPLY, SYNC, ErrorCode
 
 __all__ = ["FrameReceiver", "FrameSender", "Request", "ReplyHeader", "crc16_update"]
 
@@ -35,7 +36,7 @@ Request = data.StructLayout({
 })
 
 #: The header of a reply; its payload follows on the sender's ``payload`` stream.
-ReplyHeader = data.StructLayout({"seq": 8, "command": 8, "length": bits_for(MAX_PAYLOAD)})
+ReplyHeader = data.StructLayout({"seq": 8, "command": 8, "length": bits_for(MAX_REPLY)})
 
 
 def crc16_update(crc: Value, byte: Value) -> Value:
@@ -57,13 +58,13 @@ class FrameReceiver(wiring.Component):
     Members
     -------
     bytes_in : ``In(stream.Signature(8))``
-        From the UART receiver; always taken.
+        From the UART receiver; taken unless ``hold`` or a request waits.
     request : ``Out(stream.Signature(Request))``
         One beat per frame (good or refused), held until taken.
     buffer : ``In(memory.WritePort.Signature(addr_width=..., shape=8))``
         Where payload byte ``k`` is written, at address ``k``.
     hold : ``In(1)``
-        Drop every byte while high (the caller is reading the buffer).
+        Take no byte while high (the caller is reading the buffer).
     """
 
     def __init__(self, *, timeout: int):
@@ -81,7 +82,8 @@ class FrameReceiver(wiring.Component):
         m = Module()
         byte = self.bytes_in.payload
         got = Signal()
-        m.d.comb += [self.bytes_in.ready.eq(1), got.eq(self.bytes_in.valid & ~self.hold & ~self.request.valid)]
+        # Stalled while the caller reads the buffer or the last request waits: the UART holds one byte.
+        m.d.comb += [self.bytes_in.ready.eq(~self.hold & ~self.request.valid), got.eq(self.bytes_in.valid & self.bytes_in.ready)]
 
         header = Signal(Request)
         crc = Signal(16, init=0xFFFF)
@@ -179,7 +181,7 @@ class FrameSender(wiring.Component):
         m = Module()
         frame = Signal(ReplyHeader)
         crc = Signal(16)
-        sent = Signal(range(MAX_PAYLOAD + 1))
+        sent = Signal(range(MAX_REPLY + 1))
         out = self.bytes_out
         moved = out.valid & out.ready
         length_hi = Signal(8)

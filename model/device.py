@@ -16,7 +16,7 @@ import numpy as np
 from .correlator import best_fit, correlate
 from .protocol import (
     ERROR,
-    MAX_PAYLOAD,
+    MAX_REPLY,
     PROTOCOL_VERSION,
     REPLY,
     Command,
@@ -153,7 +153,7 @@ class DeviceModel:
     def _read_surface(self, payload: bytes) -> bytes:
         self._length(payload, 4)
         first, count = struct.unpack("<HH", payload)
-        if count * self.info.value_bytes > MAX_PAYLOAD:
+        if count * self.info.value_bytes > MAX_REPLY:
             raise _Refused(ErrorCode.LENGTH)
         rows, cols = self.info.surface_shape
         if count == 0 or first + count > rows * cols:

@@ -26,6 +26,7 @@ import numpy as np
 __all__ = [
     "ERROR",
     "MAX_PAYLOAD",
+    "MAX_REPLY",
     "PROTOCOL_VERSION",
     "REPLY",
     "SYNC",
@@ -44,8 +45,11 @@ __all__ = [
 
 SYNC = 0xA5
 PROTOCOL_VERSION = 1
-#: The largest payload either side sends; the device's frame buffer holds this many bytes.
+#: The largest request payload; the device's frame buffer holds this many bytes.
 MAX_PAYLOAD = 1024
+#: The largest reply payload: a READ_SURFACE reply of up to 16 kB (4096 four-byte values), so that a
+#: 70 x 70 search area's surface comes back in one round trip.
+MAX_REPLY = 16384
 #: Added to a request's command in its reply.
 REPLY = 0x80
 #: The command byte of an error reply.
@@ -112,13 +116,13 @@ class Frame:
         return code, self.payload[1] if len(self.payload) > 1 else 0
 
 
-def encode_frame(seq: int, command: int, payload: bytes = b"") -> bytes:
-    """The bytes of one frame; a ValueError for a field out of range or an oversized payload."""
+def encode_frame(seq: int, command: int, payload: bytes = b"", *, max_payload: int = MAX_REPLY) -> bytes:
+    """The bytes of one frame; a ValueError for a field out of range or a payload over ``max_payload``."""
     payload = bytes(payload)
     if not 0 <= seq <= 255 or not 0 <= command <= 255:
         raise ValueError(f"seq and command are bytes, got seq={seq}, command={command}")
-    if len(payload) > MAX_PAYLOAD:
-        raise ValueError(f"a payload of {len(payload)} bytes is longer than the protocol's {MAX_PAYLOAD}")
+    if len(payload) > max_payload:
+        raise ValueError(f"a payload of {len(payload)} bytes is longer than the protocol's {max_payload}")
     body = struct.pack("<BBH", seq, command, len(payload)) + payload
     return bytes([SYNC]) + body + struct.pack("<H", crc16(body))
 
@@ -127,11 +131,13 @@ class FrameDecoder:
     """Frames from a byte stream, resynchronizing after garbage, as the device's decoder does.
 
     :meth:`feed` returns the frames completed by the bytes given; bytes outside a frame that are not
-    :data:`SYNC` are counted in :attr:`skipped`. A frame with a bad CRC or an oversized length is
+    :data:`SYNC` are counted in :attr:`skipped`. A frame with a bad CRC or a length over
+    ``max_payload`` (the device's :data:`MAX_PAYLOAD` for requests, :data:`MAX_REPLY` on the host) is
     returned as an ``(ErrorCode, seq, command)`` tuple in :attr:`errors` and dropped.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, max_payload: int = MAX_PAYLOAD) -> None:
+        self._max_payload = max_payload
         self._buffer = bytearray()
         self.skipped = 0
         self.errors: list[tuple[ErrorCode, int, int]] = []
@@ -146,7 +152,19 @@ class FrameDecoder:
 
     def feed(self, data: bytes) -> list[Frame]:
         frames = []
-        for byte in bytes(data):
+        data = memoryview(bytes(data))
+        at = 0
+        while at < len(data):
+            if len(self._buffer) >= HEADER_BYTES:
+                # Inside a frame's payload: take what it still needs in one slice.
+                (length,) = struct.unpack_from("<H", self._buffer, 3)
+                take = max(0, min(HEADER_BYTES + length + CRC_BYTES - 1 - len(self._buffer), len(data) - at))
+                self._buffer += data[at : at + take]
+                at += take
+                if at == len(data):
+                    break
+            byte = data[at]
+            at += 1
             if not self._buffer:
                 if byte == SYNC:
                     self._buffer.append(byte)
@@ -157,7 +175,7 @@ class FrameDecoder:
             if len(self._buffer) < HEADER_BYTES:
                 continue
             seq, command, length = struct.unpack_from("<BBH", self._buffer, 1)
-            if length > MAX_PAYLOAD:
+            if length > self._max_payload:
                 self.errors.append((ErrorCode.LENGTH, seq, command))
                 self._buffer.clear()
                 continue

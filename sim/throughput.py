@@ -117,7 +117,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     result = measure(variant_name=args.variant, cosim=args.cosim)
     info, ping, reload = result["info"], result["ping"], result["tile_reload"]
     cycles = result["start_cycles_cosim"] or result["start_cycles_formula"]
-    source = "co-simulation" if result["start_cycles_cosim"] else "formula checked in co-simulation at 24 x 24"
+    source = "co-simulation" if result["start_cycles_cosim"] else "the formula tests/sim/test_device_cosim.py checks in co-simulation"
 
     def ms(counts, with_cycles):
         wire = (counts["bytes_out"] + counts["bytes_in"]) * 10 / args.baud * 1e3

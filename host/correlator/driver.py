@@ -23,6 +23,7 @@ import numpy as np
 from lost.model import BestFit, Placement
 from lost.model.protocol import (
     MAX_PAYLOAD,
+    MAX_REPLY,
     PROTOCOL_VERSION,
     REPLY,
     Command,
@@ -95,7 +96,7 @@ class CorrelatorDriver:
         self._transport = transport
         self._retries = retries
         self._seq = 0
-        self._decoder = FrameDecoder()
+        self._decoder = FrameDecoder(MAX_REPLY)
         self._info: DeviceInfo | None = None
         self._tile: np.ndarray | None = None  # what the device's tile holds, as far as the host knows
         self._patch_key: bytes | None = None
@@ -107,13 +108,16 @@ class CorrelatorDriver:
         self._seq = (self._seq + 1) & 0xFF
         return self._seq
 
-    def _await_reply(self, seq: int, deadline: float):
-        """The first frame echoing ``seq``, a ``"damaged"`` marker, or None at the deadline."""
+    def _await_reply(self, seq: int):
+        """The first frame echoing ``seq``, a ``"damaged"`` marker, or None after the timeout without a byte."""
+        deadline = time.monotonic() + self._transport.timeout_s
         while True:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return None
-            data = self._transport.read(4096, remaining)
+            data = self._transport.read(65536, remaining)
+            if data:  # a reply still arriving is not late
+                deadline = time.monotonic() + self._transport.timeout_s
             self.stats["bytes_in"] += len(data)
             frames = self._decoder.feed(data)
             if self._decoder.errors:
@@ -144,7 +148,7 @@ class CorrelatorDriver:
             frame = encode_frame(seq, command, payload)
             self._transport.write(frame)
             self.stats["bytes_out"] += len(frame)
-            reply = self._await_reply(seq, time.monotonic() + self._transport.timeout_s)
+            reply = self._await_reply(seq)
             if reply is None:
                 problem = "no reply"
                 self._decoder.reset()
@@ -220,7 +224,7 @@ class CorrelatorDriver:
     def read_surface(self, rows: int | None = None, cols: int | None = None) -> np.ndarray:
         """The last correlation's surface, its first ``rows`` x ``cols`` placements (default all).
 
-        Whole rows are read as one raster range in frames of up to ``MAX_PAYLOAD`` bytes (one round
+        Whole rows are read as one raster range in frames of up to ``MAX_REPLY`` bytes (one round
         trip each); a narrower block row by row.
         """
         full_rows, full_cols = self.info.surface_shape
@@ -231,7 +235,7 @@ class CorrelatorDriver:
 
     def _read_values(self, first: int, count: int) -> np.ndarray:
         nbytes = self.info.value_bytes
-        per_frame = MAX_PAYLOAD // nbytes
+        per_frame = MAX_REPLY // nbytes
         out = np.empty(count, dtype=np.int64)
         for at in range(0, count, per_frame):
             n = min(per_frame, count - at)

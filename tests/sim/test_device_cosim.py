@@ -16,7 +16,7 @@ from lost import model
 from lost.host.correlator import BACKENDS, configure_backend, correlation
 from lost.host.correlator.driver import DeviceError
 from lost.model.device import DeviceModel
-from lost.model.protocol import ERROR, Command, ErrorCode, FrameDecoder, encode_frame, patch_payload
+from lost.model.protocol import ERROR, MAX_REPLY, Command, ErrorCode, FrameDecoder, encode_frame, patch_payload
 from lost.sim.cosim import DeviceConfig
 
 BUILD = Path(__file__).resolve().parents[2] / "build" / "sim" / "cosim"
@@ -35,7 +35,7 @@ def device():
 
 def _replies(transport, count, *, timeout_s=30.0):
     """Raw frames from the device until ``count`` arrived (errors of the reply decoder fail the test)."""
-    decoder, frames = FrameDecoder(), []
+    decoder, frames = FrameDecoder(MAX_REPLY), []
     deadline = time.monotonic() + timeout_s
     while len(frames) < count and time.monotonic() < deadline:
         frames += decoder.feed(transport.read(4096, 0.2))
@@ -75,7 +75,7 @@ def test_every_command_answers_as_the_reference_device(device):
         encode_frame(7, Command.START, struct.pack("<HH", 3, 2)),
         encode_frame(8, Command.READ_SURFACE, struct.pack("<HH", 0, 121)),
         encode_frame(9, Command.READ_SURFACE, struct.pack("<HH", 100, 22)),  # past the surface: RANGE
-        encode_frame(10, Command.READ_SURFACE, struct.pack("<HH", 0, 257)),  # over a frame: LENGTH
+        encode_frame(10, Command.READ_SURFACE, struct.pack("<HH", 0, 4097)),  # over a reply: LENGTH
         encode_frame(11, Command.READ_RESULT),
         encode_frame(12, Command.LOAD_PATCH, patch_payload(patch, np.zeros((6, 6), bool), False)),  # ARGUMENT
         encode_frame(13, Command.LOAD_PATCH, patch_payload(patch, mask, False)),
@@ -87,7 +87,7 @@ def test_every_command_answers_as_the_reference_device(device):
     ]
     for request in requests:
         (got,) = _exchange(device._transport, request)
-        (expected,) = FrameDecoder().feed(reference.receive(request))
+        (expected,) = FrameDecoder(MAX_REPLY).feed(reference.receive(request))
         assert _without_cycles(got) == _without_cycles(expected), f"request seq {request[1]} command {request[2]}"
 
 
