@@ -99,6 +99,8 @@ class CorrelatorDriver:
         self._decoder = FrameDecoder(MAX_REPLY)
         self._info: DeviceInfo | None = None
         self._tile: np.ndarray | None = None  # what the device's tile holds, as far as the host knows
+        self._tile_origin: tuple[int, int] | None = None  # its place in the map being searched
+        self._tile_map: bytes | None = None  # that map's fingerprint
         self._patch_key: bytes | None = None
         self.stats = dict.fromkeys(("requests", "retries", "stale_replies", "tile_loads", "bytes_out", "bytes_in"), 0)
 
@@ -271,9 +273,6 @@ class CorrelatorDriver:
             self.load_tile(tile, (o0, o1))
         self._tile_origin = (o0, o1)
         return 0, 0
-
-    _tile_origin: tuple[int, int] | None = None
-    _tile_map: bytes | None = None
 
     def correlate(self, terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray, mean_compensation: bool, *,
                   area: Area, exclusion_radius: int = 1) -> Outcome:
