@@ -7,7 +7,7 @@ resident (patch upload, START, the 61 x 61 surface read back) and a tile reload:
 * bytes each way and request/reply round trips, counted by running :class:`CorrelatorDriver` against
   the reference device (the same frames the board exchanges);
 * device cycles of START: measured on the Verilator co-simulation of the device at these sizes with
-  ``--cosim`` (a build of some minutes), else from ``2 * area words + core schedule + 1``, the count
+  ``--cosim`` (a build of some minutes; its tile is the area, START's clocks do not depend on it), else from ``2 * area words + core schedule + 1``, the count
   ``tests/sim/test_device_cosim.py`` checks on the co-simulated device;
 * milliseconds at ``--baud`` (8N1: 10 bits a byte), with ``--latency-ms`` per round trip (an FTDI
   adapter's latency timer, 1 ms once set so; 16 ms by default on Linux) and the cycles at ``--clock-mhz``.
@@ -84,7 +84,8 @@ def measure(*, tile_shape=(256, 256), area_shape=(70, 70), patch_shape=(10, 10),
     schedule = registered.schedule(area_shape, patch_shape, mask, True, exclusion_radius=exclusion_radius)
     cycles = {"start_cycles_formula": 2 * AH * AW + int(schedule.best) + 1, "start_cycles_cosim": None}
     if cosim:
-        cycles["start_cycles_cosim"] = _cosim_cycles(registered.name, tile_shape, area_shape, patch_shape,
+        # START's clocks do not depend on the tile's size: the co-simulated tile is the area, a smaller build.
+        cycles["start_cycles_cosim"] = _cosim_cycles(registered.name, area_shape, area_shape, patch_shape,
                                                      exclusion_radius, mask)
     return {"info": info, "ping": dict(zip(("bytes_out", "bytes_in", "round_trips"), ping)),
             "tile_reload": dict(zip(("bytes_out", "bytes_in", "round_trips"), reload)), **cycles}

@@ -11,14 +11,15 @@ from lost.host.correlator import configure_backend, correlation
 from lost.model.device import DeviceModel, reference_info
 
 INFO = reference_info(tile_shape=(24, 24), area_shape=(12, 12), patch_shape=(4, 4), exclusion_radius=1)
+BOARD_INFO = reference_info(tile_shape=(48, 48), area_shape=(30, 30), patch_shape=(10, 10), exclusion_radius=5)
 
 
 @pytest.fixture
-def board():
+def board(request):
     """A pty whose far end is the reference device, served by a thread until the test ends."""
     controller, terminal = os.openpty()
     os.set_blocking(controller, False)
-    device = DeviceModel(INFO)
+    device = DeviceModel(getattr(request, "param", INFO))
     stop = threading.Event()
 
     def serve():
@@ -55,3 +56,25 @@ def test_the_fpga_backend_over_a_serial_port_is_exact(board):
         assert backend.driver.identify() == INFO
     finally:
         backend.close()
+
+
+@pytest.mark.parametrize("board", [BOARD_INFO], indirect=True)
+def test_lost_correlate_on_the_fpga_backend_matches_the_software_one(board, tmp_path, capsys):
+    import json
+
+    from lost.host.cli import main
+    from lost.host.grid import Grid
+    from lost.host.io import write_npz
+    from lost.host.terrain import synthetic_terrain
+
+    depth = synthetic_terrain((50, 60), seed=3, roughness_m=10.0, hurst=0.5)
+    write_npz(Grid(depth, 0.0, 0.0, 10.0), tmp_path / "map.npz")
+    np.save(tmp_path / "patch.npy", depth[22:32, 30:40] + 1.5)
+    answers = {}
+    for backend in (["--backend", "software"], ["--backend", "fpga", "--port", board, "--baud", "115200"]):
+        assert main(["correlate", str(tmp_path / "map.npz"), str(tmp_path / "patch.npy"), "--json", *backend]) == 0
+        answers[backend[1]] = json.loads(capsys.readouterr().out)
+    software, fpga = answers["software"], answers["fpga"]
+    assert fpga["best"] == software["best"] == {"i": 22, "j": 30, "value": fpga["best"]["value"]}
+    assert fpga["runner_up"] == software["runner_up"] and fpga["device_cycles"] == 0  # the reference device counts no clocks
+    configure_backend("fpga", port=board).close()
