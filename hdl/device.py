@@ -138,7 +138,6 @@ class CorrelatorDevice(wiring.Component):
         byte_index = Signal(range(max(vb, 8)))
         cycles, counting = Signal(32), Signal()
 
-
         def refuse(code):
             m.d.sync += [reply_bits.eq(Cat(_zext(code, 8), request.command)), reply_command.eq(ERROR),
                          reply_length.eq(2), from_surface.eq(0)]
