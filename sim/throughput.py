@@ -110,7 +110,7 @@ def _cosim_cycles(name, tile_shape, area_shape, patch_shape, exclusion_radius, m
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m lost.sim.throughput", description=__doc__.splitlines()[0])
     parser.add_argument("--baud", type=int, default=3_000_000)
-    parser.add_argument("--clock-mhz", type=float, default=75.0)
+    parser.add_argument("--clock-mhz", type=float, default=60.0, help="the ULX3S bitstream's clock")
     parser.add_argument("--latency-ms", type=float, default=1.0, help="per request/reply round trip")
     parser.add_argument("--variant", default=DEFAULT_VARIANT)
     parser.add_argument("--cosim", action="store_true", help="measure START's cycles on Verilator (builds the device)")
