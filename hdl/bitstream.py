@@ -3,7 +3,8 @@
 ``python -m lost.hdl.bitstream --out build/bitstream`` (``make bitstream``) builds
 :class:`~lost.hdl.device.CorrelatorDevice` on amaranth-boards' ``ULX3S_85F_Platform``: the board's
 25 MHz clock through an ECP5 PLL (``EHXPLLL``) to 60 MHz, so that the UART's divisor of 20 gives
-exactly 3 Mbaud on the FTDI link (75 MHz, divisor 25, missed timing at 70.1 MHz); Yosys, nextpnr-ecp5 and ecppack are the yowasp WebAssembly builds.
+exactly 3 Mbaud on the FTDI link (75 MHz with divisor 25 missed timing: 70.1 MHz); Yosys, nextpnr-ecp5
+and ecppack are the yowasp WebAssembly builds.
 It writes ``ulx3s_lost.bit``, nextpnr's timing report (``ulx3s_lost-report.json``) and
 ``summary.json`` (Fmax against the 60 MHz constraint, LUT4, FF, EBR, DSP).
 
