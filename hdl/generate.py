@@ -17,8 +17,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 
 from amaranth.back import verilog
@@ -26,61 +25,12 @@ from amaranth.lib import wiring
 
 from lost.model.shapes import shape_argument
 
-__all__ = ["VARIANTS", "Variant", "compact_zero_initializers", "to_verilog", "variant", "write_verilog", "write_variants"]
+from .variants import VARIANTS, variant
+
+__all__ = ["VARIANTS", "compact_zero_initializers", "to_verilog", "variant", "write_verilog", "write_variants"]
 
 DEFAULT_MAP_SHAPE = (501, 501)
 DEFAULT_PATCH_SHAPE = (10, 10)
-
-
-@dataclass(frozen=True)
-class Variant:
-    """One generated correlator: its module name and how to build it for a map and patch size."""
-
-    name: str
-    description: str
-    build: Callable[..., wiring.Component]
-
-
-def _recursive(*, map_shape, patch_shape, depth_bits, exclusion_radius):
-    from .recursive import RecursiveCorrelator  # imported late: `generate --help` needs no core
-
-    return RecursiveCorrelator(
-        map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, exclusion_radius=exclusion_radius
-    )
-
-
-def _window(lanes: int) -> Callable[..., wiring.Component]:
-    def build(*, map_shape, patch_shape, depth_bits, exclusion_radius):
-        from .window import WindowCorrelator
-
-        return WindowCorrelator(
-            map_shape=map_shape,
-            patch_shape=patch_shape,
-            depth_bits=depth_bits,
-            lanes=lanes,
-            exclusion_radius=exclusion_radius,
-        )
-
-    return build
-
-
-#: Every variant the issue asks for, by module (and file) name.
-VARIANTS: dict[str, Variant] = {
-    v.name: v
-    for v in (
-        Variant("recursive_correlator", "recursive adder, one term per clock", _recursive),
-        Variant("window_correlator_l1", "shift-register window, 1 lane", _window(1)),
-        Variant("window_correlator_l4", "shift-register window, 4 lanes", _window(4)),
-    )
-}
-
-
-def variant(name: str) -> Variant:
-    """The variant called ``name``; a ValueError lists the known ones."""
-    try:
-        return VARIANTS[name]
-    except KeyError:
-        raise ValueError(f"unknown correlator variant {name!r}; known: {', '.join(VARIANTS)}") from None
 
 
 _INITIAL_BLOCK = re.compile(r"^  initial begin\n((?:    .+\[\d+\] = \d+'h[0-9a-fA-F]+;\n)+)  end\n", re.MULTILINE)

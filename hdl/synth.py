@@ -304,14 +304,14 @@ class Configuration:
 
     def core(self):
         """The gateware: the core alone (external) or the correlator with its map memory (on-chip)."""
-        from .recursive import RecursiveCore, RecursiveCorrelator
-        from .window import WindowCore, WindowCorrelator
+        options = {"global_enable": True} if self.variant == "window" else {}
+        return self._registered().build(map_shape=self.map_shape, patch_shape=self.patch_shape,
+                                        memory=self.memory, **options)
 
-        sizes = {"map_shape": self.map_shape, "patch_shape": self.patch_shape}
-        if self.variant == "recursive":
-            return (RecursiveCore if self.memory == "external" else RecursiveCorrelator)(**sizes)
-        return (WindowCore if self.memory == "external" else WindowCorrelator)(
-            lanes=self.lanes, global_enable=True, **sizes)
+    def _registered(self):
+        from .variants import variant, window_variant
+
+        return window_variant(self.lanes) if self.variant == "window" else variant("recursive_correlator")
 
     def design(self):
         """The core inside its :class:`~lost.hdl.harness.MeasurementHarness`."""
@@ -321,11 +321,7 @@ class Configuration:
 
     def cycles(self) -> int:
         """Cycles from the start beat to the best beat of one full-patch correlation at the built sizes."""
-        from lost.model import cycles_recursive, cycles_window
-
-        if self.variant == "recursive":
-            return cycles_recursive.schedule(self.map_shape, self.patch_shape).total
-        return cycles_window.schedule(self.map_shape, self.patch_shape, self.lanes).total
+        return self._registered().schedule(self.map_shape, self.patch_shape).total
 
 
 #: The window lane counts tried, in order, until one packs into more than :data:`MAX_LUT_PERCENT` of the LUT4s.

@@ -9,6 +9,9 @@
     lost track DETECTIONS.csv|SCENARIO [--out DIR]      sonar contact tracking (lost.host.track.cli)
     lost usbl LOG.csv --svp CAST.csv | SCENARIO         INS+USBL positioning of the towfish (lost.host.usbl.cli)
 
+Every command takes ``--backend``; ``--backend fpga --port /dev/ttyUSB0`` runs the correlator on the
+board, ``--backend rtl [--variant NAME]`` on the device co-simulated on Verilator.
+
 ``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at
 all (``lost.host.runfolder``): an earlier run there is replaced only with ``--replace``.
 
@@ -34,7 +37,7 @@ import numpy as np
 
 from lost.model.shapes import shape_argument
 
-from . import BACKENDS, correlate
+from .correlator import BACKENDS, configure_backend, correlation
 from .errors import UsageError
 from .grid import Grid
 from .nav import ESTIMATORS, NavParameters, PreparedMap, navigate
@@ -143,6 +146,7 @@ def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
     """The navigation parameters: ``base`` (a scenario's [navigation]), then --config's, --set, --backend/--matching; strictly validated."""
     from .config import ConfigError, navigation_parameters, read_navigation_table
 
+    _configure_hardware(args)
     overrides = {key: value for key, value in (("backend", args.backend), ("matching", args.matching)) if value is not None}
     settings = dict(args.settings or ())
     fields = set(NavParameters.__dataclass_fields__)
@@ -252,9 +256,23 @@ def _load_patch(path: Path) -> np.ndarray:
     return patch
 
 
-def _cmd_correlate(args: argparse.Namespace) -> int:
-    from lost import model
+def _configure_hardware(args: argparse.Namespace) -> None:
+    """``--port`` (and ``--baud``) make the fpga backend; ``--variant`` picks the co-simulated device's."""
+    backend = getattr(args, "backend", None)
+    port, variant = getattr(args, "port", None), getattr(args, "variant", None)
+    if port and backend != "fpga":
+        raise UsageError("--port is for --backend fpga")
+    if variant and backend != "rtl":
+        raise UsageError("--variant is for --backend rtl")
+    if backend == "fpga":
+        if not port:
+            raise UsageError("--backend fpga needs --port (the board's serial port, e.g. /dev/ttyUSB0)")
+        configure_backend("fpga", port=port, baud=args.baud)
+    elif backend == "rtl" and variant:
+        configure_backend("rtl", variant=variant)
 
+
+def _cmd_correlate(args: argparse.Namespace) -> int:
     from .io import read_grid
 
     grid = read_grid(args.map)
@@ -262,38 +280,43 @@ def _cmd_correlate(args: argparse.Namespace) -> int:
     words, mask, dropped = prepared.quantize_patch(_load_patch(args.patch))
     if not mask.any():
         raise ValueError(f"{args.patch} has no finite depth inside the map's word range")
+    _configure_hardware(args)
     start = time.perf_counter()
-    surface = correlate(prepared.words, words, mask=mask, mean_compensation=not args.no_mean_compensation, backend=args.backend)
+    result = correlation(prepared.words, words, mask=mask, mean_compensation=not args.no_mean_compensation,
+                         backend=args.backend, holes=prepared.holes, exclusion_radius=args.exclusion_radius)
     elapsed_ms = (time.perf_counter() - start) * 1e3
     h, w = words.shape
-    touching = prepared.placements_touching_holes((h, w))
-    if touching.any():
-        # Hole policy: a placement whose window touches a hole cannot win.
-        surface = np.where(touching, np.iinfo(np.int64).max, surface)
-    radius = args.exclusion_radius if args.exclusion_radius is not None else max(h, w) // 2
-    fit = model.best_fit(surface, exclusion_radius=radius)
 
     def where(i: int, j: int) -> str:
         x, y = grid.xy(i + (h - 1) / 2, j + (w - 1) / 2)
         return f"(i, j) = ({i}, {j})   centre x = {float(x):.1f} m, y = {float(y):.1f} m"
 
-    result = {
+    def placement(p) -> dict | None:
+        return None if p is None else {"i": p.i, "j": p.j, "value": int(p.value)}
+
+    summary = {
         "map": str(args.map), "patch": str(args.patch), "backend": args.backend, "lsb_m": prepared.lsb_m,
-        "valid_nodes": int(mask.sum()), "dropped_out_of_range": dropped, "excluded_placements": int(touching.sum()),
-        "best": {"i": fit.i, "j": fit.j, "value": int(fit.value)},
-        "runner_up": None if fit.runner_up is None else {"i": fit.runner_up.i, "j": fit.runner_up.j, "value": int(fit.runner_up.value)},
+        "valid_nodes": int(mask.sum()), "dropped_out_of_range": dropped,
+        "excluded_placements": int((~result.valid).sum()), "valid_placements": int(result.valid.sum()),
+        "best": placement(result.best), "runner_up": placement(result.runner_up), "best_from": result.best_from,
+        "device_cycles": result.cycles,
     }
     if args.json:
-        print(json.dumps(result))
+        print(json.dumps(summary))
         return 0
     print(f"map {grid.shape[0]} x {grid.shape[1]} at {grid.node_m:g} m nodes, patch {h} x {w} ({int(mask.sum())} valid), "
-          f"{prepared.lsb_m:g} m depth step, backend {args.backend!r}: {elapsed_ms:.2f} ms")
-    print(f"best fit   {where(fit.i, fit.j)}   V = {fit.value}")
-    if fit.runner_up is None:
-        print(f"runner-up  none farther than {radius} nodes")
+          f"{prepared.lsb_m:g} m depth step, backend {args.backend!r}: {elapsed_ms:.2f} ms"
+          + ("" if result.cycles is None else f", {result.cycles} device cycles"))
+    if result.best is None:
+        print(f"no valid placement: every one of the {result.valid.size} placements touches a hole of the map")
+        return 0
+    best, ru = result.best, result.runner_up
+    print(f"best fit   {where(best.i, best.j)}   V = {best.value}"
+          + (f"   ({summary['excluded_placements']} placements touching holes excluded)" if summary["excluded_placements"] else ""))
+    if ru is None:
+        print(f"runner-up  none farther than {result.exclusion_radius} nodes")
     else:
-        ru = fit.runner_up
-        print(f"runner-up  {where(ru.i, ru.j)}   V = {ru.value}   ratio {ru.value / max(fit.value, 1):.2f}")
+        print(f"runner-up  {where(ru.i, ru.j)}   V = {ru.value}   ratio {ru.value / max(best.value, 1):.2f}")
     return 0
 
 
@@ -306,10 +329,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an error")
     commands = parser.add_subparsers(dest="command", required=True)
 
+    def hardware_options(sub: argparse.ArgumentParser) -> None:
+        sub.add_argument("--port", default=None, help="serial port of the board, for --backend fpga (e.g. /dev/ttyUSB0)")
+        sub.add_argument("--baud", type=int, default=3_000_000, help="the board's UART rate (default 3000000)")
+        sub.add_argument("--variant", default=None, help="gateware variant of the co-simulated device, for --backend rtl "
+                                                          "(default window_correlator_l1)")
+
     def navigation_options(sub: argparse.ArgumentParser) -> None:
         sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/NAME), written whole or not at all")
         sub.add_argument("--replace", action="store_true", help="replace an earlier run in --out (whole); without it such a folder is refused")
         sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
+        hardware_options(sub)
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
         sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",
                          help="the LOST patent pipeline, the point-mass filter, the particle filter, or all three on the same records (default)")
@@ -348,6 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
     corr.add_argument("map", type=Path, help="map: .npz (write_npz) or any grid read_grid reads")
     corr.add_argument("patch", type=Path, help="patch of depths in metres: .npy, .npz or .csv (empty cell = no beam)")
     corr.add_argument("--backend", choices=sorted(BACKENDS), default="software")
+    hardware_options(corr)
     corr.add_argument("--no-mean-compensation", action="store_true", help="plain SAD instead of Nygren's eq. 8.1")
     corr.add_argument("--exclusion-radius", type=int, default=None, help="runner-up exclusion, nodes (default half the patch)")
     corr.add_argument("--lsb-m", type=float, default=None, help="depth word step (default: chosen from the map)")

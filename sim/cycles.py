@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from lost.model import cycles_recursive, cycles_window
+from lost.hdl.variants import variant, window_variant
 from lost.model.shapes import shape_argument
 
 __all__ = ["cycle_table", "main"]
@@ -29,10 +29,10 @@ def cycle_table(
     (H, W), (h, w) = map_shape, patch_shape
     placements = (H - h + 1) * (W - w + 1)
     mask = np.ones(patch_shape, dtype=bool)
-    runs = [("recursive", 1, lambda mc: cycles_recursive.schedule(
-        map_shape, patch_shape, mask, mc, exclusion_radius=exclusion_radius))]
-    runs += [(f"window, {L} lane{'s' if L > 1 else ''}", L, lambda mc, L=L: cycles_window.schedule(
-        map_shape, patch_shape, L, mask, mc, exclusion_radius=exclusion_radius)) for L in lanes]
+    registered = [variant("recursive_correlator"), *(window_variant(L) for L in lanes)]
+    runs = [("recursive" if v.kind == "recursive" else f"window, {v.lanes} lane{'s' if v.lanes > 1 else ''}", v.lanes,
+             lambda mc, v=v: v.schedule(map_shape, patch_shape, mask, mc, exclusion_radius=exclusion_radius))
+            for v in registered]
     rows = []
     for name, _, schedule in runs:
         for mean_compensation in (True, False):

@@ -28,6 +28,7 @@ from cocotb.handle import HierarchyObject
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge, with_timeout
 
 from lost.hdl.interface import CorrelatorParameters, PatchWord, StartCommand, best_fit_payload, comparable_best
+from lost.hdl.variants import Variant, variant, window_variant
 from lost.model import best_fit, correlate
 
 from .streams import Clocking, StreamSink, StreamSource, Transfer, pattern
@@ -72,6 +73,11 @@ class BenchConfig:
         _ = self.parameters  # validates the rest
 
     @property
+    def registered(self) -> Variant:
+        """The registry's entry of this variant and lane count (its module name, cycle model)."""
+        return window_variant(self.lanes) if self.variant == "window" else variant("recursive_correlator")
+
+    @property
     def parameters(self) -> CorrelatorParameters:
         return CorrelatorParameters(
             map_shape=self.map_shape,
@@ -96,19 +102,9 @@ def expected_cycles(
     config: BenchConfig, mask: np.ndarray, mean_compensation: bool
 ) -> tuple[list[int], int]:
     """The cycle model's cycle of every surface beat and of the best beat (ready held high)."""
-    if config.variant == "recursive":
-        from lost.model.cycles_recursive import schedule
-
-        result = schedule(
-            config.map_shape, config.patch_shape, mask, mean_compensation, exclusion_radius=config.exclusion_radius
-        )
-    else:
-        from lost.model.cycles_window import schedule
-
-        result = schedule(
-            config.map_shape, config.patch_shape, config.lanes, mask, mean_compensation,
-            exclusion_radius=config.exclusion_radius,
-        )
+    result = config.registered.schedule(
+        config.map_shape, config.patch_shape, mask, mean_compensation, exclusion_radius=config.exclusion_radius
+    )
     return [int(c) for c in result.surface], int(result.best)
 
 

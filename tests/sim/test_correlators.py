@@ -35,7 +35,7 @@ CASES = [
 
 
 def _module_name(config: BenchConfig) -> str:
-    return "recursive_correlator" if config.variant == "recursive" else f"window_correlator_l{config.lanes}"
+    return config.registered.name
 
 
 @pytest.mark.parametrize("config", CASES)

@@ -19,7 +19,7 @@ from lost.model import correlator_widths
 # Sleeping at once costs a futex wake-up per call instead. A user's own setting wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from . import _sad  # noqa: E402  (after the environment is set)
+from .. import _sad  # noqa: E402  (after the environment is set)
 
 __all__ = ["KERNEL", "software_surface"]
 

@@ -1,0 +1,132 @@
+"""The result every correlator backend returns, and the one place that decides which placements count.
+
+A placement is valid when the patch lies inside the map (the search area may reach past the map's
+edges) and its window covers no hole of the map. Only valid placements can be the best fit or the
+runner-up; :func:`valid_placements` is the hole and edge policy, and :class:`Correlation` carries its
+answer beside the surface, so no caller re-derives it with a sentinel of its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lost.model import BestFit, Placement, best_fit
+
+__all__ = ["Area", "Correlation", "Outcome", "choose_fit", "valid_placements"]
+
+#: ``(i0, j0, rows, cols)``: the placements ``i0 .. i0+rows-1`` by ``j0 .. j0+cols-1`` of a search.
+Area = tuple[int, int, int, int]
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a backend computed for the in-map part of a search.
+
+    Attributes
+    ----------
+    surface : int64 array
+        V over the placements asked for.
+    fit : BestFit or None
+        The best fit the hardware computed over exactly these placements (relative to them), or None
+        when the backend has none (software) or computed over other placements (padding, tiling).
+    cycles : int or None
+        Device clocks of the correlation(s), for a hardware backend.
+    """
+
+    surface: np.ndarray
+    fit: BestFit | None = None
+    cycles: int | None = None
+
+
+@dataclass(frozen=True)
+class Correlation:
+    """One correlation: the surface, the placements that count, the best fit and the runner-up.
+
+    Attributes
+    ----------
+    surface : (rows, cols) int64 array
+        ``surface[r, c]`` is V at map placement ``(origin[0] + r, origin[1] + c)``; 0 where invalid
+        because the placement leaves the map.
+    valid : (rows, cols) bool array
+        The placements inside the map whose window touches no hole.
+    best, runner_up : Placement or None
+        In map placement coordinates; ``best`` is None when no placement is valid, ``runner_up`` when
+        none is valid farther than ``exclusion_radius`` (Chebyshev) from the best.
+    exclusion_radius : int
+        The runner-up's exclusion radius, in nodes.
+    origin : (int, int)
+        The map placement of ``surface[0, 0]``.
+    backend : str
+        The backend's name.
+    best_from : {"hardware", "host"}
+        ``"hardware"`` when the device's own best fit and runner-up are reported (it correlated
+        exactly these placements and every one is valid); ``"host"`` when they were found on the host
+        among the valid placements.
+    cycles : int or None
+        Device clocks, for a hardware backend.
+    """
+
+    surface: np.ndarray
+    valid: np.ndarray
+    best: Placement | None
+    runner_up: Placement | None
+    exclusion_radius: int
+    origin: tuple[int, int]
+    backend: str
+    best_from: str
+    cycles: int | None = None
+
+    @property
+    def any_valid(self) -> bool:
+        return self.best is not None
+
+    @property
+    def distinctness(self) -> float:
+        """Runner-up V over best V (``inf`` without a runner-up, ``nan`` without a best fit)."""
+        if self.best is None:
+            return float("nan")
+        if self.runner_up is None:
+            return float("inf")
+        return self.runner_up.value / max(self.best.value, 1)
+
+
+def valid_placements(
+    map_shape: tuple[int, int], patch_shape: tuple[int, int], area: Area, holes: np.ndarray | None = None
+) -> np.ndarray:
+    """Bool ``(rows, cols)`` over ``area``: the patch lies inside the map and its window covers no hole.
+
+    Raises
+    ------
+    ValueError
+        ``holes`` not a boolean array of the map's shape.
+    """
+    (H, W), (h, w) = map_shape, patch_shape
+    i0, j0, rows, cols = area
+    i = np.arange(i0, i0 + rows)[:, None]
+    j = np.arange(j0, j0 + cols)[None, :]
+    valid = (i >= 0) & (i <= H - h) & (j >= 0) & (j <= W - w)
+    if holes is None:
+        return valid
+    if not isinstance(holes, np.ndarray) or holes.dtype != np.bool_ or holes.shape != (H, W):
+        raise ValueError(f"holes must be a boolean array of the map's shape {(H, W)}, got "
+                         f"{getattr(holes, 'dtype', type(holes).__name__)} {getattr(holes, 'shape', '')}")
+    # Box sum of the hole mask over every window, by a 2-D prefix sum.
+    prefix = np.zeros((H + 1, W + 1), dtype=np.int64)
+    prefix[1:, 1:] = np.cumsum(np.cumsum(holes, axis=0), axis=1)
+    touching = (prefix[h:, w:] - prefix[:-h, w:] - prefix[h:, :-w] + prefix[:-h, :-w]) > 0
+    inside = np.clip(i, 0, H - h), np.clip(j, 0, W - w)
+    return valid & ~touching[inside]
+
+
+def choose_fit(surface: np.ndarray, valid: np.ndarray, exclusion_radius: int) -> BestFit | None:
+    """The best fit and runner-up among the valid placements (relative coordinates); None if none is valid."""
+    if not valid.any():
+        return None
+    ceiling = np.iinfo(np.int64).max
+    fit = best_fit(np.where(valid, surface, ceiling), exclusion_radius=exclusion_radius)
+    runner_up = fit.runner_up
+    if runner_up is not None and not valid[runner_up.i, runner_up.j]:
+        runner_up = None
+    return BestFit(fit.i, fit.j, fit.value, runner_up, fit.exclusion_radius)

@@ -1,0 +1,84 @@
+"""``correlation``: one result type for every backend; the valid placements decided in one place."""
+
+import numpy as np
+import pytest
+
+from lost import model
+from lost.host.correlator import BACKENDS, correlation, valid_placements
+
+
+def _case(seed=3, shape=(40, 50), patch_shape=(6, 5)):
+    rng = np.random.default_rng(seed)
+    terrain = rng.integers(-2000, 2000, shape).astype(np.int16)
+    patch = terrain[11 : 11 + patch_shape[0], 17 : 17 + patch_shape[1]].copy()
+    return terrain, patch
+
+
+@pytest.mark.parametrize("backend", ["software", "model"])
+def test_best_fit_and_runner_up_match_the_model(backend):
+    terrain, patch = _case()
+    result = correlation(terrain, patch, backend=backend, exclusion_radius=2)
+    expected = model.correlate(terrain, patch)
+    fit = model.best_fit(expected, exclusion_radius=2)
+    np.testing.assert_array_equal(result.surface, expected)
+    assert result.valid.all() and result.origin == (0, 0) and result.backend == backend
+    assert result.best == fit.best == model.Placement(11, 17, 0)
+    assert result.runner_up == fit.runner_up and result.best_from == "host"
+
+
+def test_an_area_past_the_edges_marks_those_placements_invalid():
+    terrain, patch = _case()
+    full = model.correlate(terrain, patch)
+    result = correlation(terrain, patch, area=(-3, 40, 10, 12))
+    assert result.surface.shape == result.valid.shape == (10, 12)
+    # Rows -3..-1 and columns past 50 - 5 = 45 leave the map.
+    assert not result.valid[:3].any() and not result.valid[:, 6:].any() and result.valid[3:, :6].all()
+    np.testing.assert_array_equal(result.surface[3:, :6], full[0:7, 40:46])
+    assert (result.surface[~result.valid] == 0).all()
+    valid_values = np.where(result.valid, result.surface, np.iinfo(np.int64).max)
+    r, c = np.unravel_index(np.argmin(valid_values), valid_values.shape)
+    assert result.best == model.Placement(int(r) - 3, int(c) + 40, int(valid_values[r, c]))
+
+
+def test_holes_exclude_every_placement_whose_window_touches_one():
+    terrain, patch = _case()
+    holes = np.zeros(terrain.shape, bool)
+    holes[13, 19] = True  # inside the true placement's window
+    result = correlation(terrain, patch, holes=holes, exclusion_radius=1)
+    valid = result.valid
+    assert not valid[11, 17] and not valid[13 - 5, 19 - 4] and valid[13 - 6, 19] and valid[14, 19]
+    assert valid.sum() == valid.size - 6 * 5
+    assert result.best is not None and not (8 <= result.best.i <= 13 and 15 <= result.best.j <= 19)
+
+
+def test_no_valid_placement_gives_no_best_fit():
+    terrain, patch = _case()
+    holes = np.zeros(terrain.shape, bool)
+    holes[::4, ::4] = True
+    result = correlation(terrain, patch, holes=holes)
+    assert not result.valid.any() and result.best is None and result.runner_up is None and not result.any_valid
+    assert np.isnan(result.distinctness)
+
+
+def test_runner_up_is_none_when_no_valid_placement_lies_outside_the_radius():
+    terrain, _ = _case(shape=(12, 12))
+    patch = terrain[2:8, 3:9].copy()
+    holes = np.zeros(terrain.shape, bool)
+    holes[0, :] = holes[:, 0] = True
+    result = correlation(terrain, patch, holes=holes, exclusion_radius=5, area=(0, 0, 7, 7))
+    assert result.best is not None and result.runner_up is None and result.distinctness == float("inf")
+
+
+def test_valid_placements_refuses_a_hole_mask_of_the_wrong_shape():
+    with pytest.raises(ValueError, match="holes must be a boolean array of the map's shape"):
+        valid_placements((10, 10), (3, 3), (0, 0, 8, 8), np.zeros((9, 10), bool))
+
+
+def test_an_area_without_placements_is_refused():
+    terrain, patch = _case()
+    with pytest.raises(ValueError, match="at least one placement"):
+        correlation(terrain, patch, area=(0, 0, 0, 4))
+
+
+def test_every_backend_is_listed():
+    assert set(BACKENDS) == {"software", "model", "rtl", "fpga"}
