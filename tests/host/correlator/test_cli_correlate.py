@@ -44,7 +44,7 @@ def test_the_fpga_backend_needs_a_port_and_names_a_bad_one(tmp_path, capsys):
     map_path, patch_path = _files(tmp_path)
     assert main(["correlate", map_path, patch_path, "--backend", "fpga"]) == 2
     assert "--backend fpga needs --port" in capsys.readouterr().err
-    assert main(["correlate", map_path, patch_path, "--backend", "fpga", "--port", "/dev/lost-no-such-port"]) == 2
+    assert main(["correlate", map_path, patch_path, "--backend", "fpga", "--port", "/dev/lost-no-such-port"]) == 1  # an input error, not a usage one
     assert "cannot open the serial port '/dev/lost-no-such-port'" in capsys.readouterr().err
     assert main(["correlate", map_path, patch_path, "--port", "/dev/ttyUSB0"]) == 2
     assert "--port is for --backend fpga" in capsys.readouterr().err
