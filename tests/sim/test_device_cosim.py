@@ -182,7 +182,7 @@ def test_a_short_lost_run_is_bit_identical_to_the_golden_model(device):
 
     scenario = Scenario(
         seed=4, duration_s=14.0,
-        terrain=TerrainSpec(shape=(80, 120), roughness_m=10.0, hurst=0.5),
+        terrain=TerrainSpec(shape=(80, 120), mean_depth_m=250.0, roughness_m=10.0, hurst=0.5),  # 200 m of cable reach 170 m down
         ship=ShipSpec(waypoints_m=((300.0, 400.0), (1100.0, 400.0))),
         cable=CableSpec(out_m=200.0),
         sensors={"sonar": SonarSpec(noise=0.2, interval_s=2.0, shape=(6, 6)), "velocity": SensorSpec(noise=0.02)},
