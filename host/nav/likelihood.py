@@ -35,7 +35,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, signal
 
-from ..correlator import correlate
 from ..records import SonarPatch
 from .mapprep import PreparedMap
 
@@ -171,8 +170,7 @@ class TerrainLikelihood:
         if i0 > i1 or j0 > j1:
             shape = np.shape(x)
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
-        residual = self._mean_abs_or_square(words, mask, i0, i1, j0, j1, h, w)
-        valid = ~prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1]
+        residual, valid = self._residuals(words, mask, i0, i1, j0, j1)
         if self.form == "laplace":
             per_node = residual  # mean |r| (metres) at each placement
             ell = -math.sqrt(2.0) * n * per_node / (self.sigma_m * sigma_scale)
@@ -222,11 +220,10 @@ class TerrainLikelihood:
         j0, j1 = max(int(np.floor(cj - reach)), 0), min(int(np.ceil(cj + reach)), cols - w)
         if i0 > i1 or j0 > j1:
             return float("nan")
-        per_node = self._mean_abs_or_square(words, mask, i0, i1, j0, j1, h, w)
+        per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
         if self.form == "gaussian":
             per_node = np.sqrt(per_node)
         score = -per_node / self.sigma_m  # per valid node, in nominal residual units
-        valid = ~prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1]
         ii, jj = np.meshgrid(np.arange(i0, i1 + 1) - ci, np.arange(j0, j1 + 1) - cj, indexing="ij")
         near = valid & (np.maximum(np.abs(ii), np.abs(jj)) * grid.node_m <= exclusion_m)
         far = valid & ~near
@@ -234,14 +231,17 @@ class TerrainLikelihood:
             return float("nan")
         return float(score[near].max() - score[far].max())
 
-    def _mean_abs_or_square(self, words: np.ndarray, mask: np.ndarray, i0: int, i1: int, j0: int, j1: int, h: int, w: int) -> np.ndarray:
-        """Per placement, the mean |residual| (Laplace, from the correlator) or mean residual**2 (Gaussian), metres."""
+    def _residuals(self, words: np.ndarray, mask: np.ndarray, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, np.ndarray]:
+        """Over placements i0..i1 x j0..j1: the mean |residual| (Laplace, from the correlator) or mean residual**2
+        (Gaussian, on the host), metres, and which placements are valid (the map's holes)."""
         prep = self._prep
-        sub = prep.words[i0 : i1 + h, j0 : j1 + w]
         n = int(mask.sum())
         if self.form == "laplace":
-            surface = correlate(sub, words, mask=mask, backend=self._backend)
-            return surface.astype(np.float64) * prep.lsb_m / float(n) ** 2
+            result = prep.correlation(words, mask, (i0, j0, i1 - i0 + 1, j1 - j0 + 1), backend=self._backend)
+            return result.surface.astype(np.float64) * prep.lsb_m / float(n) ** 2, result.valid
+        h, w = words.shape
+        valid = ~prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1]
+        sub = prep.words[i0 : i1 + h, j0 : j1 + w]
         m = sub.astype(np.float64) * prep.lsb_m
         s = np.where(mask, words.astype(np.float64) * prep.lsb_m, 0.0)
         k = mask.astype(np.float64)
@@ -251,7 +251,7 @@ class TerrainLikelihood:
         sum_s, sum_s2 = s.sum(), (s * s).sum()
         sum_d = sum_m - sum_s
         sum_d2 = sum_m2 - 2.0 * sum_ms + sum_s2
-        return np.maximum(sum_d2 - sum_d**2 / n, 0.0) / n
+        return np.maximum(sum_d2 - sum_d**2 / n, 0.0) / n, valid
 
     def depth(self, x_m: np.ndarray, y_m: np.ndarray, ocean_depth_m: float, *, sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
         """Gaussian log-likelihood of one ocean-depth measurement at each (x, y), and where the map informs it.

@@ -18,6 +18,7 @@ from scipy import ndimage
 from lost import model
 from lost.model.correlator import DEPTH_MAX, DEPTH_MIN
 
+from ..correlator import Correlation, correlation
 from ..grid import Grid
 
 __all__ = ["PreparedMap", "LSB_CANDIDATES_M"]
@@ -104,6 +105,14 @@ class PreparedMap:
         prefix[1:, 1:] = np.cumsum(np.cumsum(self._holes, axis=0), axis=1)
         box = prefix[h:, w:] - prefix[:-h, w:] - prefix[h:, :-w] + prefix[:-h, :-w]
         return box > 0
+
+    def correlation(self, words: np.ndarray, mask: np.ndarray, area: tuple[int, int, int, int], *, backend: str) -> Correlation:
+        """The patch's correlation over ``area`` = (i0, j0, rows, cols) of the map's placements, the map's holes applied.
+
+        The whole map goes to the backend (a hardware backend keeps a tile of it resident), and the
+        valid placements come back with the surface: the hole policy is the correlator's, in one place.
+        """
+        return correlation(self._words, words, mask=mask, area=area, holes=self._holes if self._holes.any() else None, backend=backend)
 
     def quantize_patch(self, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """A sonar patch in the map's words, with its valid mask.

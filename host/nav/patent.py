@@ -26,7 +26,6 @@ from collections import Counter
 
 import numpy as np
 
-from ..correlator import correlate
 from ..records import SonarPatch
 from .estimator import Estimate, Motion, Observation
 from .mapprep import PreparedMap
@@ -92,8 +91,8 @@ class _Matcher:
         if area is None:
             return None
         i0, i1, j0, j1 = area
-        surface = correlate(self._prep.words[i0 : i1 + h, j0 : j1 + w], words, mask=mask, backend=self._params.backend)
-        surface = np.where(self._prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1], -1, surface)
+        result = self._prep.correlation(words, mask, (i0, j0, i1 - i0 + 1, j1 - j0 + 1), backend=self._params.backend)
+        surface = np.where(result.valid, result.surface, -1)
         x, y = grid.xy(np.arange(i0, i1 + 1)[:, None] + (h - 1) / 2, np.arange(j0, j1 + 1)[None, :] + (w - 1) / 2)
         value = patch_likelihood(centre[0] - x, centre[1] - y, surface, valid_nodes=valid, lsb_m=self._prep.lsb_m, k=self._params.k)
         if not np.isfinite(value).any():
