@@ -30,12 +30,13 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..config import validate_fields
 from ..shipped import shipped_names, shipped_path
 from .detections import Ping
 from .geometry import Sonar, polar_to_world, world_to_polar
@@ -145,17 +146,8 @@ class Simulation:
 
 
 def _build(cls: type, table: Any, where: str) -> Any:
-    if not isinstance(table, dict):
-        raise ValueError(f"[{where}] must be a table, got {table!r}")
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(table) - known)
-    if unknown:
-        raise ValueError(f"[{where}] has unknown field(s) {unknown}; known ones are {sorted(known)}.")
-    values = {key: tuple(value) if isinstance(value, list) else value for key, value in table.items()}
-    try:
-        return cls(**values)
-    except TypeError as error:
-        raise ValueError(f"[{where}]: {error}") from None
+    """A table of the file as ``cls``, checked first by the strict schema of its type hints (lost.host.config)."""
+    return cls(**validate_fields(cls, table, where))
 
 
 def load_scenario(path: str | Path) -> TrackScenario:
