@@ -215,7 +215,7 @@ def test_the_nees_of_the_filters_on_the_short_tow_lies_in_its_band():
 
     scenario = load_scenario(builtin_scenario_path("short"))
     grid, records = simulate(scenario)
-    result = navigate(records, grid, NavParameters(**{**scenario.navigation, "pf_particles": 3000}), estimators=("pmf", "pf"))
+    result = navigate(records, grid, NavParameters(**scenario.navigation), estimators=("pmf", "pf"))
     summary = summarize(result, name="short", parameters={})
     band = (chi2.ppf(0.025, 2), chi2.ppf(0.975, 2))
     for name in ("pmf", "pf"):
@@ -242,3 +242,23 @@ def test_the_bilinear_read_matches_scipy_and_knows_where_it_is_valid():
     rows, cols = np.meshgrid(np.arange(7.0), np.arange(9.0), indexing="ij")
     value, ok = _bilinear(values, np.ones((7, 9), bool), rows.ravel(), cols.ravel())
     assert ok.all() and np.array_equal(value, values.ravel())
+
+
+def test_the_likelihood_peaks_between_placements_where_the_patch_was_taken():
+    """A patch sounded 4 m and 3 m off the nodes peaks there, not on a node (bilinear reads would snap to one)."""
+    from scipy import ndimage
+
+    grid = _map(seed=7)
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=0.5)
+    truth = np.array([404.0, 397.0])
+    row, col = grid.row_col(*truth)
+    offsets = np.arange(-4, 5)
+    rows, cols = np.meshgrid(row + offsets, col + offsets, indexing="ij")
+    patch = SonarPatch(ndimage.map_coordinates(grid.depth_m, [rows, cols], order=1), NODE)
+    x, y = np.meshgrid(np.arange(390.0, 420.0, 0.5), np.arange(385.0, 410.0, 0.5))
+    result = lik.patch(x, y, patch)
+    best = np.unravel_index(np.argmax(result.log_likelihood), x.shape)
+    assert math.hypot(x[best] - truth[0], y[best] - truth[1]) <= 1.5
+    # Through the placements themselves the interpolation is exact: the correlator's value.
+    on_nodes = lik.patch(np.array([400.0]), np.array([400.0]), patch).log_likelihood[0]
+    assert on_nodes == pytest.approx(result.log_likelihood[(x == 400.0) & (y == 400.0)][0], rel=1e-9)
