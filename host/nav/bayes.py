@@ -43,6 +43,9 @@ class BayesFilter:
         self._trust = Trust(params, node_m=grid.node_m)
         self.counts = self._trust.counts
         self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2 + params.position_floor_m**2
+        # The point form's depth bias: a mean per candidate (the subclass keeps it aligned) and a shared variance.
+        self._depth_bias: np.ndarray = np.zeros(1)
+        self._depth_bias_var = params.depth_bias_sigma_m**2
         self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
 
     # -- what a subclass provides ---------------------------------------------------------------------
@@ -112,12 +115,38 @@ class BayesFilter:
             self._stage = "tracking" if self._trust.usable else "acquisition"
 
     def _depth_update(self, ocean_depth_m: float) -> None:
+        """The single-depth form with its depth bias, Rao-Blackwellized: each candidate's own bias estimate.
+
+        Measured minus map is bias plus noise. Given a candidate's history the bias is linear-Gaussian,
+        so each candidate carries the mean of a scalar Kalman filter on it (``_depth_bias``, the shape
+        of the candidates; the variance ``_depth_bias_var`` is the same for all, their measurements
+        being alike): the candidate is weighed by its innovation against that variance plus the
+        measurement's, and its bias mean moves by the gain. Off the map: the expected value at the
+        truth (-1/2), no bias update.
+        """
         x, y, _ = self._candidates()
-        ell, informative = self._lik.depth(x, y, ocean_depth_m, sigma_m=self._lik.depth_sigma_m)
+        residual, informative = self._lik.depth_residual(x, y, ocean_depth_m)
         if not informative.any():
             self._no_information("depth_off_map")
             return
-        self._apply(ell * self._p.likelihood_weight, terrain=True)
+        variance = self._lik.depth_sigma_m**2 + self._depth_bias_var
+        innovation = residual - self._depth_bias
+        ell = np.where(informative, -0.5 * innovation**2 / variance, -0.5)
+        before = self._depth_bias
+        gain = self._depth_bias_var / variance
+        self._depth_bias = proposed = np.where(informative, before + gain * innovation, before)
+        if self._apply(ell * self._p.likelihood_weight, terrain=True):
+            self._depth_bias_var *= 1.0 - gain
+        elif self._depth_bias is proposed:  # refused, and not re-initialized (which lays biases of its own)
+            self._depth_bias = before
+
+    @property
+    def depth_bias_m(self) -> tuple[float, float]:
+        """The single-depth form's depth-bias estimate (measured minus map), metres, and its 1-sigma."""
+        _, _, mass = self._candidates()
+        mean = float(np.sum(mass * self._depth_bias) / np.sum(mass))
+        spread = float(np.sum(mass * (self._depth_bias - mean) ** 2) / np.sum(mass))
+        return mean, math.sqrt(self._depth_bias_var + spread)
 
     def _range_update(self, observation: Observation) -> None:
         frame = observation.frame

@@ -273,16 +273,14 @@ class TerrainLikelihood:
         sum_d2 = sum_m2 - 2.0 * sum_ms + sum_s2
         return np.maximum(sum_d2 - sum_d**2 / n, 0.0) / n, valid
 
-    def depth(self, x_m: np.ndarray, y_m: np.ndarray, ocean_depth_m: float, *, sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
-        """Gaussian log-likelihood of one ocean-depth measurement at each (x, y), and where the map informs it.
+    def depth_residual(self, x_m: np.ndarray, y_m: np.ndarray, ocean_depth_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The measured ocean depth minus the map's at each (x, y) (bilinear), and where the map informs it.
 
-        The map is interpolated bilinearly; off the map or next to a hole the value is the expected
-        one at the true position (-1/2).
+        Off the map or next to a hole the residual is 0 and not informative.
         """
         grid = self._grid
         row, col = grid.row_col(np.asarray(x_m, float), np.asarray(y_m, float))
         coords = np.stack([np.ravel(row), np.ravel(col)])
         depth = ndimage.map_coordinates(grid.depth_m, coords, order=1, mode="constant", cval=np.nan).reshape(np.shape(row))
         informative = np.isfinite(depth)
-        ell = np.where(informative, -0.5 * ((ocean_depth_m - np.where(informative, depth, 0.0)) / sigma_m) ** 2, -0.5)
-        return ell, informative
+        return np.where(informative, ocean_depth_m - np.where(informative, depth, 0.0), 0.0), informative

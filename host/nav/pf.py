@@ -1,6 +1,8 @@
 """The particle filter: the same likelihood as the point-mass filter, carried by weighted samples.
 
-State of each particle: position (east, north) and the velocity sensor's bias (east, north), so the
+State of each particle: position (east, north), the velocity sensor's bias (east, north) and, for
+the single-depth form, the mean of its depth-bias estimate (Rao-Blackwellized, see
+``BayesFilter._depth_update``), so the
 bias that shifts every real-time match is estimated inside the filter (the point-mass filter
 estimates it beside itself). Motion: ``x += (v_measured - b) dt`` plus the error growth of
 :mod:`lost.host.nav.trust`; the bias walks by ``velocity_bias_walk_mps`` per square-root second.
@@ -59,9 +61,10 @@ class ParticleFilter(BayesFilter):
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
         self._search: tuple[np.ndarray, float] | None = None  # after a re-initialization: the square to search
 
-    def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None) -> None:
+    def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None, depth_bias_m: float = 0.0) -> None:
         """Particles around ``centre``: Gaussian of ``sigma_m``, or flat over a square of ``half_width_m``."""
         n = self._n
+        self._depth_bias = np.full(n, depth_bias_m)
         if sigma_m is not None:
             xy = centre + self._rng.normal(0.0, sigma_m, (n, 2))
         else:
@@ -103,6 +106,7 @@ class ParticleFilter(BayesFilter):
         self._y += (v[1] - self._b[1]) * dt + sigma * noise[1]
         if walk > 0:
             self._b += walk * noise[2:]
+        self._depth_bias_var += self._p.depth_bias_walk_m**2 * dt
         self._moved(dt, float(np.hypot(*v)) * dt)
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
@@ -118,6 +122,7 @@ class ParticleFilter(BayesFilter):
         jitter = ROUGHENING_K * (xy.max(axis=0) - xy.min(axis=0)) * self._n ** (-1.0 / 2)
         xy += self._rng.standard_normal(xy.shape) * jitter
         self._x, self._y, self._b = xy[:, 0].copy(), xy[:, 1].copy(), self._b[:, index]
+        self._depth_bias = self._depth_bias[index]
         self._w, self._cached = np.full(self._n, 1.0 / self._n), None
         self.counts["resamples"] += 1
 
@@ -140,7 +145,9 @@ class ParticleFilter(BayesFilter):
     def _reinitialize(self) -> None:
         mean, _ = self._moments()
         half = self._p.pmf_sigmas * self._p.initial_sigma_m
-        self._spawn(mean, half, None)
+        # The depth bias was learned where the cloud was: its mean stays, its confidence goes.
+        self._spawn(mean, half, None, depth_bias_m=self.depth_bias_m[0])
+        self._depth_bias_var = max(self._depth_bias_var, self._p.depth_bias_sigma_m**2)
         self._search = (mean, half)
 
     def _before_patch(self, patch, weight: float) -> None:

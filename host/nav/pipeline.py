@@ -127,6 +127,11 @@ class NavParameters:
     velocity_bias_sigma_mps, velocity_bias_walk_mps : float
         The particle filter's prior on the velocity bias (1-sigma, m/s) and its random walk (m/s per
         square-root second).
+    depth_bias_sigma_m, depth_bias_walk_m : float
+        The single-depth (point) form's depth bias, measured ocean depth minus the map (tide, a
+        pressure-depth error, a datum): its prior 1-sigma, metres, and its random walk, metres per
+        square-root second. Defaults 3 m and 0.002 (0.2 m in three hours). The patch form needs no
+        such state: mean compensation removes a constant bias.
     slant_range_sigma_m : float
         1-sigma of a slant range for the filters, which take it as a measurement (gated), not as the
         patent's correction.
@@ -199,6 +204,8 @@ class NavParameters:
     velocity_bias_time_s: float | None = 600.0
     velocity_bias_sigma_mps: float = 0.05
     velocity_bias_walk_mps: float = 0.0005
+    depth_bias_sigma_m: float = 3.0
+    depth_bias_walk_m: float = 0.002
     slant_range_sigma_m: float = 3.0
     position_floor_nodes: float = 0.1
     position_floor_m: float = 2.3
@@ -234,7 +241,7 @@ class NavParameters:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
         for name in ("position_floor_nodes", "position_floor_m", "velocity_noise_mps", "gyro_bias_rps", "accel_bias_mps2",
-                     "velocity_bias_sigma_mps", "velocity_bias_walk_mps"):
+                     "velocity_bias_sigma_mps", "velocity_bias_walk_mps", "depth_bias_sigma_m", "depth_bias_walk_m"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number, at least 0, got {value!r}.")

@@ -30,6 +30,13 @@ A real-time patch's centre is reckoned back with the measured velocity, so a vel
 every match by b times the patch's age, and the prediction drifts by b per second. As Nygren advises
 (section 5), the bias is estimated separately: each accepted update's correction of the mean, divided
 by the time since the previous one, is averaged with a time constant ``velocity_bias_time_s``.
+
+Depth bias
+----------
+The single-depth (point) form compares the measured ocean depth with the map, so a tide or a
+pressure-depth error reads as terrain elsewhere. Each cell carries its own estimate of that bias
+(a scalar Kalman filter given the cell's history, Rao-Blackwellized; see ``BayesFilter._depth_update``),
+moved with its mass through the motion's blur and the re-gridding.
 """
 
 from __future__ import annotations
@@ -49,6 +56,12 @@ __all__ = ["PointMassFilter", "PMF_CELLS_PER_NODE"]
 
 #: The finest cells a side of a map node, by default (``pmf_min_cell_m``).
 PMF_CELLS_PER_NODE = 10
+
+
+def _ratio(weighted: np.ndarray, mass: np.ndarray, fallback: float) -> np.ndarray:
+    """``weighted / mass`` where there is mass to speak of, ``fallback`` elsewhere."""
+    has_mass = mass > 1e-300
+    return np.where(has_mass, weighted / np.where(has_mass, mass, 1.0), fallback)
 
 
 class PointMassFilter(BayesFilter):
@@ -85,13 +98,17 @@ class PointMassFilter(BayesFilter):
         half = max(half_width_m, self._min_half)
         n = int(min(self._p.pmf_cells, max(math.ceil(2.0 * half / self._min_cell), 8)))
         old = (self._centre, self._cell, self._n) if density is not None else None
+        bias_mean = self.depth_bias_m[0] if self._depth_bias.size > 1 else 0.0
+        old_bias = self._depth_bias
         self._centre, self._n, self._cell = np.asarray(centre, float).copy(), n, 2.0 * half / n
         if old is None:
             self._p_grid = np.full((n, n), 1.0 / n**2)
+            self._depth_bias = np.full((n, n), bias_mean)
             return
         carried = self._splat(density, *old)
         total = carried.sum()
         self._p_grid = carried / total if total > 0 else np.full((n, n), 1.0 / n**2)
+        self._depth_bias = _ratio(self._splat(density * old_bias, *old), carried, bias_mean)
         self.counts["regrids"] += 1
         # A coarse cell's mass was spread over the cell, not on its centre: keep that spread on finer cells.
         old_cell = old[1]
@@ -152,6 +169,7 @@ class PointMassFilter(BayesFilter):
         shift = (np.asarray(motion.velocity_mps, float) - self.velocity_bias_mps) * motion.dt_s
         self._centre = self._centre + shift
         self._pending_var += self._trust.growth_variance(motion.dt_s)
+        self._depth_bias_var += self._p.depth_bias_walk_m**2 * motion.dt_s
         self._since_bias_update_s += motion.dt_s
         if self._pending_var >= (0.5 * self._cell) ** 2:
             self._diffuse()
@@ -163,6 +181,9 @@ class PointMassFilter(BayesFilter):
         blurred = ndimage.gaussian_filter(self._p_grid, sigma_cells, mode="constant", truncate=3.0)
         total = blurred.sum()
         if total > 0:
+            # Each cell's depth bias: the mass-weighted mean of the biases its mass came from.
+            carried_bias = ndimage.gaussian_filter(self._p_grid * self._depth_bias, sigma_cells, mode="constant", truncate=3.0)
+            self._depth_bias = _ratio(carried_bias, blurred, self.depth_bias_m[0])
             self._p_grid = blurred / total
         # Mass that spread past the edge is gone from the grid; its variance is not: add it to the cells.
         self._pending_var = 0.0
@@ -177,6 +198,8 @@ class PointMassFilter(BayesFilter):
     def _reinitialize(self) -> None:
         mean, _ = self._moments()
         self._lay(mean, self._p.pmf_sigmas * self._p.initial_sigma_m, None)  # flat: maximum likelihood next
+        # The depth bias was learned where the density was: its mean stays, its confidence goes.
+        self._depth_bias_var = max(self._depth_bias_var, self._p.depth_bias_sigma_m**2)
 
     def _candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         x, y = np.broadcast_arrays(*self._cells())

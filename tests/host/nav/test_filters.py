@@ -262,3 +262,37 @@ def test_the_likelihood_peaks_between_placements_where_the_patch_was_taken():
     # Through the placements themselves the interpolation is exact: the correlator's value.
     on_nodes = lik.patch(np.array([400.0]), np.array([400.0]), patch).log_likelihood[0]
     assert on_nodes == pytest.approx(result.log_likelihood[(x == 400.0) & (y == 400.0)][0], rel=1e-9)
+
+
+def _point_tow(kind, grid, depth_bias_sigma_m, *, bias=4.0, steps=100):
+    """A point-form tow (one ocean depth a record) whose depths read ``bias`` deeper than the map: errors of the last 30."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(2)
+    params = _quiet(matching="point", initial_sigma_m=40.0, depth_bias_sigma_m=depth_bias_sigma_m, depth_bias_walk_m=0.0,
+                    usable_updates=5)
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=0.5, depth_sigma_m=0.5)
+    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=1)
+    truth = np.array([500.0, 200.0])
+    f.start(0.0, truth + (20.0, -25.0), _observation())
+    errors = []
+    for k in range(steps):
+        truth = truth + (3.0, 9.0)
+        f.predict(Motion(dt_s=1.0, velocity_mps=np.array([3.0, 9.0])))
+        row, col = grid.row_col(*truth)
+        depth = float(ndimage.map_coordinates(grid.depth_m, [[row], [col]], order=1)[0]) + bias + rng.normal(0.0, 0.3)
+        f.update(Observation(t_s=float(k), frame=None, patch=None, ocean_depth_m=depth, vehicle_depth_m=0.0, slant_range_m=np.nan))
+        errors.append(np.hypot(*(f.estimate().position - truth)))
+    return f, np.array(errors[-30:])
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_the_point_form_estimates_a_depth_bias_and_is_lost_without_it(kind):
+    grid = _map(shape=(160, 100))
+    f, errors = _point_tow(kind, grid, depth_bias_sigma_m=4.0)
+    mean, sigma = f.depth_bias_m
+    assert abs(mean - 4.0) < 0.3 and sigma < 0.5
+    assert np.sqrt(np.mean(errors**2)) < 3.0
+    # Without the state the 4 m reads as terrain elsewhere: tens of metres off, refusals, a re-initialization.
+    f, errors = _point_tow(kind, grid, depth_bias_sigma_m=0.0)
+    assert np.sqrt(np.mean(errors**2)) > 10.0 and f.counts["rejected_gate"] > 5
