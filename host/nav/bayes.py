@@ -42,11 +42,24 @@ class BayesFilter:
         self._p = params
         self._trust = Trust(params, node_m=grid.node_m)
         self.counts = self._trust.counts
-        self._floor_var = (params.position_floor_nodes * grid.node_m) ** 2 + params.position_floor_m**2
+        node_part = (params.position_floor_nodes * grid.node_m) ** 2
+        self._floor_var_acquisition = node_part + params.position_floor_m**2
+        self._floor_var_tracking = node_part + params.position_floor_tracking_m**2
         # The point form's depth bias: a mean per candidate (the subclass keeps it aligned) and a shared variance.
         self._depth_bias: np.ndarray = np.zeros(1)
         self._depth_bias_var = params.depth_bias_sigma_m**2
         self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
+
+    @property
+    def _floor_var(self) -> float:
+        """The density's least variance, each axis: wide while acquiring, the tracking floor once usable.
+
+        Before it is usable a filter has not learned its misfit level nor its velocity bias, and a
+        narrow density would commit to a neighbouring peak of the likelihood (on ``short``, 8-20 m
+        off for two minutes); once usable, the wide floor would only misstate its precision (NEES
+        mostly below its band).
+        """
+        return self._floor_var_tracking if self._trust.usable else self._floor_var_acquisition
 
     # -- what a subclass provides ---------------------------------------------------------------------
 

@@ -79,7 +79,7 @@ class PointMassFilter(BayesFilter):
 
     def __init__(self, likelihood: TerrainLikelihood, params, *, grid: Grid, name: str = "pmf") -> None:
         super().__init__(likelihood, params, grid=grid, name=name)
-        floor = math.sqrt(self._floor_var)
+        floor = math.sqrt(self._floor_var_acquisition)
         # Cells fine enough to resolve the floor's width, a grid wide enough for four of it.
         self._min_cell = params.pmf_min_cell_m if params.pmf_min_cell_m is not None else max(grid.node_m / PMF_CELLS_PER_NODE, floor / 2.0)
         self._min_half = max(2.0 * grid.node_m, 4.0 * floor)
