@@ -296,3 +296,24 @@ def test_the_point_form_estimates_a_depth_bias_and_is_lost_without_it(kind):
     # Without the state the 4 m reads as terrain elsewhere: tens of metres off, refusals, a re-initialization.
     f, errors = _point_tow(kind, grid, depth_bias_sigma_m=0.0)
     assert np.sqrt(np.mean(errors**2)) > 10.0 and f.counts["rejected_gate"] > 5
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_a_slant_range_outlier_is_refused_by_its_innovation(kind):
+    """A range 40 m off (a multipath reply) is refused and counted; a good one is used. The moment NIS alone passed such ranges."""
+    from lost.host.nav.stages import TrackFrame
+
+    grid = _map(shape=(120, 80))
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(use_slant_range=True, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
+    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=2)
+    f.start(0.0, np.array([400.0, 300.0]), _observation())
+    position = _track(f, grid, (400.0, 300.0), 8)
+    ship = TrackFrame(400.0, 300.0 + 1000.0, 180.0)  # 1000 m north of the vehicle's start, the vehicle behind it
+    before = f.estimate().position
+    truth_range = math.hypot(*(position - (ship.ship_x_m, ship.ship_y_m)))
+    f.update(_observation(slant=truth_range - 40.0, frame=ship))
+    assert f.counts["range_rejected_innovation"] == 1 and "innovation" in f.estimate().rejected
+    np.testing.assert_allclose(f.estimate().position, before, atol=1e-9)
+    f.update(_observation(slant=truth_range + 0.5, frame=ship))
+    assert f.counts["range_updates"] == 1
