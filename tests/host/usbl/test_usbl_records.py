@@ -189,3 +189,32 @@ def test_records_refuse_a_partial_fix_and_a_bad_covariance():
         NavRecords(**base, usbl_x_m=ones, usbl_y_m=ones, usbl_sxx=ones, usbl_syy=ones, usbl_sxy=2 * ones)
     with pytest.raises(ValueError, match="usbl_travel_time_s must be positive seconds, got -1.0 at record 0"):
         NavRecords(**base, usbl_travel_time_s=-ones)
+
+
+# ------------------------------------------------------------------ the INS+USBL scenario loader, strict
+
+
+@pytest.mark.parametrize(("body", "message"), [
+    ('[tow]\nspeed_m_s = "2"\n', r"s.toml: tow.speed_m_s \(m/s\): Input should be a valid number, got '2' \(str\)"),
+    ("seed = 2.5\n", r"s.toml: seed: Input should be a valid integer, got 2.5"),
+    ("[usbl]\nlever_arm_m = [0, 0]\n", r"s.toml: usbl.lever_arm_m.2 \(metres\): Field required"),
+    ("duration_s = nan\n", r"s.toml: duration_s \(seconds\): Input should be a finite number"),
+    ("[faults]\ndropout_rate = true\n", r"s.toml: faults.dropout_rate: Input should be a valid number, got True \(bool\)"),
+    ("folder = \"/tmp\"\n", r"s.toml: unknown key\(s\) \['folder'\]"),
+    ("[imu]\ngyro_bias = 0.1\n", r"s.toml \[imu\]: unknown key\(s\) \['gyro_bias'\]"),
+])
+def test_the_usbl_scenario_loader_is_strict(tmp_path, body, message):
+    from lost.host.usbl.scenario import load_usbl_scenario
+
+    path = tmp_path / "s.toml"
+    path.write_text('name = "x"\n' + body)
+    with pytest.raises(ValueError, match=message):
+        load_usbl_scenario(path)
+
+
+def test_the_usbl_scenario_loader_reads_the_shipped_one_as_before():
+    from lost.host.usbl.scenario import load_usbl_scenario
+
+    scenario = load_usbl_scenario("usbl_turns")
+    assert scenario.tow.course[1] == (600.0, 0.3) and scenario.usbl.lever_arm_m == (0.0, 0.0, 20.0)
+    assert scenario.faults.bad_delay_s == (0.015, 0.1) and scenario.folder is not None and scenario.folder.name == "scenarios"
