@@ -127,9 +127,23 @@ def _print_summary(summary: dict, out: Path) -> None:
             cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
             print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
     print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    _print_usbl(summary)
     for warning in summary.get("warnings", ()):
         print(f"warning: {warning}")
     print(f"wrote {out}/track.csv, summary.json, map.png" + (", error.png" if summary["truth_known"] else ""))
+
+
+def _print_usbl(summary: dict) -> None:
+    """One line on the USBL's share, when the records had one."""
+    counts = summary.get("counts", {})
+    fixes = {name: stats.get("counts", {}).get("fix_updates", 0) for name, stats in summary["methods"].items() if "counts" in stats}
+    traced, unused = counts.get("slant_range_ray_traced", 0), counts.get("usbl_travel_time_without_profile", 0)
+    recentred = counts.get("usbl_fix_recentred", 0)
+    if not (traced or unused or recentred or any(fixes.values())):
+        return
+    used = ", ".join(f"{name} {n}" for name, n in fixes.items() if n)
+    print(f"USBL: {traced} slant ranges ray-traced ({summary.get('sound_speed_profile')}), {unused} travel times unused for want of a "
+          f"profile; fixes used: {used or 'none'}{f', LOST re-centred on {recentred}' if recentred else ''}")
 
 
 def _setting(text: str) -> tuple[str, object]:
@@ -210,6 +224,10 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
     with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
         grid, records = simulate(scenario)
+        usbl = scenario.sensors["usbl"]
+        if usbl.enabled and params.reference_depth_m != usbl.transducer_depth_m:
+            warnings.append(f"[navigation] reference_depth_m ({params.reference_depth_m:g} m) is not the USBL transducer's depth "
+                            f"([sensors.usbl] transducer_depth_m = {usbl.transducer_depth_m:g} m): the rays start at the wrong depth")
         summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator),
                             profile=profile, profile_source=source)
     _print_summary(summary, out)

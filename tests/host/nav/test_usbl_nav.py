@@ -296,3 +296,17 @@ def test_lost_run_svp_names_a_bad_cast(tmp_path, usbl_tow, capsys):
     (tmp_path / "cast.csv").write_text("depth_m,sound_speed_m_s\n0,1540\n100,1530\n")
     assert main([*_recorded(tmp_path, usbl_tow), "--svp", str(tmp_path / "cast.csv"), "--out", str(tmp_path / "o")]) == 1
     assert "cast.csv: the cast's position is unknown" in capsys.readouterr().err
+
+
+def test_lost_run_on_a_usbl_scenario_says_what_the_usbl_did_and_warns_of_a_wrong_transducer_depth(tmp_path, capsys):
+    import json
+
+    from lost.host.cli import main
+
+    text = builtin_scenario_path("usbl_nav").read_text().replace("duration_s = 1800", "duration_s = 120")
+    (tmp_path / "u.toml").write_text(text)
+    assert main(["run", str(tmp_path / "u.toml"), "--estimator", "pmf", "--set", "reference_depth_m=0", "--out", str(tmp_path / "o")]) == 0
+    printed = capsys.readouterr().out
+    assert "USBL: " in printed and "slant ranges ray-traced ([sensors.usbl] cast scs_june)" in printed and "fixes used: pmf" in printed
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert any("reference_depth_m (0 m) is not the USBL transducer's depth" in w for w in summary["warnings"])
