@@ -60,8 +60,10 @@ def range_errors(records, profile, reference_depth_m: float) -> dict:
     vertical = records.vehicle_depth_m[pinged] - reference_depth_m
     straight = float(profile.speed_at(reference_depth_m)) * records.usbl_travel_time_s[pinged]
     straight_h = np.sqrt(np.maximum(straight**2 - vertical**2, 0.0))
+    begin = time.perf_counter()
     ray_h = np.array([_ray(profile, t, reference_depth_m, d) for t, d in zip(records.usbl_travel_time_s[pinged], records.vehicle_depth_m[pinged])])
-    out = {}
+    ray_ms = (time.perf_counter() - begin) * 1e3 / max(len(pinged), 1)
+    out = {"ray_trace_ms_per_ping": round(ray_ms, 3)}
     for name, horizontal in (("straight", straight_h), ("ray", ray_h)):
         error = horizontal - true
         error = error[np.isfinite(error)]  # a GPS dropout leaves no true range to compare with
@@ -117,11 +119,13 @@ def _cell(value, digits=2) -> str:
 def print_tables(runs: list[dict]) -> None:
     for run_ in runs:
         ranges = run_["ranges"]
+        times = ", ".join(f"{variant} {row['run_time_s']} s" for variant, row in run_["variants"].items())
         print(f"\n### {run_['scenario']}, seed {run_['seed']}\n")
         print(f"Horizontal range minus the true one: straight (constant transducer-depth speed) mean {ranges['straight']['mean_m']} m, "
               f"median |error| {ranges['straight']['median_abs_m']} m; ray-traced mean {ranges['ray']['mean_m']} m, median |error| "
               f"{ranges['ray']['median_abs_m']} m. USBL fixes: {ranges['fix']['fixes']} of {ranges['fix']['pings']} replies, RMS "
-              f"{ranges['fix']['rms_m']} m, median {ranges['fix']['median_m']} m.\n")
+              f"{ranges['fix']['rms_m']} m, median {ranges['fix']['median_m']} m. Ray trace: {ranges['ray_trace_ms_per_ping']} ms per ping "
+              f"(the navigation runs: {times}).\n")
         print("RMS / p95 / max after convergence (\"never\": not within 20 m for 60 s), [RMS over the whole run after 60 s]; "
               "NEES in band over the terrain updates after convergence / over every record after 60 s.\n")
         print("| USBL use | LOST (m) | PMF (m) | PMF NEES in band | PMF false fixes | PF (m) | PF NEES in band | PF false fixes |")
