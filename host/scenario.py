@@ -20,6 +20,10 @@ The physics, kept simple and stated
   swath is delivered gridded on the map's nodes as an h x w patch centred on the vehicle (what
   ``lost.host.sonar`` produces from real soundings) every ``interval_s``, with missing beams; a
   real-time swath patch is centred behind the vehicle, on the pings already received.
+- USBL (``[sensors.usbl]``, off by default): the ship's USBL replies ray-traced through a sound-speed
+  cast with range-dependent noise, dropouts and multipath, and the fixes ``lost.host.usbl`` makes of
+  them with their covariance (:class:`UsblSpec`); its own random stream, so a scenario's other
+  readings do not change when it is switched on.
 """
 
 from __future__ import annotations
