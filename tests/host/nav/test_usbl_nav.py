@@ -194,8 +194,21 @@ def test_the_patent_pipeline_takes_a_fix_only_after_cat_restart_s_without_a_matc
         np.testing.assert_array_equal(answer.position, [400.0, 400.0])
     answer = _step(estimator, 31.0, fix)
     assert answer.stage == "usbl_fix" and not answer.usable
-    np.testing.assert_array_equal(answer.position, fix)
+    # The start's 50 m spread against the fix's 5 m: the first fix is taken nearly whole (weight 2500 / 2530).
+    spread = 50.0**2 + _quiet().position_floor_m**2
+    np.testing.assert_allclose(answer.position, [400.0, 400.0] + spread / (spread + 25.0) * (fix - [400.0, 400.0]), rtol=1e-12)
     assert estimator.counts["usbl_fix_recentred"] == 1
+
+
+def test_the_patent_pipeline_averages_successive_fixes_through_its_dead_reckoning():
+    estimator = _patent()
+    rng = np.random.default_rng(5)
+    truth = np.array([430.0, 380.0])
+    fixes = truth + rng.normal(0.0, 5.0, (200, 2))
+    positions = np.array([_step(estimator, float(t), fixes[t - 1]).position for t in range(1, 201)])
+    settled = positions[60:]
+    # The position floor (2.3 m) keeps a weight of at least 0.17 on each 5 m fix: the scatter at least halves.
+    assert np.sqrt(np.mean(np.sum((settled - truth) ** 2, axis=1))) < 0.5 * np.sqrt(np.mean(np.sum((fixes[60:] - truth) ** 2, axis=1)))
 
 
 def test_the_patent_pipeline_gates_an_outlier_fix_and_gives_in_after_reinit_after():
