@@ -24,9 +24,6 @@ import numpy as np
 from ..correlator import BACKENDS
 from ..grid import Grid
 from ..records import NavRecords
-
-if TYPE_CHECKING:
-    from ..usbl.sound import SoundSpeedProfile
 from .estimator import Estimator, Motion, Observation
 from .likelihood import LIKELIHOODS, TerrainLikelihood, map_error_estimate
 from .mapprep import PreparedMap
@@ -34,6 +31,9 @@ from .patent import PatentEstimator
 from .pf import ParticleFilter
 from .pmf import PointMassFilter
 from .stages import CrossTrackTracker, TrackFrame, layback_position, state_update
+
+if TYPE_CHECKING:
+    from ..usbl.sound import SoundSpeedProfile
 
 __all__ = ["NavParameters", "NavResult", "FilterTrack", "ESTIMATORS", "navigate", "run_lost", "layback_distance"]
 
@@ -359,9 +359,10 @@ def run_lost(
     *,
     prepared: PreparedMap | None = None,
     progress: Callable[[Iterable[int]], Iterable[int]] | None = None,
+    profile: SoundSpeedProfile | None = None,
 ) -> NavResult:
     """The LOST patent pipeline alone (and both baselines) over a tow: ``navigate(..., estimators=("lost",))``."""
-    return navigate(records, grid, params, estimators=("lost",), prepared=prepared, progress=progress)
+    return navigate(records, grid, params, estimators=("lost",), prepared=prepared, progress=progress, profile=profile)
 
 
 def make_estimators(names: Iterable[str], prepared: PreparedMap, params: NavParameters, counts: Counter) -> list[Estimator]:
