@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-nav bench-track bench-usbl synth clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test bench bench-nav bench-nav-usbl bench-track bench-usbl synth clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -34,6 +34,11 @@ bench: setup
 # build/bench/nav_filters.json.
 bench-nav: setup
 	$(BIN)/python benchmarks/nav_filters.py
+
+# LOST and the terrain filters with a USBL on the shipped usbl_nav scenario, three seeds (about 2 minutes):
+# without it, with a constant-speed slant range, the ray-traced one, the fix; build/bench/nav_usbl.json.
+bench-nav-usbl: setup
+	$(BIN)/python benchmarks/nav_usbl.py --seeds 1414 1 2
 
 # Every goal of the contact-tracking issue on seeded simulated runs, the Stone Soup GM-PHD baseline
 # included (about 5 minutes here): a table on stdout and build/track/goals.json.

@@ -3,7 +3,7 @@
 ::
 
     lost run SCENARIO.toml [--out DIR]                  a simulated tow (a file, or a built-in name)
-    lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--out DIR]
+    lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
     lost demo [--out runs/demo]                         the built-in scenario "demo"
     lost correlate MAP PATCH                            best fit and runner-up of a patch on a map
     lost track DETECTIONS.csv|SCENARIO [--out DIR]      sonar contact tracking (lost.host.track.cli)
@@ -94,13 +94,17 @@ def _estimators(choice: str) -> tuple[str, ...]:
 
 
 def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str],
-              estimators: tuple[str, ...] = ESTIMATORS) -> dict:
+              estimators: tuple[str, ...] = ESTIMATORS, profile=None, profile_source: str | None = None) -> dict:
     from .report import plot_run, summarize, write_summary, write_track_csv
 
+    if profile is None and np.isfinite(records.usbl_travel_time_s).any():
+        warnings.append("the records have USBL travel times but no sound-speed profile was given (--svp CAST.csv): "
+                        "they are not used; the straight-line slant_range_m is, where there is one")
     start = time.perf_counter()
-    result = navigate(records, grid, params, estimators=estimators, progress=_progress(len(records)))
+    result = navigate(records, grid, params, estimators=estimators, progress=_progress(len(records)), profile=profile)
     elapsed = time.perf_counter() - start
     summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
+    summary["sound_speed_profile"] = profile_source
     summary["warnings"] = list(warnings)
     write_track_csv(out / "track.csv", result)
     write_summary(out / "summary.json", summary)
@@ -123,9 +127,23 @@ def _print_summary(summary: dict, out: Path) -> None:
             cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
             print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
     print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    _print_usbl(summary)
     for warning in summary.get("warnings", ()):
         print(f"warning: {warning}")
     print(f"wrote {out}/track.csv, summary.json, map.png" + (", error.png" if summary["truth_known"] else ""))
+
+
+def _print_usbl(summary: dict) -> None:
+    """One line on the USBL's share, when the records had one."""
+    counts = summary.get("counts", {})
+    fixes = {name: stats.get("counts", {}).get("fix_updates", 0) for name, stats in summary["methods"].items() if "counts" in stats}
+    traced, unused = counts.get("slant_range_ray_traced", 0), counts.get("usbl_travel_time_without_profile", 0)
+    recentred = counts.get("usbl_fix_recentred", 0)
+    if not (traced or unused or recentred or any(fixes.values())):
+        return
+    used = ", ".join(f"{name} {n}" for name, n in fixes.items() if n)
+    print(f"USBL: {traced} slant ranges ray-traced ({summary.get('sound_speed_profile')}), {unused} travel times unused for want of a "
+          f"profile; fixes used: {used or 'none'}{f', LOST re-centred on {recentred}' if recentred else ''}")
 
 
 def _setting(text: str) -> tuple[str, object]:
@@ -185,15 +203,33 @@ def _scenario_path(text: str) -> Path:
     return path if path.suffix == ".toml" or path.exists() else builtin_scenario_path(text)
 
 
+def _svp(path: Path | None):
+    """``--svp``: the sound-speed profile of a cast CSV (lost.host.usbl.sound), its layers within 5 cm/s of the cast."""
+    if path is None:
+        return None
+    from .usbl.sound import SoundSpeedProfile, read_cast
+
+    return SoundSpeedProfile.from_cast(read_cast(path), tolerance_m_s=0.05)
+
+
 def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int:
-    from .scenario import load_scenario, simulate
+    from .scenario import load_scenario, simulate, usbl_profile
 
     scenario = load_scenario(path)
     params = _parameters(args, scenario.navigation)
+    svp = getattr(args, "svp", None)
+    # --svp wins over the scenario's own cast (to see what another profile does to the same replies).
+    profile = _svp(svp) if svp is not None else usbl_profile(scenario)
+    source = str(svp) if svp is not None else (f"[sensors.usbl] cast {scenario.sensors['usbl'].cast}" if profile is not None else None)
     out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
     with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
         grid, records = simulate(scenario)
-        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator))
+        usbl = scenario.sensors["usbl"]
+        if usbl.enabled and params.reference_depth_m != usbl.transducer_depth_m:
+            warnings.append(f"[navigation] reference_depth_m ({params.reference_depth_m:g} m) is not the USBL transducer's depth "
+                            f"([sensors.usbl] transducer_depth_m = {usbl.transducer_depth_m:g} m): the rays start at the wrong depth")
+        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator),
+                            profile=profile, profile_source=source)
     _print_summary(summary, out)
     return 0
 
@@ -218,6 +254,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
     params = _parameters(args, {})
+    profile = _svp(args.svp)
     out = args.out = args.out or Path("runs") / Path(args.log).stem
     with run_folder(out, replace=args.replace) as folder, _warnings_collected() as warnings:
         grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
@@ -226,7 +263,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(report.summary())
         warnings += [*report.warnings, *check_against_map(records, grid)]
         summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings,
-                            estimators=_estimators(args.estimator))
+                            estimators=_estimators(args.estimator), profile=profile, profile_source=None if args.svp is None else str(args.svp))
     _print_summary(summary, out)
     return 0
 
@@ -367,6 +404,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default) or the middle of its soundings (a swath gathered in real time, behind the vehicle)")
     run.add_argument("--config", type=Path, default=None, metavar="FILE",
                      help="navigation parameters from the [navigation] table of FILE (a scenario file), over a scenario's own; --set wins")
+    run.add_argument("--svp", type=Path, default=None, metavar="CAST.csv",
+                     help="sound-speed cast (lost.host.usbl.sound's CSV): the log's usbl_travel_time_s is ray-traced into the "
+                          "slant range, which wins over slant_range_m; with a scenario, over its [sensors.usbl] cast")
     navigation_options(run)
     run.set_defaults(handler=_cmd_run)
 

@@ -50,7 +50,8 @@ Fraction = Annotated[float, Field(ge=0, le=1)]
 FiniteFloat = float  # strict mode already refuses NaN and infinities (allow_inf_nan=False)
 
 # Unit of a field, from the ending of its name: the house names every quantity with its unit.
-_UNITS = (("_mps2", "m/s^2"), ("_mps", "m/s"), ("_per_s", "1/s"), ("_dps", "degrees/s"), ("_deg", "degrees"), ("_kn", "knots"),
+_UNITS = (("_mps2", "m/s^2"), ("_mps", "m/s"), ("_m_s2", "m/s^2"), ("_m_s", "m/s"),  # lost.host.usbl writes m/s as _m_s
+          ("_per_s", "1/s"), ("_dps", "degrees/s"), ("_deg", "degrees"), ("_kn", "knots"),
           ("_hz", "hertz"), ("_m", "metres"), ("_s", "seconds"))
 
 

@@ -23,6 +23,15 @@ The navigation log
     ``speed_mps``, ``course_deg`` two pairs  or speed over ground and course (clockwise from north)
     ``cable_out_m``             yes          cable paid out, metres
     ``slant_range_m``           no           ship to vehicle, metres (all NaN when absent)
+    ``usbl_travel_time_s``      no           one-way USBL travel time, ship transducer to the
+                                             vehicle's transponder, seconds; with a sound-speed
+                                             profile (``lost run --svp``) the navigation ray-traces
+                                             it into the slant range, which then wins over
+                                             ``slant_range_m``
+    ``usbl_x_m``, ``usbl_y_m``, no (all      the USBL fix of the vehicle (easting, northing in the
+    ``usbl_sxx``, ``usbl_syy``, five or      map's CRS, metres) and its covariance (east variance,
+    ``usbl_sxy``                none)        north variance, covariance; m**2); a row has all five or
+                                             none; only in an ``x_m``/``y_m`` log
     ``truth_x_m``, ``truth_y_m`` no          the vehicle's true position (trials with a
                                              reference, simulations); ``truth_lat``/``truth_lon``
                                              in degrees are projected like the ship's
@@ -100,7 +109,8 @@ _POSITION_FORMS = (("x_m", "y_m"), ("lat", "lon"))
 _VELOCITY_FORMS = (("vel_x_mps", "vel_y_mps"), ("speed_mps", "course_deg"))
 _TRUTH_FORMS = (("truth_x_m", "truth_y_m"), ("truth_lat", "truth_lon"))
 _PATCH_CENTRE_FORMS = (("patch_east_m", "patch_north_m"),)
-_OPTIONAL = ("slant_range_m",)
+_USBL_FIX = ("usbl_x_m", "usbl_y_m", "usbl_sxx", "usbl_syy", "usbl_sxy")
+_OPTIONAL = ("slant_range_m", "usbl_travel_time_s", *_USBL_FIX)
 NAVLOG_COLUMNS = (
     _TIME_COLUMNS + _SINGLE_REQUIRED + sum(_POSITION_FORMS, ()) + sum(_VELOCITY_FORMS, ()) + _OPTIONAL + sum(_TRUTH_FORMS, ())
     + sum(_PATCH_CENTRE_FORMS, ())
@@ -303,6 +313,7 @@ def read_navlog(
 
     impossible = _impossible_readings(values, kept_rows, lines, path)
     geographic = position == ("lat", "lon")
+    usbl = _usbl_columns(values, columns, kept_rows, lines, path, geographic, notes)
     if geographic:
         if crs is None:
             raise ValueError(f"{path.name} gives positions as lat/lon; pass crs= (the map's projected CRS) to project them")
@@ -359,6 +370,7 @@ def read_navlog(
         sonar=sonar_patches,
         truth_x_m=truth_x,
         truth_y_m=truth_y,
+        **usbl,
     )
     warnings = zone_warnings + impossible + _check_motion(records, kept_rows, lines, path, time_column, geographic)
     report = LoadReport(
@@ -400,6 +412,8 @@ def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | o
     }
     if records.has_truth:
         names |= {"truth_x_m": "truth_x_m", "truth_y_m": "truth_y_m"}
+    if records.has_usbl:
+        names |= {name: name for name in ("usbl_travel_time_s", *_USBL_FIX)}
     table = pd.DataFrame({column: getattr(records, attribute) for column, attribute in names.items()})
     if any(patch is not None and patch.centre_offset_m != (0.0, 0.0) for patch in records.sonar):
         centres = np.array([patch.centre_offset_m if patch is not None else (np.nan, np.nan) for patch in records.sonar])
@@ -730,6 +744,9 @@ def _check_zones(column, lines, notes: list) -> list[str]:
     return []
 
 
+#: The longest one-way travel time believed (about 15 km of water; the longest-range USBLs reach about 11 km).
+MAX_USBL_TRAVEL_TIME_S = 10.0
+
 #: Readings no tow can give: (column, test of the impossible values, why). Such a reading is set to missing and counted.
 _IMPOSSIBLE = (
     ("altitude_m", lambda v: v < 0, "a negative height above the floor"),
@@ -738,13 +755,50 @@ _IMPOSSIBLE = (
     ("vehicle_depth_m", lambda v: v > DEEPEST_M, "deeper than any sea"),
     ("cable_out_m", lambda v: v < 0, "a negative cable length"),
     ("slant_range_m", lambda v: v < 0, "a negative range"),
+    ("usbl_travel_time_s", lambda v: v <= 0, "a travel time not after the ping"),
+    ("usbl_travel_time_s", lambda v: v > MAX_USBL_TRAVEL_TIME_S, f"longer than {MAX_USBL_TRAVEL_TIME_S:g} s, beyond any USBL's reach"),
 )
+
+
+def _usbl_columns(values: dict, columns: dict, rows: np.ndarray, lines, path: Path, geographic: bool, notes: list) -> dict:
+    """The USBL series for NavRecords (absent ones stay None): the fix's five columns come together, each row whole."""
+    found = {}
+    if "usbl_travel_time_s" in columns:
+        found["usbl_travel_time_s"] = values["usbl_travel_time_s"]
+    present = [c for c in _USBL_FIX if c in columns]
+    if not present:
+        return found
+    if len(present) < len(_USBL_FIX):
+        raise ValueError(f"{path.name} has the USBL fix column(s) {', '.join(present)} but lacks "
+                         f"{', '.join(c for c in _USBL_FIX if c not in columns)}: a fix needs all five")
+    if geographic:
+        raise ValueError(f"{path.name} gives ship positions as lat/lon but the USBL fix as usbl_x_m/usbl_y_m; give the log in x_m/y_m "
+                         "(the map's CRS), where the fix and its covariance are in the same axes")
+    fix = np.stack([values[c] for c in _USBL_FIX])
+    given = np.isfinite(fix)
+    partial = np.flatnonzero(given.any(axis=0) & ~given.all(axis=0))
+    if partial.size:
+        k = int(partial[0])
+        empty = [c for c, ok in zip(_USBL_FIX, given[:, k]) if not ok]
+        raise ValueError(f"{path.name}: the USBL fix at {_where(int(rows[k]), lines)} lacks {', '.join(empty)} ({partial.size} such row(s)); "
+                         "a row has all five fix values or none")
+    sxx, syy, sxy = fix[2:]
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(given.all(axis=0) & ~((sxx > 0) & (syy > 0) & (sxy * sxy < sxx * syy)))
+    if bad.size:
+        k = int(bad[0])
+        raise ValueError(f"{path.name}: the USBL fix at {_where(int(rows[k]), lines)} has no covariance (usbl_sxx={sxx[k]:g}, "
+                         f"usbl_syy={syy[k]:g}, usbl_sxy={sxy[k]:g} m**2): variances must be positive and usbl_sxy**2 < usbl_sxx * usbl_syy")
+    notes.append(f"{int(given.all(axis=0).sum())} USBL fix(es) read")
+    return found | {c: values[c] for c in _USBL_FIX}
 
 
 def _impossible_readings(values: dict, rows: np.ndarray, lines, path: Path) -> list[str]:
     """Set physically impossible readings to missing (NaN) and say how many; refuse a cable always shorter than the depth."""
     warnings = []
     for column, test, why in _IMPOSSIBLE:
+        if column not in values:  # an optional column the log does not have
+            continue
         with np.errstate(invalid="ignore"):
             bad = np.flatnonzero(test(values[column]))
         if bad.size:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-__all__ = ["NavRecords", "SonarPatch"]
+__all__ = ["NavRecords", "SonarPatch", "USBL_FIELDS"]
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,12 @@ class NavRecords:
     cable_out_m : cable paid out, metres; drives the lay-back model.
     sonar : one :class:`SonarPatch` (or None) per record; empty when the tow has no swath sonar.
     truth_x_m, truth_y_m : the vehicle's true position when known (simulations), else None.
+    usbl_travel_time_s : one-way acoustic travel time from the ship's USBL transducer to the vehicle's
+        transponder, seconds; NaN when no reply (the navigation ray-traces it into a slant range).
+    usbl_x_m, usbl_y_m : the USBL fix of the vehicle (easting, northing), metres; NaN without one.
+    usbl_sxx, usbl_syy, usbl_sxy : the fix's covariance (east variance, north variance, their
+        covariance), m**2; a fix comes with all five values or none.
+    The six USBL series are optional: None (the default) means no USBL, stored as NaN.
     """
 
     t_s: np.ndarray
@@ -70,6 +76,12 @@ class NavRecords:
     sonar: tuple[SonarPatch | None, ...] = field(default_factory=tuple)
     truth_x_m: np.ndarray | None = None
     truth_y_m: np.ndarray | None = None
+    usbl_travel_time_s: np.ndarray | None = None
+    usbl_x_m: np.ndarray | None = None
+    usbl_y_m: np.ndarray | None = None
+    usbl_sxx: np.ndarray | None = None
+    usbl_syy: np.ndarray | None = None
+    usbl_sxy: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(np.asarray(self.t_s))
@@ -83,7 +95,10 @@ class NavRecords:
             if value is None:
                 if f.name in ("truth_x_m", "truth_y_m"):
                     continue
-                raise ValueError(f"{f.name} is missing")
+                if f.name in USBL_FIELDS:
+                    value = np.full(n, np.nan)
+                else:
+                    raise ValueError(f"{f.name} is missing")
             array = np.asarray(value, dtype=np.float64)
             if array.shape != (n,):
                 raise ValueError(f"{f.name} has shape {array.shape}, expected ({n},) like t_s")
@@ -100,9 +115,49 @@ class NavRecords:
                 f"({backwards.size} such record(s))"
             )
 
+        _check_usbl(self)
+
     def __len__(self) -> int:
         return len(self.t_s)
 
     @property
     def has_truth(self) -> bool:
         return self.truth_x_m is not None
+
+    @property
+    def has_usbl(self) -> bool:
+        """Whether any record has a USBL travel time or fix."""
+        return bool(np.isfinite(self.usbl_travel_time_s).any() or np.isfinite(self.usbl_x_m).any())
+
+    def usbl_fix(self, n: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The USBL fix of record ``n``: (east, north) and its 2 x 2 covariance, or None."""
+        if not np.isfinite(self.usbl_x_m[n]):
+            return None
+        sxy = self.usbl_sxy[n]
+        return (np.array([self.usbl_x_m[n], self.usbl_y_m[n]]), np.array([[self.usbl_sxx[n], sxy], [sxy, self.usbl_syy[n]]]))
+
+
+#: The optional USBL series of :class:`NavRecords`; the fix is the last five, all or none per record.
+USBL_FIELDS = ("usbl_travel_time_s", "usbl_x_m", "usbl_y_m", "usbl_sxx", "usbl_syy", "usbl_sxy")
+
+
+def _check_usbl(records: NavRecords) -> None:
+    """Refuse a travel time that is no time and a fix that is partial or whose covariance is no covariance."""
+    travel = records.usbl_travel_time_s
+    bad = np.flatnonzero(np.isfinite(travel) & ~(travel > 0)) if travel.size else np.array([], int)
+    if bad.size:
+        raise ValueError(f"usbl_travel_time_s must be positive seconds, got {float(travel[bad[0]])!r} at record {int(bad[0])}")
+    x, y, sxx, syy, sxy = (getattr(records, name) for name in USBL_FIELDS[1:])
+    given = np.isfinite(np.stack([x, y, sxx, syy, sxy]))
+    partial = np.flatnonzero(given.any(axis=0) & ~given.all(axis=0))
+    if partial.size:
+        k = int(partial[0])
+        missing = [name for name, ok in zip(USBL_FIELDS[1:], given[:, k]) if not ok]
+        raise ValueError(f"the USBL fix of record {k} lacks {', '.join(missing)}: a fix needs usbl_x_m, usbl_y_m, usbl_sxx, usbl_syy, "
+                         f"usbl_sxy together ({partial.size} such record(s))")
+    with np.errstate(invalid="ignore"):
+        not_covariance = given.all(axis=0) & ~((sxx > 0) & (syy > 0) & (sxy * sxy < sxx * syy))
+    if not_covariance.any():
+        k = int(np.flatnonzero(not_covariance)[0])
+        raise ValueError(f"the USBL fix of record {k} has no covariance: usbl_sxx={sxx[k]:g}, usbl_syy={syy[k]:g}, usbl_sxy={sxy[k]:g} "
+                         "must be variances (m**2, positive) with usbl_sxy**2 < usbl_sxx * usbl_syy")

@@ -20,6 +20,10 @@ The physics, kept simple and stated
   swath is delivered gridded on the map's nodes as an h x w patch centred on the vehicle (what
   ``lost.host.sonar`` produces from real soundings) every ``interval_s``, with missing beams; a
   real-time swath patch is centred behind the vehicle, on the pings already received.
+- USBL (``[sensors.usbl]``, off by default): the ship's USBL replies ray-traced through a sound-speed
+  cast with range-dependent noise, dropouts and multipath, and the fixes ``lost.host.usbl`` makes of
+  them with their covariance (:class:`UsblSpec`); its own random stream, so a scenario's other
+  readings do not change when it is switched on.
 """
 
 from __future__ import annotations
@@ -50,6 +54,8 @@ __all__ = [
     "SensorSpec",
     "SonarSpec",
     "SlantRangeSpec",
+    "UsblSpec",
+    "usbl_profile",
     "MapSpec",
     "FaultSpec",
     "load_scenario",
@@ -229,8 +235,48 @@ class SlantRangeSpec(SensorSpec):
     enabled: bool = True
 
 
+@dataclass(frozen=True, kw_only=True)
+class UsblSpec:
+    """``[sensors.usbl]``: the ship's USBL pinging the vehicle's transponder through a sound-speed profile.
+
+    enabled : False (the default) simulates no USBL, and draws nothing from the scenario's random stream.
+    cast : a shipped cast's name (``lost.host.usbl`` data, e.g. ``"scs_june"``) or a cast CSV path (relative to
+        the scenario; layout in ``lost.host.usbl.sound``); it must reach the vehicle's depth.
+    interval_s : seconds between pings (a reply lands on the record of its ping).
+    transducer_depth_m : depth of the ship's transducer (the navigation's ``reference_depth_m`` should match).
+    travel_time_noise_s : 1-sigma noise of the one-way travel time.
+    phase_noise_rad, noise_growth_per_km, frequency_hz, baseline_m : the array (``lost.host.usbl.UsblArray``): the
+        phase noise grows by ``1 + noise_growth_per_km * slant range in km``.
+    tilt_noise_deg : 1-sigma noise of the ship's roll and pitch (the true ones are zero: a level ship).
+    dropout_rate, dropout_rate_per_km : probability that a ping has no reply: ``dropout_rate +
+        dropout_rate_per_km * slant range in km``.
+    outlier_rate, outlier_delay_s : probability of a multipath reply, late by uniform [0, outlier_delay_s].
+
+    Each reply is traced through the cast's layers (``lost.host.usbl.reply_from_geometry``) from the true ship
+    to the true vehicle at the ping's record (the vehicle's motion during the travel time is neglected), then
+    noised; the fix is ``lost.host.usbl.usbl_fix`` on the noisy reply with the ship's recorded GPS position,
+    heading and the vehicle's recorded depth, whose noise levels (``[sensors.gps]``, ``[sensors.heading]``,
+    ``[sensors.depth]``) go into its covariance. A ping whose recorded inputs are missing has a travel time but no fix.
+    """
+
+    enabled: bool = False
+    cast: str = "scs_june"
+    interval_s: PositiveFloat = 2.0
+    transducer_depth_m: NonNegativeFloat = 5.0
+    travel_time_noise_s: PositiveFloat = 2e-5
+    phase_noise_rad: PositiveFloat = 0.008
+    noise_growth_per_km: NonNegativeFloat = 0.5
+    frequency_hz: PositiveFloat = 20000.0
+    baseline_m: PositiveFloat = 0.035
+    tilt_noise_deg: NonNegativeFloat = 0.02
+    dropout_rate: Fraction = 0.05
+    dropout_rate_per_km: NonNegativeFloat = 0.0
+    outlier_rate: Fraction = 0.0
+    outlier_delay_s: NonNegativeFloat = 0.05
+
+
 _SENSORS = {"gps": SensorSpec, "heading": SensorSpec, "depth": SensorSpec, "altimeter": SensorSpec,
-            "velocity": SensorSpec, "sonar": SonarSpec, "slant_range": SlantRangeSpec}
+            "velocity": SensorSpec, "sonar": SonarSpec, "slant_range": SlantRangeSpec, "usbl": UsblSpec}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -543,13 +589,15 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
         slant = _read(rng, true_range, slant_spec)
     else:
         slant = np.full(t.size, np.nan)
+    recorded = {"ship": gps, "heading_deg": ship_heading, "depth_m": _read(rng, depths, sensors["depth"])}
+    usbl = _usbl_pings(scenario, np.column_stack([ship_x, ship_y]), heading, truth, depths, recorded)
 
     return grid, NavRecords(
         t_s=t,
         ship_x_m=gps[:, 0],
         ship_y_m=gps[:, 1],
         ship_heading_deg=ship_heading,
-        vehicle_depth_m=_read(rng, depths, sensors["depth"]),
+        vehicle_depth_m=recorded["depth_m"],
         altitude_m=_read(rng, floor_below - depths, sensors["altimeter"]),
         vel_x_mps=measured_velocity[:, 0],
         vel_y_mps=measured_velocity[:, 1],
@@ -558,7 +606,76 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
         sonar=_sonar_patches(rng, floor, grid.node_m, truth, measured_velocity, sensors["sonar"], scenario.rate_hz),
         truth_x_m=truth[:, 0],
         truth_y_m=truth[:, 1],
+        **usbl,
     )
+
+
+def usbl_profile(scenario: Scenario):
+    """The sound-speed profile of the scenario's ``[sensors.usbl]`` cast, or None when it has no USBL."""
+    spec = scenario.sensors["usbl"]
+    if not spec.enabled:
+        return None
+    from .usbl.scenario import shipped_cast_path
+    from .usbl.sound import SoundSpeedProfile, read_cast
+
+    path = scenario.base_dir / spec.cast if spec.cast.endswith(".csv") else shipped_cast_path(spec.cast)
+    # The layers keep every sample within 5 cm/s of the cast: what lost.host.usbl's own simulator uses.
+    return SoundSpeedProfile.from_cast(read_cast(path), tolerance_m_s=0.05)
+
+
+def _usbl_array(scenario: Scenario):
+    from .usbl.fix import UsblArray
+
+    spec, sensors = scenario.sensors["usbl"], scenario.sensors
+    # The fix's covariance takes the recorded inputs' noise; UsblArray needs it positive, a millimetre is none.
+    return UsblArray(frequency_hz=spec.frequency_hz, baseline_m=spec.baseline_m, lever_arm_m=(0.0, 0.0, spec.transducer_depth_m),
+                     antenna_height_m=0.0, phase_noise_rad=spec.phase_noise_rad, travel_time_noise_s=spec.travel_time_noise_s,
+                     tilt_noise_rad=math.radians(spec.tilt_noise_deg), heading_noise_rad=math.radians(sensors["heading"].noise),
+                     gnss_noise_m=max(sensors["gps"].noise, 1e-3), depth_noise_m=max(sensors["depth"].noise, 1e-3),
+                     noise_growth_per_km=spec.noise_growth_per_km)
+
+
+def _usbl_pings(scenario: Scenario, ship: np.ndarray, heading_deg: np.ndarray, truth: np.ndarray, depth: np.ndarray,
+                recorded: dict) -> dict[str, np.ndarray]:
+    """The ``[sensors.usbl]`` series of NavRecords (empty without a USBL): travel times and fixes (see UsblSpec)."""
+    spec = scenario.sensors["usbl"]
+    if not spec.enabled:
+        return {}
+    from .usbl.fix import reply_from_geometry, usbl_fix
+
+    profile, array = usbl_profile(scenario), _usbl_array(scenario)
+    if depth.max() > profile.bottom_m or depth.min() <= spec.transducer_depth_m:
+        raise ValueError(f"sensors.usbl.cast {spec.cast!r} spans {profile.depth_m[0]:g}-{profile.bottom_m:g} m but the vehicle goes from "
+                         f"{depth.min():.0f} to {depth.max():.0f} m (the transducer at {spec.transducer_depth_m:g} m): use a deeper cast")
+    rng = np.random.default_rng([scenario.seed, 14])  # its own stream: the other sensors' draws do not change
+    n = truth.shape[0]
+    out = {name: np.full(n, np.nan) for name in ("usbl_travel_time_s", "usbl_x_m", "usbl_y_m", "usbl_sxx", "usbl_syy", "usbl_sxy")}
+    every = max(int(round(spec.interval_s * scenario.rate_hz)), 1)
+    tilt = math.radians(spec.tilt_noise_deg)
+    for k in range(0, n, every):
+        slant_km = math.hypot(math.hypot(*(truth[k] - ship[k])), depth[k] - spec.transducer_depth_m) / 1000.0
+        if rng.random() < spec.dropout_rate + spec.dropout_rate_per_km * slant_km:
+            continue
+        travel, phase_x, phase_y = reply_from_geometry(profile, array, roll_rad=0.0, pitch_rad=0.0, heading_rad=math.radians(heading_deg[k]),
+                                                       antenna_north_m=ship[k, 1], antenna_east_m=ship[k, 0], target_north_m=truth[k, 1],
+                                                       target_east_m=truth[k, 0], target_depth_m=depth[k])
+        noise = array.phase_noise_at(slant_km * 1000.0)
+        travel += rng.normal(0.0, spec.travel_time_noise_s) + (rng.uniform(0.0, spec.outlier_delay_s) if rng.random() < spec.outlier_rate else 0.0)
+        phase_x, phase_y = phase_x + rng.normal(0.0, noise), phase_y + rng.normal(0.0, noise)
+        roll, pitch = rng.normal(0.0, tilt, 2)
+        out["usbl_travel_time_s"][k] = travel
+        inputs = (recorded["ship"][k, 0], recorded["ship"][k, 1], recorded["heading_deg"][k], recorded["depth_m"][k])
+        if not np.all(np.isfinite(inputs)):
+            continue
+        try:
+            fix = usbl_fix(profile, array, travel_time_s=travel, roll_rad=roll, pitch_rad=pitch, heading_rad=math.radians(inputs[2]),
+                           antenna_north_m=inputs[1], antenna_east_m=inputs[0], target_depth_m=inputs[3], phase_x_rad=phase_x, phase_y_rad=phase_y)
+        except ValueError:  # a reply the depth cannot explain (a late multipath one, say) gives no fix, as on a real USBL
+            continue
+        (syy, sxy), (_, sxx) = fix.covariance_ne  # (north, east) to (east, north)
+        out["usbl_x_m"][k], out["usbl_y_m"][k] = fix.east_m, fix.north_m
+        out["usbl_sxx"][k], out["usbl_syy"][k], out["usbl_sxy"][k] = sxx, syy, sxy
+    return out
 
 
 def _sonar_patches(

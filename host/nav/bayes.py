@@ -98,8 +98,13 @@ class BayesFilter:
             self._terrain_update(observation)
         elif self._p.matching == "point" and math.isfinite(observation.ocean_depth_m):
             self._depth_update(observation.ocean_depth_m)
+        fixed = self._p.use_usbl_fix and observation.fix_position_m is not None and self._fix_update(observation)
         if self._p.use_slant_range and math.isfinite(observation.slant_range_m) and observation.frame is not None:
-            self._range_update(observation)
+            if fixed:
+                # The fix's range along the line of sight is this travel time's: one measurement is not used twice.
+                self.counts["range_in_fix"] += 1
+            else:
+                self._range_update(observation)
         self._trust.watch(self._moments()[1])
 
     def _before_patch(self, patch, weight: float) -> None:
@@ -196,23 +201,44 @@ class BayesFilter:
         variance = float(direction @ cov @ direction) + self._p.slant_range_sigma_m**2
         return (horizontal_m - predicted) ** 2 / variance
 
+    def _fix_update(self, observation: Observation) -> bool:
+        """The USBL fix as a Gaussian position measurement with its covariance, gated like a range; True when used.
+
+        The fix's innovation NIS, ``(z - m)' (P + R)^-1 (z - m)`` with the density's moments, is gated first
+        (the same ``gate_nis``): exact for a Gaussian fix, and a particle cloud cannot represent a posterior far
+        from itself, so the moment NIS of ``_apply`` alone would understate a far outlier (a multipath reply).
+        """
+        mean, cov = self._moments()
+        fix, fix_cov = observation.fix_position_m, observation.fix_covariance_m2
+        innovation = fix - mean
+        if float(innovation @ np.linalg.solve(cov + fix_cov, innovation)) > self._p.gate_nis:
+            self._reject("gate", False, "fix")
+            return False
+        x, y, _ = self._candidates()
+        dx, dy = x - fix[0], y - fix[1]
+        info = np.linalg.inv(fix_cov)
+        return self._apply(-0.5 * (info[0, 0] * dx * dx + 2.0 * info[0, 1] * dx * dy + info[1, 1] * dy * dy), terrain=False, kind="fix")
+
     def _no_information(self, reason: str) -> None:
         self.counts[reason] += 1
         self._stage = "off_map"
 
-    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool) -> bool:
-        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used."""
+    def _apply(self, log_likelihood: np.ndarray, *, terrain: bool, kind: str = "range") -> bool:
+        """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used.
+
+        ``kind`` names a non-terrain measurement in the counts: ``"range"`` or ``"fix"`` (a USBL fix).
+        """
         prior_mean, prior_cov = self._moments()
         proposal = self._reweigh(log_likelihood)
         if proposal is None:
-            self._reject("underflow", terrain)
+            self._reject("underflow", terrain, kind)
             return False
         posterior, post_mean, post_cov = proposal
         value = nis(prior_mean, prior_cov, post_mean, post_cov)
         if terrain:
             self._nis = value
         if value > self._p.gate_nis:
-            self._reject("gate", terrain)
+            self._reject("gate", terrain, kind)
             return False
         self._accept(posterior, post_cov, post_mean - prior_mean, terrain)
         if terrain:
@@ -220,15 +246,19 @@ class BayesFilter:
             self._stage = "tracking" if self._trust.usable else "acquisition"
             self.counts["terrain_updates"] += 1
         else:
-            self.counts["range_updates"] += 1
-            self._trust.range_outcome(refused=False)
+            self.counts[f"{kind}_updates"] += 1
+            if kind == "range":
+                self._trust.range_outcome(refused=False)
         return True
 
-    def _reject(self, reason: str, terrain: bool) -> None:
-        self._rejected = reason if not self._rejected else f"{self._rejected},{reason}"
+    def _reject(self, reason: str, terrain: bool, kind: str = "range") -> None:
+        label = reason if terrain or kind == "range" else f"{kind}_{reason}"
+        self._rejected = label if not self._rejected else f"{self._rejected},{label}"
         if not terrain:
-            self.counts[f"range_rejected_{reason}"] += 1
-            self._trust.range_outcome(refused=True)
+            self.counts[f"{kind}_rejected_{reason}"] += 1
+            # The trust rules watch the slant ranges only; a refused fix is counted, the terrain decides usability.
+            if kind == "range":
+                self._trust.range_outcome(refused=True)
             return
         self._stage = "rejected"
         if self._trust.rejected(reason):

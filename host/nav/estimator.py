@@ -32,6 +32,7 @@ STAGES = (
     "patch",           # the patent pipeline: its MLE came from a sonar patch
     "point",           # the patent pipeline: its MLE came from a single depth
     "reinitialized",   # the filter widened its search after divergence
+    "usbl_fix",        # the patent pipeline: a USBL fix re-centred its dead reckoning (no MLE for cat_restart_s)
 )
 
 
@@ -79,7 +80,12 @@ class Observation:
     vehicle_depth_m : float
         The last measured vehicle depth (for the slant range's vertical leg).
     slant_range_m : float
-        Ship to vehicle.
+        Ship to vehicle: ray-traced from the USBL's travel time when the loop has a sound-speed profile,
+        else the record's straight-line ``slant_range_m`` (see :mod:`lost.host.nav.pipeline`).
+    fix_position_m : (2,) array or None
+        The USBL fix of the vehicle (east, north), metres; None without one.
+    fix_covariance_m2 : (2, 2) array or None
+        Its covariance, m**2.
     """
 
     t_s: float
@@ -88,6 +94,8 @@ class Observation:
     ocean_depth_m: float
     vehicle_depth_m: float
     slant_range_m: float
+    fix_position_m: np.ndarray | None = None
+    fix_covariance_m2: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,13 @@ One record at a time, as in the patent's Figure 6 (US 09/599,868):
   and counted (``search_area_off_map``); a best fit on such a cut side may really lie beyond it, so it
   is not taken as a fix (``patch_edge_match``, ``point_edge_match``).
 - CAT (eqs. 4-7) at each MLE, with dt the time since its previous update; along track the MLE.
-- SRC (eq. 8) whenever a slant range is measured and passes the gate.
+- SRC (eq. 8) whenever a slant range is measured and passes the gate (ray-traced from the USBL's travel
+  time when the record loop has a sound-speed profile).
+- USBL fix (not in the patent): at a record without an MLE, once the last MLE is more than
+  ``cat_restart_s`` old, a USBL fix that agrees with the prediction re-centres the dead reckoning,
+  weighed against it (see ``_recentre``): the fixes carry the estimate through terrain gaps, and the
+  terrain's MLE and CAT take over again at the next match. The SRC is not applied on top (the fix
+  holds the same range). Without fixes in the records nothing changes.
 
 The patent carries no covariance: the estimate's covariance is NaN, and it counts as usable while its
 last MLE is at most ``cat_restart_s`` old.
@@ -150,12 +156,16 @@ class PatentEstimator:
         self._last_update_t = float("nan")
         self._t = float("nan")
         self._dt = 0.0
+        self._anchor_t, self._anchor_var, self._fixes_refused = float("nan"), float("nan"), 0
         self._stage = "uninitialized"
         self.last: dict = {}
 
     def start(self, t_s: float, position: np.ndarray, observation: Observation) -> None:
         self._position = np.asarray(position, float).copy()
         self._last_update_t = self._t = t_s
+        # The last position the USBL gate trusts, and its variance per axis (the start: the lay-back's spread).
+        self._anchor_t, self._anchor_var = t_s, self._p.initial_sigma_m**2
+        self._fixes_refused = 0
         self._stage = "initialization"
         self.last = {"predicted": self._position.copy()}
 
@@ -199,8 +209,48 @@ class PatentEstimator:
                 position = self.last["cat"] = frame.position(frame.along(found), cross)
                 self.last["cross_velocity_mps"] = self._tracker.velocity_mps
                 self._last_update_t = observation.t_s
+        if found is None and self._recentre(observation):
+            self._stage = "usbl_fix"
+            return
         self._position = self._slant_range(position, observation)
         self._stage = p.matching if found is not None else ("off_map" if self.last["off_map"] else "dead_reckoning")
+        if found is not None:
+            self._anchor_t, self._anchor_var, self._fixes_refused = observation.t_s, 0.0, 0
+
+    def _recentre(self, observation: Observation) -> bool:
+        """Re-centre the dead reckoning on a USBL fix when there has been no MLE for ``cat_restart_s``; True when done.
+
+        The patent has no covariance. Here the dead reckoning gets a spread per axis: its last anchor's
+        (``initial_sigma_m`` at the start, none at an MLE, what the last fix left) plus the velocity noise
+        grown since and the position floor. The fix is gated against the prediction under that spread
+        plus the fix's covariance (``gate_nis``: a late multipath reply is refused, a prediction that
+        drifted in a long gap is not) and moves it by the weights of the two (a Kalman step: the first
+        fix after the start is taken nearly whole, later ones are averaged with the dead reckoning
+        between them). After ``reinit_after`` fixes refused in a row the prediction is taken for the
+        wrong one (an earlier fix that passed was itself off) and the next fix is taken whole
+        (``usbl_fix_forced``), as the filters re-initialize after refused updates.
+        """
+        p = self._p
+        if not (p.use_usbl_fix and observation.fix_position_m is not None) or observation.t_s - self._last_update_t <= p.cat_restart_s:
+            return False
+        spread = (self._anchor_var + (p.velocity_noise_mps * (observation.t_s - self._anchor_t)) ** 2 + p.position_floor_m**2) * np.eye(2)
+        fix, fix_cov = observation.fix_position_m, observation.fix_covariance_m2
+        d = fix - self._position
+        total = fix_cov + spread
+        forced = float(d @ np.linalg.solve(total, d)) > p.gate_nis
+        if forced and self._fixes_refused < p.reinit_after:
+            self._fixes_refused += 1
+            self.counts["usbl_fix_gated"] += 1
+            return False
+        self.counts["usbl_fix_forced" if forced else "usbl_fix_recentred"] += 1
+        self._fixes_refused = 0
+        if forced:
+            self._position, left = fix.copy(), fix_cov
+        else:
+            gain = spread @ np.linalg.inv(total)
+            self._position, left = self._position + gain @ d, (np.eye(2) - gain) @ spread
+        self._anchor_t, self._anchor_var = observation.t_s, float(np.trace(left)) / 2.0
+        return True
 
     def _slant_range(self, position: np.ndarray, observation: Observation) -> np.ndarray:
         """Slant-range corrector on the horizontal range left by the known depth difference."""

@@ -17,6 +17,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,6 +31,9 @@ from .patent import PatentEstimator
 from .pf import ParticleFilter
 from .pmf import PointMassFilter
 from .stages import CrossTrackTracker, TrackFrame, layback_position, state_update
+
+if TYPE_CHECKING:
+    from ..usbl.sound import SoundSpeedProfile
 
 __all__ = ["NavParameters", "NavResult", "FilterTrack", "ESTIMATORS", "navigate", "run_lost", "layback_distance"]
 
@@ -177,6 +181,14 @@ class NavParameters:
         Terrain updates refused in a row before the filter re-initializes. Default 10.
     seed : int
         The particle filter's random stream.
+
+    The USBL (records with ``usbl_*`` series; see ``navigate``'s ``profile`` for the ray-traced range)
+    --------------------------------------------------------------------------------------------------
+    use_usbl_fix : bool
+        Use the records' USBL fixes: the Bayesian filters as a Gaussian position measurement with the
+        fix's covariance (gated by ``gate_nis``, counted ``fix_updates``, ``fix_rejected_gate``; the
+        record's slant range is then not used again, ``range_in_fix``); the patent pipeline to
+        re-centre its dead reckoning when it has had no MLE for ``cat_restart_s``. Default True.
     """
 
     matching: str = "patch"
@@ -226,6 +238,7 @@ class NavParameters:
     lookalike_margin: float = 0.15
     reinit_after: int = 10
     seed: int = 0
+    use_usbl_fix: bool = True
 
     def __post_init__(self) -> None:
         if self.matching not in MATCHING:
@@ -358,9 +371,10 @@ def run_lost(
     *,
     prepared: PreparedMap | None = None,
     progress: Callable[[Iterable[int]], Iterable[int]] | None = None,
+    profile: SoundSpeedProfile | None = None,
 ) -> NavResult:
     """The LOST patent pipeline alone (and both baselines) over a tow: ``navigate(..., estimators=("lost",))``."""
-    return navigate(records, grid, params, estimators=("lost",), prepared=prepared, progress=progress)
+    return navigate(records, grid, params, estimators=("lost",), prepared=prepared, progress=progress, profile=profile)
 
 
 def make_estimators(names: Iterable[str], prepared: PreparedMap, params: NavParameters, counts: Counter) -> list[Estimator]:
@@ -393,6 +407,7 @@ def navigate(
     estimators: Iterable[str] = ESTIMATORS,
     prepared: PreparedMap | None = None,
     progress: Callable[[Iterable[int]], Iterable[int]] | None = None,
+    profile: SoundSpeedProfile | None = None,
 ) -> NavResult:
     """Run the named estimators and both baselines over a tow.
 
@@ -410,6 +425,13 @@ def navigate(
         The grid already quantized (to reuse across runs); built from ``grid`` otherwise.
     progress : callable, optional
         Wraps the record loop's iterable (e.g. ``rich.progress.track``).
+    profile : SoundSpeedProfile, optional
+        The sound speed (``lost.host.usbl``): a record's USBL travel time is ray-traced from the
+        transducer (``reference_depth_m``) to the vehicle's depth into the slant range, which wins over
+        the record's straight-line ``slant_range_m`` (counted ``slant_range_ray_traced`` and, where both
+        were there, ``slant_range_ray_over_straight``). A travel time the ray cannot explain (too short
+        for the depth, below the profile) falls back to ``slant_range_m`` (``usbl_ray_failed``);
+        travel times without a profile are not used (``usbl_travel_time_without_profile``).
 
     Raises
     ------
@@ -428,7 +450,7 @@ def navigate(
         raise ValueError(f"the sonar patches have {', '.join(str(v) for v in other)} m nodes but the map {grid.node_m} m; "
                          "grid the patches on the map's nodes")
     counts: Counter = Counter()
-    loop = _RecordLoop(records, params, make_estimators(estimators, prepared, params, counts), counts)
+    loop = _RecordLoop(records, params, make_estimators(estimators, prepared, params, counts), counts, profile)
     iterator: Iterable[int] = range(len(records))
     if progress is not None:
         iterator = progress(iterator)
@@ -440,9 +462,11 @@ def navigate(
 class _RecordLoop:
     """The shared per-record work: velocity held, depth held, lay-back, start, baselines, estimators."""
 
-    def __init__(self, records: NavRecords, params: NavParameters, estimators: list[Estimator], counts: Counter) -> None:
+    def __init__(self, records: NavRecords, params: NavParameters, estimators: list[Estimator], counts: Counter,
+                 profile: SoundSpeedProfile | None = None) -> None:
         n = len(records)
         self._records, self._p, self._estimators, self.counts = records, params, estimators, counts
+        self._profile = profile
         self._sonar = records.sonar if records.sonar else (None,) * n
         self._velocity = np.zeros(2)
         self._last_depth = float("nan")
@@ -468,9 +492,11 @@ class _RecordLoop:
         distance = layback_distance(float(records.cable_out_m[n]), self._last_depth, self._p)
         if frame is not None and np.isfinite(distance):
             self.layback[n] = layback_position(frame, distance)
+        fix = records.usbl_fix(n)
         observation = Observation(t_s=float(records.t_s[n]), frame=frame, patch=self._sonar[n],
                                   ocean_depth_m=depth + float(records.altitude_m[n]), vehicle_depth_m=self._last_depth,
-                                  slant_range_m=float(records.slant_range_m[n]))
+                                  slant_range_m=self._slant_range(n), fix_position_m=None if fix is None else fix[0],
+                                  fix_covariance_m2=None if fix is None else fix[1])
         if self._dead is None:
             # Initialization: the lay-back model (cross-track zero), plus the requested offset.
             if not np.all(np.isfinite(self.layback[n])):
@@ -489,6 +515,26 @@ class _RecordLoop:
             estimator.predict(motion)
             estimator.update(observation)
             self._record(n, estimator, (time.perf_counter() - begin) * 1e3)
+
+    def _slant_range(self, n: int) -> float:
+        """The record's slant range: ray-traced from its USBL travel time when there is a profile, else the straight one."""
+        straight, travel = float(self._records.slant_range_m[n]), float(self._records.usbl_travel_time_s[n])
+        if not math.isfinite(travel):
+            return straight
+        if self._profile is None:
+            self.counts["usbl_travel_time_without_profile"] += 1
+            return straight
+        from ..usbl.rays import slant_range_from_travel_time  # lazily: gsw and pandas load only for a USBL run
+
+        try:
+            slant, _ = slant_range_from_travel_time(self._profile, travel, self._p.reference_depth_m, self._last_depth)
+        except ValueError:  # too short for the depth, below the profile, a depth not yet measured: not this ray
+            self.counts["usbl_ray_failed"] += 1
+            return straight
+        self.counts["slant_range_ray_traced"] += 1
+        if math.isfinite(straight):
+            self.counts["slant_range_ray_over_straight"] += 1
+        return slant
 
     def _record(self, n: int, estimator: Estimator, ms: float) -> None:
         answer = estimator.estimate()

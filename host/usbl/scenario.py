@@ -1,5 +1,6 @@
 """A simulated INS+USBL tow described in TOML: the tow's course, the IMU's errors, the USBL's array, noise and
-faults, the sound-speed cast. Unknown keys are errors; the shipped scenarios live in ``lost/host/usbl/scenarios``.
+faults, the sound-speed cast. Unknown keys are errors and types are strict (``lost.host.config.validate_fields``:
+``"2"`` is no number, NaN no value); the shipped scenarios live in ``lost/host/usbl/scenarios``.
 
 Layout (every table and key optional except ``name``; the defaults are the dataclasses' below)::
 
@@ -19,12 +20,13 @@ Layout (every table and key optional except ``name``; the defaults are the datac
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..config import ConfigError, validate_fields
 from ..shipped import shipped_names, shipped_path
 from .filter import ImuNoise
 from .fix import UsblArray
@@ -126,18 +128,24 @@ def shipped_cast_path(name: str) -> Path:
     return shipped_path("lost.host.usbl", name, what="cast (give a CSV path instead)", folder="data", suffix=".csv")
 
 
-def _tuples(value: Any) -> Any:
-    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+#: Fields the loader sets, never a file.
+_INTERNAL = {"folder"}
 
 
-def _build(cls: type, table: Any, where: str) -> Any:
+def _build(cls: type, table: Any, path: Path, section: str = "") -> Any:
+    """A table of the file as ``cls``: unknown keys named here, types checked by lost.host.config's strict schema
+    (``"2"`` is no number, ``2.5`` no seed, NaN no value), ranges by the class itself."""
+    where = f"{path} [{section}]" if section else str(path)
     if not isinstance(table, dict):
         raise ValueError(f"{where}: expected a table, got {table!r}")
-    known = {f.name for f in fields(cls)}
+    known = {f.name for f in fields(cls)} - _INTERNAL
     unknown = sorted(set(table) - known)
     if unknown:
         raise ValueError(f"{where}: unknown key(s) {unknown}; known: {sorted(known)}")
-    return cls(**{k: _tuples(v) for k, v in table.items()})
+    try:
+        return cls(**validate_fields(cls, table, section))
+    except ConfigError as error:
+        raise ConfigError(f"{path}: {error}") from None
 
 
 def load_usbl_scenario(path: str | Path) -> UsblScenario:
@@ -152,11 +160,8 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"scenario file {path}: {error}") from error
     parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": FaultSpec}
-    built = {key: _build(cls, table.pop(key), f"{path} [{key}]") for key, cls in parts.items() if key in table}
-    scenario = _build(UsblScenario, {**table, "folder": None}, str(path))
-    from dataclasses import replace
-
-    return replace(scenario, folder=path.parent, **built)
+    built = {key: _build(cls, table.pop(key), path, key) for key, cls in parts.items() if key in table}
+    return replace(_build(UsblScenario, table, path), folder=path.parent, **built)
 
 
 def load_processing_config(path: str | Path) -> dict[str, Any]:
@@ -175,9 +180,9 @@ def load_processing_config(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"config file {path}: unknown key(s) {unknown}; known: align_window_s, earth_rotation, gate_probability, imu, usbl")
     settings: dict[str, Any] = {k: table[k] for k in ("gate_probability", "align_window_s", "earth_rotation") if k in table}
     if "usbl" in table:
-        settings["array"] = _build(UsblArray, table["usbl"], f"{path} [usbl]")
+        settings["array"] = _build(UsblArray, table["usbl"], path, "usbl")
     if "imu" in table:
-        settings["imu"] = _build(ImuSpec, table["imu"], f"{path} [imu]")
+        settings["imu"] = _build(ImuSpec, table["imu"], path, "imu")
     return settings
 
 
