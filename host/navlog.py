@@ -39,6 +39,10 @@ The navigation log
     ``patch_north_m``                        metres, like the sonar offsets (a patch gathered in
                                              real time lies behind the vehicle); empty: see
                                              ``patch_centre``
+    ``patch_age_s``             no           how long before the record the patch's soundings
+                                             were taken, on average, seconds (negative: after
+                                             it); the filters move a patch by their velocity-
+                                             bias estimate times this age. Empty: 0
     ==========================  ===========  ===================================================
 
     North: with ``x_m``/``y_m`` positions, headings, courses and velocities are in grid axes (grid
@@ -109,11 +113,12 @@ _POSITION_FORMS = (("x_m", "y_m"), ("lat", "lon"))
 _VELOCITY_FORMS = (("vel_x_mps", "vel_y_mps"), ("speed_mps", "course_deg"))
 _TRUTH_FORMS = (("truth_x_m", "truth_y_m"), ("truth_lat", "truth_lon"))
 _PATCH_CENTRE_FORMS = (("patch_east_m", "patch_north_m"),)
+_PATCH_AGE = "patch_age_s"
 _USBL_FIX = ("usbl_x_m", "usbl_y_m", "usbl_sxx", "usbl_syy", "usbl_sxy")
 _OPTIONAL = ("slant_range_m", "usbl_travel_time_s", *_USBL_FIX)
 NAVLOG_COLUMNS = (
     _TIME_COLUMNS + _SINGLE_REQUIRED + sum(_POSITION_FORMS, ()) + sum(_VELOCITY_FORMS, ()) + _OPTIONAL + sum(_TRUTH_FORMS, ())
-    + sum(_PATCH_CENTRE_FORMS, ())
+    + sum(_PATCH_CENTRE_FORMS, ()) + (_PATCH_AGE,)
 )
 #: Where a record's sonar patch is centred when the log has no patch_east_m/patch_north_m for it.
 PATCH_CENTRES = ("vehicle", "soundings")
@@ -281,7 +286,7 @@ def read_navlog(
     if missing:
         raise ValueError(f"{path.name} lacks the required column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
     used = (set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | set(patch_centre_columns or ())
-            | {c for c in _OPTIONAL if c in columns})
+            | {c for c in (*_OPTIONAL, _PATCH_AGE) if c in columns})
     unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
     lines = _Lines(path, len(table))
     values = {c: _numeric(table[columns[c]], c, path, lines) for c in used}
@@ -304,8 +309,9 @@ def read_navlog(
     kept_rows = np.flatnonzero(keep)
     values = {c: v[keep] for c, v in values.items()}
     _check_time(values["t_s"], kept_rows, lines, path)
-    # An empty patch centre is no missing reading: the record's patch (if any) is centred by patch_centre.
-    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns if c in used and c not in sum(_PATCH_CENTRE_FORMS, ())}
+    # An empty patch centre or age is no missing reading: the record's patch (if any) is centred by patch_centre, aged 0.
+    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns
+                  if c in used and c not in (*sum(_PATCH_CENTRE_FORMS, ()), _PATCH_AGE)}
 
     if "slant_range_m" not in columns:
         values["slant_range_m"] = np.full(keep.sum(), np.nan)
@@ -353,7 +359,7 @@ def read_navlog(
         sonar_patches, sonar_stats = _read_sonar(
             Path(sonar), record_times=values["t_s"], epoch=epoch, convergence_deg=convergence, kept_rows=kept_rows, rows=len(table),
             patch_shape=h_w, node_m=float(node_m), time_tolerance_s=time_tolerance_s, patch_centre=patch_centre,
-            centre_east=values.get("patch_east_m"), centre_north=values.get("patch_north_m"),
+            centre_east=values.get("patch_east_m"), centre_north=values.get("patch_north_m"), age_s=values.get(_PATCH_AGE),
         )
 
     records = NavRecords(
@@ -418,6 +424,8 @@ def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | o
     if any(patch is not None and patch.centre_offset_m != (0.0, 0.0) for patch in records.sonar):
         centres = np.array([patch.centre_offset_m if patch is not None else (np.nan, np.nan) for patch in records.sonar])
         table["patch_east_m"], table["patch_north_m"] = centres[:, 0], centres[:, 1]
+    if any(patch is not None and patch.age_s != 0.0 for patch in records.sonar):
+        table[_PATCH_AGE] = [patch.age_s if patch is not None else np.nan for patch in records.sonar]
     # pandas writes float64 with repr precision, so the text reads back to the same numbers.
     table.to_csv(path, index=False, na_rep="")
     if sonar is not None:
@@ -624,7 +632,7 @@ def _wrap(angle_deg: np.ndarray) -> np.ndarray:
 
 
 def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, rows, patch_shape, node_m, time_tolerance_s,
-                patch_centre, centre_east, centre_north):
+                patch_centre, centre_east, centre_north, age_s=None):
     table = _read_table(path)
     columns = {c.strip().lower(): c for c in table.columns}
     # Soundings are keyed the way the log keeps time (or by record index, which works with either).
@@ -693,7 +701,8 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
             centre = soundings_centre(east, north)
         else:
             centre = (0.0, 0.0)
-        gridded = grid_soundings(east, north, v["depth_m"][group], patch_shape=patch_shape, node_m=node_m, centre_m=centre)
+        age = float(age_s[record]) if age_s is not None and np.isfinite(age_s[record]) else 0.0
+        gridded = grid_soundings(east, north, v["depth_m"][group], patch_shape=patch_shape, node_m=node_m, centre_m=centre, age_s=age)
         used += gridded.used
         outside += gridded.outside
         if gridded.used:

@@ -24,18 +24,25 @@ class SonarPatch:
     from the patch centre, in the grid's axes (row grows north, column east), so it can be
     correlated directly against the map. The centre lies ``centre_offset_m`` (east, north) from the
     vehicle's position at the record: (0, 0) for a patch around the vehicle; behind it for a patch
-    built in real time from the pings already received.
+    built in real time from the pings already received. ``age_s`` is how long before the record its
+    soundings were taken, on average: their offsets were reckoned back over that time with the measured
+    velocity, so a velocity bias b misplaces the patch by b times its age (0 for a snapshot; negative
+    for a post-processed patch of soundings taken after the record).
     """
 
     depth_m: np.ndarray
     node_m: float
     centre_offset_m: tuple[float, float] = (0.0, 0.0)
+    age_s: float = 0.0
 
     def __post_init__(self) -> None:
         offset = tuple(float(v) for v in np.asarray(self.centre_offset_m, dtype=np.float64).ravel())
         if len(offset) != 2 or not all(np.isfinite(offset)):
             raise ValueError(f"centre_offset_m must be two finite numbers (east, north) in metres, got {self.centre_offset_m!r}")
         object.__setattr__(self, "centre_offset_m", offset)
+        if not np.isfinite(self.age_s):
+            raise ValueError(f"age_s must be a finite number of seconds, got {self.age_s!r}")
+        object.__setattr__(self, "age_s", float(self.age_s))
 
 
 @dataclass(frozen=True)

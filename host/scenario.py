@@ -767,8 +767,9 @@ def _swath_patches(
         pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[centre]).T) <= half_diagonal]
         offsets = beam_offsets[pings] + (reckoned[pings] - reckoned[n])[:, None, :]
         sounded = np.isfinite(depth[pings])
+        ages = np.broadcast_to(((n - pings) * dt)[:, None], sounded.shape)
         patches.append(grid_soundings(
             offsets[..., 0][sounded], offsets[..., 1][sounded], depth[pings][sounded],
-            patch_shape=(h, w), node_m=node_m, centre_m=tuple(reckoned[centre] - reckoned[n]),
+            patch_shape=(h, w), node_m=node_m, centre_m=tuple(reckoned[centre] - reckoned[n]), age_s=ages[sounded],
         ).patch)
     return patches

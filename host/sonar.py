@@ -52,6 +52,7 @@ def grid_soundings(
     patch_shape: tuple[int, int],
     node_m: float,
     centre_m: tuple[float, float] = (0.0, 0.0),
+    age_s: float | np.ndarray = 0.0,
 ) -> GriddedSoundings:
     """Bin soundings (offsets from the vehicle) into a patch around ``centre_m``, mean per node.
 
@@ -67,6 +68,9 @@ def grid_soundings(
         Node spacing, metres; the map's, so the patch can be correlated against it.
     centre_m : (east, north)
         The patch centre's offset from the vehicle, metres; the patch's ``centre_offset_m``.
+    age_s : float or (n,) array
+        How long before the record each sounding was taken, seconds (negative: after it); the patch's
+        ``age_s`` is the mean over the soundings it uses.
 
     Returns
     -------
@@ -94,12 +98,18 @@ def grid_soundings(
     l = np.floor((east - centre[0]) / node_m + (w - 1) / 2 + 0.5).astype(np.int64)
     inside = (k >= 0) & (k < h) & (l >= 0) & (l < w)
     node = k[inside] * w + l[inside]
+    if np.ndim(age_s) == 0:
+        patch_age = float(age_s)
+    else:
+        ages = np.broadcast_to(np.asarray(age_s, dtype=np.float64), east.shape)[inside]
+        patch_age = float(ages.mean()) if ages.size else 0.0
     counts = np.bincount(node, minlength=h * w)
     sums = np.bincount(node, weights=depth[inside], minlength=h * w)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
     return GriddedSoundings(
-        patch=SonarPatch(depth_m=mean.reshape(h, w), node_m=float(node_m), centre_offset_m=(float(centre[0]), float(centre[1]))),
+        patch=SonarPatch(depth_m=mean.reshape(h, w), node_m=float(node_m), centre_offset_m=(float(centre[0]), float(centre[1])),
+                         age_s=patch_age),
         used=int(inside.sum()),
         outside=int((~inside).sum()),
     )

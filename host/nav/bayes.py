@@ -107,6 +107,17 @@ class BayesFilter:
                 self._range_update(observation)
         self._trust.watch(self._moments()[1])
 
+    def _patch_shift(self, age_s: float) -> tuple[np.ndarray | float, np.ndarray | float]:
+        """Where a candidate's patch truly lies, less where it was reckoned: the velocity bias times the patch's age.
+
+        The patch's soundings were placed ``age_s`` back by the measured velocity, which runs ahead of the
+        true one by the bias b: they lie b * age further along than reckoned (east, north). Only a filter
+        whose candidates carry their own bias (the particles) moves them: a bias estimated beside the
+        filter from its own corrections (the point-mass filter's) would feed back on itself through the
+        shift (measured: the point-mass filter diverged on ``demo`` and ``two_hour``).
+        """
+        return 0.0, 0.0
+
     def _before_patch(self, patch, weight: float) -> None:
         """A hook before a patch is weighed: a particle cloud may redraw itself where the patch fits."""
 
@@ -116,7 +127,9 @@ class BayesFilter:
         weight = self._trust.patch_weight(length)
         self._before_patch(patch, weight)
         x, y, mass = self._candidates()
-        result = self._lik.patch(x, y, patch, weight=weight, sigma_scale=self._trust.misfit_level, spacing_m=self._spacing())
+        shift_x, shift_y = self._patch_shift(patch.age_s)
+        result = self._lik.patch(x + shift_x, y + shift_y, patch, weight=weight, sigma_scale=self._trust.misfit_level,
+                                 spacing_m=self._spacing())
         if result is None or result.valid_nodes < self._p.min_valid_fraction * patch.depth_m.size:
             self.counts["patch_too_sparse"] += 1
             return
@@ -133,7 +146,9 @@ class BayesFilter:
             return
         if self._apply(result.log_likelihood, terrain=True):
             self._trust.note_misfit(result.misfit)
-            self._trust.look_alike(self._lik, *self._moments(), patch)
+            mean, cov = self._moments()
+            shift = [float(np.average(np.broadcast_to(s, mass.shape), weights=mass)) for s in (shift_x, shift_y)]
+            self._trust.look_alike(self._lik, mean + shift, cov, patch)
             self._stage = "tracking" if self._trust.usable else "acquisition"
 
     def _depth_update(self, ocean_depth_m: float) -> None:

@@ -129,6 +129,9 @@ class ParticleFilter(BayesFilter):
     def _candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self._x, self._y, self._w
 
+    def _patch_shift(self, age_s: float) -> tuple[np.ndarray, np.ndarray]:
+        return self._b[0] * age_s, self._b[1] * age_s
+
     def _reweigh(self, log_likelihood: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         log_w = np.log(np.maximum(self._w, 1e-300)) + log_likelihood
         w = np.exp(log_w - log_w.max())

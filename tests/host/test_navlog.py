@@ -239,7 +239,8 @@ def test_written_records_read_back_value_for_value(tmp_path):
         depth[rng.random((6, 8)) < 0.3] = np.nan
         # Every third patch lies behind the vehicle, as one gathered in real time does.
         centre = (rng.normal(0.0, 30.0), rng.normal(-60.0, 10.0)) if i % 3 == 0 else (0.0, 0.0)
-        patches.append(None if i % 5 == 0 else SonarPatch(depth_m=depth, node_m=7.5, centre_offset_m=centre))
+        age = float(rng.uniform(20.0, 50.0)) if i % 3 == 0 else 0.0
+        patches.append(None if i % 5 == 0 else SonarPatch(depth_m=depth, node_m=7.5, centre_offset_m=centre, age_s=age))
     records = NavRecords(t_s=np.cumsum(rng.uniform(0.1, 2.0, n)), sonar=tuple(patches), **columns)
     write_navlog(records, tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv")
     back, report = read_navlog(tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv", patch_shape=(6, 8), node_m=7.5)
@@ -249,9 +250,9 @@ def test_written_records_read_back_value_for_value(tmp_path):
         assert (mine is None) == (theirs is None)
         if mine is not None:
             np.testing.assert_array_equal(mine.depth_m, theirs.depth_m)
-            assert mine.centre_offset_m == theirs.centre_offset_m
+            assert mine.centre_offset_m == theirs.centre_offset_m and mine.age_s == theirs.age_s
     assert report.nan_counts["altitude_m"] == 2 and report.nan_counts["slant_range_m"] == 10
-    assert "patch_east_m" not in report.nan_counts  # an empty centre is no missing reading
+    assert "patch_east_m" not in report.nan_counts and "patch_age_s" not in report.nan_counts  # empty: no missing reading
     assert report.soundings == report.soundings_used and report.records_with_sonar == 32
     with pytest.raises(ValueError, match="pass sonar="):
         write_navlog(records, tmp_path / "again.csv")

@@ -69,6 +69,13 @@ def test_a_patch_centred_behind_the_vehicle_keeps_its_offset():
     assert grid_soundings([-8.0, -4.0, 0.1], [-32.0, -30.0, -28.2], [1.0, 1.0, 1.0], patch_shape=(3, 5), node_m=2.0).used == 0
 
 
+def test_a_patch_is_as_old_as_its_soundings_on_average():
+    out = grid_soundings([0.0, 1.0, 2.0, 50.0], [0.0, 0.0, 0.0, 0.0], [1.0, 2.0, 3.0, 4.0], patch_shape=(3, 3), node_m=2.0,
+                         age_s=np.array([10.0, 20.0, 60.0, 99.0]))
+    assert out.used == 3 and out.patch.age_s == pytest.approx(30.0)  # the sounding beyond the patch is not counted
+    assert grid_soundings([0.0], [0.0], [1.0], patch_shape=(3, 3), node_m=2.0).patch.age_s == 0.0
+
+
 def test_soundings_centre_is_the_middle_of_their_extent():
     assert soundings_centre([-10.0, 30.0, 0.0], [-60.0, -20.0, -50.0]) == (10.0, -40.0)
     with pytest.raises(ValueError, match="at least one sounding"):

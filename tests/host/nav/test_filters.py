@@ -317,3 +317,32 @@ def test_a_slant_range_outlier_is_refused_by_its_innovation(kind):
     np.testing.assert_allclose(f.estimate().position, before, atol=1e-9)
     f.update(_observation(slant=truth_range + 0.5, frame=ship))
     assert f.counts["range_updates"] == 1
+
+
+def test_a_velocity_bias_misplaces_a_realtime_patch_by_bias_times_age_and_the_particles_shift_it_back():
+    """The model behind ``SonarPatch.age_s``: on a tow whose velocity reads 5 and -4 cm/s off, the patches fit best b * age from the truth."""
+    from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
+
+    scenario = load_scenario(builtin_scenario_path("usbl_nav"))
+    grid, records = simulate(replace(scenario, duration_s=500.0))
+    bias = np.array([0.05, -0.04])  # the scenario's [sensors.velocity] bias
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=0.6)
+    offsets, ages = [], []
+    for n in range(200, 500, 20):
+        patch = records.sonar[n]
+        truth = np.array([records.truth_x_m[n], records.truth_y_m[n]])
+        x, y = np.meshgrid(truth[0] + np.arange(-10.0, 10.01, 0.5), truth[1] + np.arange(-10.0, 10.01, 0.5))
+        ell = lik.patch(x, y, patch).log_likelihood
+        best = np.unravel_index(np.argmax(ell), x.shape)
+        offsets.append((x[best] - truth[0], y[best] - truth[1]))
+        ages.append(patch.age_s)
+    assert 30.0 < np.mean(ages) < 60.0  # the centre ping lies half a patch diagonal (71 m) behind at 1.5 m/s
+    east, north = np.mean(offsets, axis=0)
+    expected = bias * np.mean(ages)
+    # Along the track (east) to half a metre; across it the track keeps one northing, whose sub-node phase adds its own bias.
+    assert abs(east - expected[0]) < 0.5 and north < 0 and abs(north - expected[1]) < 1.2
+    # A particle carrying the true bias reads the patch where it lies.
+    pf = ParticleFilter(lik, _quiet(), grid=grid)
+    pf._b = np.tile(bias[:, None], (1, 3))
+    shift_x, shift_y = pf._patch_shift(40.0)
+    np.testing.assert_allclose([shift_x[0], shift_y[0]], bias * 40.0)
