@@ -34,6 +34,7 @@ clock per placement) rather than hang.
 
 from __future__ import annotations
 
+from enum import IntEnum
 from typing import Any
 
 from amaranth.hdl import Module, Mux, Signal, signed, unsigned
@@ -41,6 +42,7 @@ from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
+from lost.hdl.blocks import DelayLine
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
@@ -56,6 +58,16 @@ def _parameters(map_shape, patch_shape, depth_bits, exclusion_radius) -> Correla
 def _map_read_signature(parameters: CorrelatorParameters) -> memory.ReadPort.Signature:
     (H, W) = parameters.map_shape
     return memory.ReadPort.Signature(addr_width=ceil_log2(H * W), shape=signed(parameters.depth_bits))
+
+
+class TermStage(IntEnum):
+    """The term unit's clocked stages, in order; each value is the stage's number of registers from the step."""
+
+    TERM = 1        # what the term subtracts (C + Msum); the window memory's read on this edge
+    FETCHED = 2     # the window word, registered as it leaves the block RAM
+    PRODUCT = 3     # f * M
+    MAGNITUDE = 4   # f * M - C - Msum
+    ACCUMULATE = 5  # its absolute value, added on the next edge
 
 
 class RecursiveCore(wiring.Component):
@@ -280,59 +292,47 @@ class RecursiveCore(wiring.Component):
         # q-1, is summed on the step itself.
         window_sum_shape = signed(widths.window_sum.bits)
         offset_shape = signed(max(centred_shape.width, window_sum_shape.width) + 1)
-        term_valid, term_first, term_last = Signal(), Signal(), Signal()
-        term_offset = Signal(offset_shape)
         # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
         term_shape = signed(max(widths.term.bits, widths.difference.bits))
-        fetched_valid, fetched_first, fetched_last = Signal(), Signal(), Signal()
-        fetched_word, fetched_offset = Signal(signed(p.depth_bits)), Signal(offset_shape)
-        product_valid, product_first, product_last = Signal(), Signal(), Signal()
-        product_word, product_offset = Signal(scaled_shape), Signal(offset_shape)
-        magnitude_valid, magnitude_first, magnitude_last = Signal(), Signal(), Signal()
+        # Which term each stage holds (a placement's first or last), through the stages in order.
+        flags_layout = data.StructLayout({"valid": 1, "first": 1, "last": 1})
+        m.submodules.term_flags = term_flags = DelayLine(flags_layout, TermStage.ACCUMULATE, enable=True)
+        m.submodules.term_offsets = term_offsets = DelayLine(offset_shape, TermStage.PRODUCT, enable=True)
+        product_offset = term_offsets.o  # C + Msum at the product stage
+        fetched_word = Signal(signed(p.depth_bits))
+        product_word = Signal(scaled_shape)
         magnitude_term = Signal(term_shape)
-        accumulate_valid, accumulate_first, accumulate_last = Signal(), Signal(), Signal()
         abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
         accumulator = Signal(unsigned(widths.accumulator.bits))
         out_value = Signal(unsigned(widths.accumulator.bits))
         out_full = Signal()
         out_i, out_j = Signal(range(rows)), Signal(range(cols))
 
-        accumulator_new = Mux(accumulate_first, 0, accumulator) + abs_term
+        accumulate = term_flags.o  # the flags at the accumulate stage
+        accumulator_new = Mux(accumulate.first, 0, accumulator) + abs_term
         surface_taken = self.surface.valid & self.surface.ready
         # Only a placement's last term needs the output register; while that is still full, every
         # stage holds (the model's schedule, with ``surface.ready`` high, never holds).
-        hold = accumulate_valid & accumulate_last & out_full & ~self.surface.ready
-        m.d.comb += response.ready.eq(~hold)
+        hold = accumulate.valid & accumulate.last & out_full & ~self.surface.ready
+        m.d.comb += [response.ready.eq(~hold), term_flags.en.eq(~hold), term_offsets.en.eq(~hold)]
+        # On the step of a placement's first node, Msum of the previous placement moves from
+        # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
+        previous_sum = Mux(tag.first, next_window_sum, previous_window_sum)
+        m.d.comb += [
+            term_flags.i.valid.eq(step & tag.previous),
+            term_flags.i.first.eq(tag.first),
+            term_flags.i.last.eq(tag.last),
+            term_offsets.i.eq(tag.centred + Mux(mean, previous_sum, 0)),
+        ]
         with m.If(~hold):
-            # On the step of a placement's first node, Msum of the previous placement moves from
-            # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
-            previous_sum = Mux(tag.first, next_window_sum, previous_window_sum)
             m.d.sync += [
-                term_valid.eq(step & tag.previous),
-                term_first.eq(tag.first),
-                term_last.eq(tag.last),
-                term_offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
-                fetched_valid.eq(term_valid),
-                fetched_first.eq(term_first),
-                fetched_last.eq(term_last),
                 fetched_word.eq(window_read.data),
-                fetched_offset.eq(term_offset),
-                product_valid.eq(fetched_valid),
-                product_first.eq(fetched_first),
-                product_last.eq(fetched_last),
                 product_word.eq(factor * fetched_word),
-                product_offset.eq(fetched_offset),
                 # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
-                magnitude_valid.eq(product_valid),
-                magnitude_first.eq(product_first),
-                magnitude_last.eq(product_last),
                 magnitude_term.eq(product_word - product_offset),
-                accumulate_valid.eq(magnitude_valid),
-                accumulate_first.eq(magnitude_first),
-                accumulate_last.eq(magnitude_last),
                 abs_term.eq(Mux(empty, 0, abs(magnitude_term))),
             ]
-            with m.If(accumulate_valid):
+            with m.If(accumulate.valid):
                 m.d.sync += accumulator.eq(accumulator_new)
 
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
@@ -352,7 +352,7 @@ class RecursiveCore(wiring.Component):
                 m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
             with m.Else():
                 m.d.sync += out_j.eq(out_j + 1)
-        with m.If(~hold & accumulate_valid & accumulate_last):
+        with m.If(~hold & accumulate.valid & accumulate.last):
             m.d.sync += [out_value.eq(accumulator_new), out_full.eq(1)]
 
         # The reducer watches the surface's transfers and answers on ``best``.

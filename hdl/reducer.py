@@ -41,10 +41,10 @@ from typing import Any
 from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
-from amaranth.utils import ceil_log2
 
 from lost.model.cycles import reducer_geometry
 
+from .blocks import DelayLine, MinimumTree
 from .interface import CorrelatorParameters
 
 __all__ = ["BestFitReducer"]
@@ -106,11 +106,9 @@ class BestFitReducer(wiring.Component):
 
         def delayed(value, shape, cycles, name):
             """``value`` through ``cycles`` registers."""
-            for stage in range(cycles):
-                register = Signal(shape, name=f"{name}_d{stage + 1}")
-                m.d.sync += register.eq(value)
-                value = register
-            return value
+            m.submodules[name] = line = DelayLine(shape, cycles)
+            m.d.comb += line.i.eq(value)
+            return line.o
 
         # --- collecting: one beat per cycle, through a fixed pipeline --------------------------------
         # Stage "in": the transferred beat, registered before any logic.
@@ -129,9 +127,15 @@ class BestFitReducer(wiring.Component):
         ]
 
         # The beat's minimum by a compare tree with a register per level (lowest lane first on ties).
-        leaves = [(lane < in_count, in_values[lane], in_j + lane) for lane in range(lanes)]
-        _, beat_value, beat_col = _tree(m, leaves, _earlier_smaller, "beat", (1, value_shape, col_shape))
-        levels = ceil_log2(lanes)
+        m.submodules.beat_tree = beat_tree = MinimumTree(count=lanes, key=value_shape, payload=col_shape)
+        for lane in range(lanes):
+            m.d.comb += [
+                beat_tree.leaves[lane].valid.eq(lane < in_count),
+                beat_tree.leaves[lane].key.eq(in_values[lane]),
+                beat_tree.leaves[lane].payload.eq(in_j + lane),
+            ]
+        beat_value, beat_col = beat_tree.root.key, beat_tree.root.payload
+        levels = beat_tree.latency
         meta_layout = data.StructLayout({
             "valid": 1, "last": 1, "i": row_shape, "first_in_row": 1, "row_end": 1,
         })
@@ -292,12 +296,13 @@ class BestFitReducer(wiring.Component):
                 candidates.append((fetched & (row_ok | slot_ok), key))
             else:
                 candidates.append((fetched & slot_ok, key))
-        leaves = []
+        # Registered before the tree (a register per candidate), then the smallest key (keys are distinct).
+        m.submodules.candidate_tree = candidate_tree = MinimumTree(count=lanes, key=key_shape)
         for lane, (ok, key) in enumerate(candidates):
-            leaf_ok, leaf_key = Signal(name=f"leaf{lane}_ok"), Signal(key_shape, name=f"leaf{lane}_key")
-            m.d.sync += [leaf_ok.eq(ok), leaf_key.eq(key)]
-            leaves.append((leaf_ok, leaf_key))
-        candidate_ok, candidate_key = _tree(m, leaves, _smaller_key, "candidate", (1, key_shape))
+            leaf = Signal(candidate_tree.item, name=f"leaf{lane}")
+            m.d.sync += [leaf.valid.eq(ok), leaf.key.eq(key)]
+            m.d.comb += candidate_tree.leaves[lane].eq(leaf)
+        candidate_ok, candidate_key = candidate_tree.root.valid, candidate_tree.root.key
         candidate_final = delayed(fetched & fetched_final, 1, levels + 1, "candidate_final")
 
         runner_key = Signal(key_shape)
@@ -353,38 +358,3 @@ class BestFitReducer(wiring.Component):
 
         return m
 
-
-def _earlier_smaller(first, second):
-    """Whether the later lane ``second`` (ok, value, col) replaces ``first``: smaller, ties to the first."""
-    return second[0] & (~first[0] | (second[1] < first[1]))
-
-
-def _smaller_key(first, second):
-    """Whether candidate ``second`` (ok, key) replaces ``first``: a smaller key (keys are distinct)."""
-    return second[0] & (~first[0] | (second[1] < first[1]))
-
-
-def _tree(m, leaves, replaces, name, shapes):
-    """Reduce ``leaves`` (tuples of values) pairwise, lower index first, one register per level.
-
-    ``replaces(first, second)`` says whether the pair's later item wins. The root comes
-    ``ceil_log2(len(leaves))`` cycles after the leaves; with one leaf it is the leaf itself.
-    """
-    level, depth = list(leaves), 0
-    while len(level) > 1:
-        depth += 1
-        merged = []
-        for k in range(0, len(level), 2):
-            pair = level[k:k + 2]
-            if len(pair) == 2:
-                take = replaces(pair[0], pair[1])
-                item = tuple(Mux(take, b, a) for a, b in zip(*pair))
-                item = (pair[0][0] | pair[1][0],) + item[1:]
-            else:
-                item = pair[0]
-            registers = tuple(Signal(shape, name=f"{name}_l{depth}_{k // 2}_{field}")
-                              for field, shape in enumerate(shapes))
-            m.d.sync += [register.eq(value) for register, value in zip(registers, item)]
-            merged.append(registers)
-        level = merged
-    return level[0]

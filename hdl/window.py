@@ -49,6 +49,7 @@ pipeline its constants.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from amaranth.hdl import Cat, Const, Instance, Module, Mux, Shape, Signal, signed, unsigned
@@ -57,53 +58,18 @@ from amaranth.lib.fifo import SyncFIFO
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
+from lost.hdl.blocks import AdderTree, DelayLine, Replicas, shape_for
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
 from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
-from lost.model.widths import bits_for
 
-__all__ = ["WindowCore", "WindowCorrelator"]
-
-
-def _union_bits(*bounds: tuple[int, int]) -> Shape:
-    lo = min(b[0] for b in bounds)
-    hi = max(b[1] for b in bounds)
-    width, is_signed = bits_for(lo, hi)
-    return signed(width) if is_signed else unsigned(width)
+__all__ = ["PipelineStages", "WindowCore", "WindowCorrelator"]
 
 
 def _index(count: int) -> range:
     """The range of an index below ``count``, at least one bit wide (Verilog has no empty vector)."""
     return range(max(count, 2))
-
-
-def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
-    """Sum ``values`` with a balanced adder tree, one register level per adder level.
-
-    The registers load when ``enable`` is high, or on every clock when it is ``None``. They are
-    reset-less, like every datapath register here: a reset would only add a net to thousands of them.
-
-    Each register is as wide as the sums it can hold: ``k`` leaves in ``[leaf_lo, leaf_hi]`` give
-    ``[k * leaf_lo, k * leaf_hi]``, never more than the bound ``cap`` of the whole sum.
-    """
-    level, leaves = 0, 1
-    while len(values) > 1:
-        # One array register per level (fewer, wider signals keep the generated Verilog small).
-        leaves *= 2
-        lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
-        sums = Signal(data.ArrayLayout(_union_bits((lo, hi)), (len(values) + 1) // 2), name=f"{name}_l{level}",
-                      reset_less=True)
-        loads = [sums[index // 2].eq(pair[0] + pair[1] if len(pair) == 2 else pair[0])
-                 for index in range(0, len(values), 2) for pair in [values[index : index + 2]]]
-        if enable is None:
-            m.d.sync += loads
-        else:
-            with m.If(enable):
-                m.d.sync += loads
-        values = [sums[index] for index in range((len(values) + 1) // 2)]
-        level += 1
-    return values[0]
 
 
 #: The operand width of the device's multipliers (the ECP5's MULT18X18D): a product's wide operand is
@@ -158,6 +124,47 @@ def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisors: list, q
         with m.Elif(enable):
             m.d.sync += quotient.eq(bits)
     return quotients, registers.carry
+
+
+@dataclass(frozen=True)
+class PipelineStages:
+    """The window pipeline's stages by name: where each register of a placement's path sits.
+
+    Step-synchronous stages are counted in steps from the one that takes a map word (1), term stages
+    in clocks after the last step-synchronous one (1 is the first term stage). The model's
+    :class:`~lost.model.cycles_window.WindowTiming` counts them (``step_stages``, ``term_stages``);
+    :meth:`of` checks that both agree.
+    """
+
+    #: Step-synchronous: the step register, the window register (whose bottom the terms read), the masked
+    #: depths, the last window-sum level, the dividend, the last quotient stage (= ``step_stages``).
+    step: int
+    window: int
+    masked: int
+    window_sum: int
+    dividend: int
+    quotient: int
+    #: Every clock: the lifted differences, the selected ones and their count, the last level of their
+    #: sums (with the dividend beside it), the partial products (with the correction), their sums, the
+    #: value (= ``term_stages``).
+    difference: int
+    selected: int
+    sums: int
+    partials: int
+    totals: int
+    value: int
+
+    @classmethod
+    def of(cls, timing: WindowTiming) -> PipelineStages:
+        levels = timing.sum_levels
+        window_sum = 3 + levels
+        sums = 2 + levels
+        stages = cls(step=1, window=2, masked=3, window_sum=window_sum, dividend=window_sum + 1,
+                     quotient=window_sum + 1 + QUOTIENT_STAGES, difference=1, selected=2, sums=sums,
+                     partials=sums + 1, totals=sums + 2, value=sums + 3)
+        if (stages.quotient, stages.value) != (timing.step_stages, timing.term_stages):
+            raise AssertionError(f"the gateware's stages {stages} disagree with the cycle model's {timing}")
+        return stages
 
 
 class WindowCore(wiring.Component):
@@ -221,6 +228,7 @@ class WindowCore(wiring.Component):
         nodes = h * w
         Ho, Wo = p.surface_shape
         G = t.groups
+        stages = PipelineStages.of(t)
 
         depth = signed(b)
         count = unsigned(widths.count.bits)
@@ -231,8 +239,8 @@ class WindowCore(wiring.Component):
         lifted_sum_hi = nodes * (2 * lift - 1)
         # The dividend N = sum_valid M - Ssum + f * 2**b with mean compensation; without it the same
         # register carries sum_valid M - Ssum (the correction), the dividend being 2**b.
-        carried = _union_bits((widths.sum_difference.lo, lifted_sum_hi))
-        bias = _union_bits((-nodes * widths.depth.hi, nodes * (lift - widths.depth.lo)))
+        carried = shape_for(widths.sum_difference.lo, lifted_sum_hi)
+        bias = shape_for(-nodes * widths.depth.hi, nodes * (lift - widths.depth.lo))
         value_bits = widths.accumulator.bits
         # The quotient meets every node's comparator: one register would drive h * w of them across a
         # lane, so each lane keeps a copy per ``copy_nodes`` consecutive nodes (a patch row of Nygren's
@@ -370,7 +378,7 @@ class WindowCore(wiring.Component):
         step_group_reg = Signal(_index(G))
         step_was_word = Signal()
         # The beat of each step-synchronous stage.
-        sync_meta = Signal(data.ArrayLayout(meta_layout, t.step_stages), reset_less=True)
+        sync_meta = Signal(data.ArrayLayout(meta_layout, stages.quotient), reset_less=True)
         with m.If(advance):
             m.d.sync += [
                 step_group_reg.eq(step_group),
@@ -378,7 +386,7 @@ class WindowCore(wiring.Component):
                 sync_meta[0].eq(step_meta),
             ]
             m.d.sync += step_nodes.eq(sequencer.response.payload.data)
-            for x in range(1, t.step_stages):
+            for x in range(1, stages.quotient):
                 m.d.sync += sync_meta[x].eq(sync_meta[x - 1])
 
         # ---- line buffers: rows r-1 .. r-h+1 of the group being taken ------------------------------
@@ -391,8 +399,8 @@ class WindowCore(wiring.Component):
         buffer_rows = []
         for x in range(h - 1):
             entering = step_nodes if x == 0 else buffer_rows[x - 1]
-            stages = G if G <= 2 else 1
-            delayed = [Signal(row_layout, name=f"line_buffer_{x}_out{y}", reset_less=True) for y in range(stages)]
+            registers = G if G <= 2 else 1
+            delayed = [Signal(row_layout, name=f"line_buffer_{x}_out{y}", reset_less=True) for y in range(registers)]
             if G <= 2:
                 with m.If(advance):
                     m.d.sync += [delayed[y].eq(delayed[y - 1] if y else entering) for y in range(G)]
@@ -413,10 +421,10 @@ class WindowCore(wiring.Component):
             buffer_rows.append(delayed[-1])
 
         # ---- window register: columns, oldest first; the newest L enter on the right ---------------
-        # The quotient takes step_stages - 2 steps after the window register (the masked depths, the
+        # The quotient takes quotient - window steps after the window register (the masked depths, the
         # window-sum tree, the dividend, the quotient stages): the columns its lanes start on sit that
         # many steps of L columns above those the terms take.
-        top = (t.step_stages - 2) * L
+        top = (stages.quotient - stages.window) * L
         span = top + (t.lead + 1) * L
         # One signal per column: fewer signals than one per node, while the Python simulator (whose
         # generated code spells masks as decimal literals) still handles their width.
@@ -436,23 +444,23 @@ class WindowCore(wiring.Component):
         fresh = Signal()
         m.d.sync += fresh.eq(advance)
         # Only the valid bits need a reset: after one, no stale step may reach the queue.
-        free_meta = Signal(data.ArrayLayout(meta_layout, t.term_stages), reset_less=True)
-        free_valid = Signal(t.term_stages)
-        m.d.sync += [free_meta[0].eq(sync_meta[t.step_stages - 1]), free_valid[0].eq(fresh)]
-        for x in range(1, t.term_stages):
-            m.d.sync += [free_meta[x].eq(free_meta[x - 1]), free_valid[x].eq(free_valid[x - 1])]
+        m.submodules.term_meta = term_meta = DelayLine(meta_layout, stages.value, reset_less=True)
+        m.submodules.term_valid = term_valid = DelayLine(1, stages.value)
+        m.d.comb += [term_meta.i.eq(sync_meta[stages.quotient - 1]), term_valid.i.eq(fresh)]
 
         # ---- the lanes ------------------------------------------------------------------------------
         lane_values = []
         for q in range(L):
             # The mode and f reach much of a lane: each lane has registers of its own for them, one for
             # each of its parts (the dividend, each run of quotient stages, the products).
-            mode = Signal(name=f"lane{q}_mode_replica")
-            term_mode = Signal(name=f"lane{q}_term_mode_replica")
-            divisors = [Signal(count, name=f"lane{q}_factor_replica{r}") for r in range(-(-QUOTIENT_STAGES // 6))]
-            lane_factor = Signal(count, name=f"lane{q}_product_factor_replica")
-            m.d.sync += [mode.eq(mean_compensation), term_mode.eq(mean_compensation), lane_factor.eq(factor)]
-            m.d.sync += [divisor.eq(factor) for divisor in divisors]
+            m.submodules[f"lane{q}_mode"] = modes = Replicas(1, 2)
+            m.d.comb += modes.i.eq(mean_compensation)
+            mode, term_mode = modes.o[0], modes.o[1]
+            divider_copies = -(-QUOTIENT_STAGES // 6)
+            m.submodules[f"lane{q}_factor"] = factors = Replicas(count, divider_copies + 1)
+            m.d.comb += factors.i.eq(factor)
+            divisors = [factors.o[r] for r in range(divider_copies)]
+            lane_factor = factors.o[divider_copies]
             # Window sum of the valid nodes, on the columns as they arrive (step-synchronous). An
             # invalid node's depth register is held at zero by its synchronous reset: no LUT per bit.
             masked = Signal(data.ArrayLayout(depth, nodes), name=f"lane{q}_masked", reset_less=True)
@@ -463,8 +471,11 @@ class WindowCore(wiring.Component):
                         m.d.sync += masked[x].eq(0)
                     with m.Elif(advance):
                         m.d.sync += masked[x].eq(window[top + q + l][k])
-            wsum = _pipelined_sum(m, advance, [masked[x] for x in range(nodes)], (widths.depth.lo, widths.depth.hi),
-                                  (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
+            m.submodules[f"lane{q}_wsum"] = wsum_tree = AdderTree(
+                count=nodes, leaf=(widths.depth.lo, widths.depth.hi), total=(widths.window_sum.lo, widths.window_sum.hi),
+                enable=True)
+            m.d.comb += [wsum_tree.en.eq(advance), *(wsum_tree.leaves[x].eq(masked[x]) for x in range(nodes))]
+            wsum = wsum_tree.sum
             # The dividend (or the correction), then t + 2**b = floor(N / f) over the quotient stages.
             carried_in = Signal(carried, name=f"lane{q}_carried_in", reset_less=True)
             with m.If(advance):
@@ -473,7 +484,7 @@ class WindowCore(wiring.Component):
                 m, advance, Mux(mode, carried_in, lift), divisors, b + 1, QUOTIENT_STAGES, carried_in,
                 [~valid for valid in source_valid], f"lane{q}_quotient")
 
-            # The same columns, step_stages - 2 steps later, at the bottom of the register: the lifted
+            # The same columns, quotient - window steps later, at the bottom of the register: the lifted
             # differences M - S + 2**b, those above the quotient (d > t) and their count, their sums.
             quotient_copy = [Signal(lifted, name=f"lane{q}_quotient{c}", reset_less=True) for c in range(copies)]
             for c in range(copies):
@@ -481,11 +492,10 @@ class WindowCore(wiring.Component):
                     m.d.sync += quotient_copy[c].eq(0)
                 with m.Else():
                     m.d.sync += quotient_copy[c].eq(quotients[c // per_source])
-            # carried_term[x] is stage x + 1's.
-            carried_term = Signal(data.ArrayLayout(carried, t.term_stages - 3), name=f"lane{q}_carried",
-                                  reset_less=True)
-            m.d.sync += carried_term[0].eq(carried_out)
-            m.d.sync += [carried_term[x].eq(carried_term[x - 1]) for x in range(1, t.term_stages - 3)]
+            # The dividend (or the correction) beside the term stages, up to the one before the partials.
+            m.submodules[f"lane{q}_carried"] = carried_line = DelayLine(carried, stages.sums, reset_less=True)
+            m.d.comb += carried_line.i.eq(carried_out)
+            carried_at = list(carried_line.taps)  # carried_at[stage - 1]: the carried value of that stage
             difference = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_difference", reset_less=True)
             above = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_above", reset_less=True)
             selected = Signal(nodes, name=f"lane{q}_selected", reset_less=True)
@@ -501,17 +511,19 @@ class WindowCore(wiring.Component):
                         above[x].eq(Mux(chosen, difference[x], 0)),
                         selected[x].eq(chosen),
                     ]
-            above_sum = _pipelined_sum(m, None, [above[x] for x in range(nodes)], (0, 2 * lift - 1),
-                                       (0, lifted_sum_hi), f"lane{q}_above_sum")
-            above_count = _pipelined_sum(m, None, [selected[x] for x in range(nodes)], (0, 1), (0, nodes),
-                                         f"lane{q}_above_count")
+            m.submodules[f"lane{q}_above_sum"] = above_tree = AdderTree(
+                count=nodes, leaf=(0, 2 * lift - 1), total=(0, lifted_sum_hi))
+            m.submodules[f"lane{q}_above_count"] = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes))
+            m.d.comb += [above_tree.leaves[x].eq(above[x]) for x in range(nodes)]
+            m.d.comb += [count_tree.leaves[x].eq(selected[x]) for x in range(nodes)]
+            above_sum, above_count = above_tree.sum, count_tree.sum
             # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact): the
             # dividend beside the sums' last level, then each product as two partial products of a
             # multiplier's width, then their sums (with the correction), then V.
             dividend = Signal(lifted_sum_hi.bit_length(), name=f"lane{q}_dividend", reset_less=True)
-            m.d.sync += dividend.eq(Mux(term_mode, carried_term[t.term_stages - 5], lift))
+            m.d.sync += dividend.eq(Mux(term_mode, carried_at[stages.sums - 2], lift))
             correction = Signal(carried, name=f"lane{q}_correction", reset_less=True)
-            m.d.sync += correction.eq(Mux(term_mode, 0, carried_term[t.term_stages - 4]))
+            m.d.sync += correction.eq(Mux(term_mode, 0, carried_at[stages.partials - 2]))
             partials = Signal(data.ArrayLayout(unsigned(value_bits), 4), name=f"lane{q}_partials", reset_less=True)
             m.d.sync += [
                 partials[0].eq(lane_factor * above_sum[:_MULTIPLIER_BITS]),
@@ -530,8 +542,8 @@ class WindowCore(wiring.Component):
             lane_values.append(value)
 
         # ---- into the output queue ---------------------------------------------------------------------
-        last_meta = free_meta[t.term_stages - 1]
-        last_valid = free_valid[t.term_stages - 1] & last_meta.live
+        last_meta = term_meta.o
+        last_valid = term_valid.o & last_meta.live
         beat = Signal(p.surface_beat)
         m.d.comb += [
             beat.i.eq(last_meta.i),
@@ -597,7 +609,7 @@ class WindowCore(wiring.Component):
                 step_group.eq(0),
             ]
             # The step-synchronous stages may still hold the last correlation's flush steps.
-            m.d.sync += [sync_meta[x].live.eq(0) for x in range(t.step_stages)]
+            m.d.sync += [sync_meta[x].live.eq(0) for x in range(stages.quotient)]
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
