@@ -304,7 +304,10 @@ class Configuration:
 
     def core(self):
         """The gateware: the core alone (external) or the correlator with its map memory (on-chip)."""
-        options = {"global_enable": True} if self.variant == "window" else {}
+        from .harness import ecp5_global_buffer
+
+        # The step enable reaches every step-synchronous register: on the ECP5, a global net.
+        options = {"enable_buffer": ecp5_global_buffer} if self.variant == "window" else {}
         return self._registered().build(map_shape=self.map_shape, patch_shape=self.patch_shape,
                                         memory=self.memory, **options)
 

@@ -64,7 +64,7 @@ class Variant:
         memory: str = "on-chip",
         **options: Any,
     ):
-        """The gateware of this variant at these sizes (``options`` go to the class, e.g. ``global_enable``)."""
+        """The gateware of this variant at these sizes (``options`` go to the class, e.g. ``enable_buffer``)."""
         sizes = {"map_shape": tuple(map_shape), "patch_shape": tuple(patch_shape), "depth_bits": depth_bits,
                  "exclusion_radius": exclusion_radius}
         if self.kind == "window":

@@ -49,10 +49,11 @@ pipeline its constants.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Cat, Const, Instance, Module, Mux, Shape, Signal, signed, unsigned
+from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal, Value, signed, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.fifo import SyncFIFO
 from amaranth.lib.wiring import In
@@ -167,12 +168,22 @@ class PipelineStages:
         return stages
 
 
+#: How a high-fan-out enable reaches its loads: ``(module, enable) -> the value the loads see``.
+EnableBuffer = Callable[[Module, Value], Value]
+
+
+def _check_enable_buffer(enable_buffer: Any) -> EnableBuffer | None:
+    if enable_buffer is not None and not callable(enable_buffer):
+        raise ValueError(f"enable_buffer must be None or a function (module, enable) -> Value, got {enable_buffer!r}")
+    return enable_buffer
+
+
 class WindowCore(wiring.Component):
     """The window correlator without its map memory, which it reads through ``map_read``.
 
     Parameters
     ----------
-    map_shape, patch_shape, depth_bits, lanes, exclusion_radius, global_enable
+    map_shape, patch_shape, depth_bits, lanes, exclusion_radius, enable_buffer
         See :class:`WindowCorrelator`.
 
     Members
@@ -198,8 +209,8 @@ class WindowCore(wiring.Component):
     """
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
-                 global_enable: bool = False):
-        self._global_enable = bool(global_enable)
+                 enable_buffer: EnableBuffer | None = None):
+        self._enable_buffer = _check_enable_buffer(enable_buffer)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -339,11 +350,7 @@ class WindowCore(wiring.Component):
         advance_register = Signal()
         step_is_word = Signal()
         m.d.sync += [advance_register.eq(issue), step_is_word.eq(issue & issuing_words)]
-        if self._global_enable:
-            advance = Signal()
-            m.submodules.advance_buffer = Instance("DCCA", i_CLKI=advance_register, i_CE=1, o_CLKO=advance)
-        else:
-            advance = advance_register
+        advance = advance_register if self._enable_buffer is None else self._enable_buffer(m, advance_register)
 
         step_row = Signal(range(H + t.flush_steps + 2))
         step_group = Signal(_index(G))
@@ -667,10 +674,12 @@ class WindowCorrelator(wiring.Component):
         words per row, each map row padded to a multiple of ``L``.
     exclusion_radius : int
         Chebyshev radius around the best fit outside which the runner-up is searched.
-    global_enable : bool
-        Route the step enable, which reaches every register of the step-synchronous stages, through
-        an ECP5 ``DCCA`` onto a global net (synthesis for the ECP5 only: the simulators know no
-        ``DCCA``).
+    enable_buffer : callable or None
+        ``enable_buffer(m, enable) -> Value``: how the step enable, a register that reaches every
+        register of the step-synchronous stages, is carried to them; ``None`` (the default, and every
+        simulation) uses the register's own net. A device-specific choice, made by whoever builds for
+        a device: the synthesis flow passes the ECP5's global buffer
+        (:func:`lost.hdl.harness.ecp5_global_buffer`).
 
     Members
     -------
@@ -684,8 +693,8 @@ class WindowCorrelator(wiring.Component):
     """
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
-                 global_enable: bool = False):
-        self._global_enable = bool(global_enable)
+                 enable_buffer: EnableBuffer | None = None):
+        self._enable_buffer = _check_enable_buffer(enable_buffer)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -707,7 +716,7 @@ class WindowCorrelator(wiring.Component):
 
         m.submodules.core = core = WindowCore(
             map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits, lanes=L,
-            exclusion_radius=p.exclusion_radius, global_enable=self._global_enable)
+            exclusion_radius=p.exclusion_radius, enable_buffer=self._enable_buffer)
         m.submodules.map_memory = map_memory = memory.Memory(
             shape=core.map_word, depth=core.map_depth, init=[])
         wiring.connect(m, core.map_read, map_memory.read_port())
