@@ -679,7 +679,7 @@ class WindowCorrelator(wiring.Component):
         register of the step-synchronous stages, is carried to them; ``None`` (the default, and every
         simulation) uses the register's own net. A device-specific choice, made by whoever builds for
         a device: the synthesis flow passes the ECP5's global buffer
-        (:func:`lost.hdl.harness.ecp5_global_buffer`).
+        (:func:`lost.hdl.flow.harness.ecp5_global_buffer`).
 
     Members
     -------
