@@ -18,13 +18,18 @@ from amaranth.utils import ceil_log2
 
 from lost.model.widths import bits_for
 
-__all__ = ["AdderTree", "DelayLine", "MinimumTree", "Replicas", "shape_for", "tree_levels"]
+__all__ = ["AdderTree", "DelayLine", "MinimumTree", "Replicas", "index_range", "minimum_item", "shape_for", "tree_levels"]
 
 
 def shape_for(lo: int, hi: int) -> Shape:
     """The narrowest shape holding every integer of ``[lo, hi]``: unsigned unless ``lo < 0``."""
     width, is_signed = bits_for(lo, hi)
     return signed(width) if is_signed else unsigned(width)
+
+
+def index_range(count: int) -> range:
+    """The range of an index below ``count``, at least one bit wide (Verilog has no empty vector)."""
+    return range(max(count, 2))
 
 
 def tree_levels(count: int) -> int:
