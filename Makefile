@@ -52,11 +52,13 @@ $(FPGA_STAMP): $(STAMP)
 	touch $@
 
 # The flow's own tests, then every configuration (cached per netlist and seed in build/fpga; about an
-# hour from scratch on 2 cores), its report (build/fpga/report.json, report.md) and the side-by-side
+# hour from scratch on 2 cores), its report (build/fpga/report.json, report.md), each placed build's
+# figures appended to docs/fpga_figures.csv (and docs/fpga.md's table regenerated from it) and the side-by-side
 # with the software correlators. SYNTH_ARGS passes options, e.g. SYNTH_ARGS="--seeds 1 2 3 --lanes 1 2".
 synth: $(FPGA_STAMP)
 	$(BIN)/python -m pytest -m fpga tests
-	$(BIN)/python -m lost.hdl.flow.synth --out build/fpga $(SYNTH_ARGS)
+	$(BIN)/python -m lost.hdl.flow.synth --out build/fpga --figures docs/fpga_figures.csv $(SYNTH_ARGS)
+	$(BIN)/python -m lost.hdl.flow.figures --update docs/fpga.md
 	$(BIN)/python benchmarks/side_by_side.py build/fpga/report.json
 
 # The device for the ULX3S (LFE5U-85F): build/bitstream/ulx3s_lost.bit and summary.json (Fmax against the

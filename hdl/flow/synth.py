@@ -32,6 +32,8 @@ from amaranth.back import rtlil
 
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE, PAPER_SECONDS
 
+from . import figures
+
 __all__ = [
     "CONFIGURATIONS",
     "Configuration",
@@ -584,6 +586,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "beginning (window_l1_onchip: the on-chip build whatever its map size)")
     parser.add_argument("--lanes", type=int, nargs="+", default=list(WINDOW_LANES), metavar="L",
                         help=f"window lane counts, built in order until one is over the LUT budget (default: {' '.join(map(str, WINDOW_LANES))})")
+    parser.add_argument("--figures", type=Path, metavar="CSV",
+                        help="append each placed build's figures to this versioned CSV (make synth: docs/fpga_figures.csv)")
     parser.add_argument("--on-chip", type=int, nargs="*", metavar="LANES", default=[1],
                         help="window lane counts also built with the map on chip, at the largest map that fits (default: 1)")
     args = parser.parse_args(argv)
@@ -616,12 +620,18 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     wanted = set(args.only) if args.only else None
 
+    commit = figures.gateware_commit()
+
     def take(config: Configuration) -> None:
         if wanted is None or config.name in wanted:
-            entries[config.name] = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz,
-                                          router=args.router,
-                                          place=not any(config.name.startswith(name) for name in args.no_place or ()))
+            entries[config.name] = entry = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz,
+                                                  router=args.router,
+                                                  place=not any(config.name.startswith(name) for name in args.no_place or ()))
             write()
+            if entry["routed"] and args.figures is not None:
+                row = figures.row_of(entry, commit=commit)
+                if not figures.recorded(figures.read(args.figures), row):
+                    figures.append(row, args.figures)
         elif config.name in previous:
             entries[config.name] = previous[config.name]
 
