@@ -34,7 +34,6 @@ clock per placement) rather than hang.
 
 from __future__ import annotations
 
-from enum import IntEnum
 from typing import Any
 
 from amaranth.hdl import Module, Mux, Signal, signed, unsigned
@@ -42,8 +41,8 @@ from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import DelayLine
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
+from lost.hdl.recursive_term import RecursiveShapes, TermUnit
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
 
@@ -58,16 +57,6 @@ def _parameters(map_shape, patch_shape, depth_bits, exclusion_radius) -> Correla
 def _map_read_signature(parameters: CorrelatorParameters) -> memory.ReadPort.Signature:
     (H, W) = parameters.map_shape
     return memory.ReadPort.Signature(addr_width=ceil_log2(H * W), shape=signed(parameters.depth_bits))
-
-
-class TermStage(IntEnum):
-    """The term unit's clocked stages, in order; each value is the stage's number of registers from the step."""
-
-    TERM = 1        # what the term subtracts (C + Msum); the window memory's read on this edge
-    FETCHED = 2     # the window word, registered as it leaves the block RAM
-    PRODUCT = 3     # f * M
-    MAGNITUDE = 4   # f * M - C - Msum
-    ACCUMULATE = 5  # its absolute value, added on the next edge
 
 
 class RecursiveCore(wiring.Component):
@@ -110,8 +99,8 @@ class RecursiveCore(wiring.Component):
         patch_write, patch_read = patch.write_port(), patch.read_port()
         # A node's map offset and its centred depth C (n * S - Ssum with mean compensation, S without);
         # a plain depth is wider than the centred bound when n = 1.
-        centred_shape = signed(max(widths.centred_depth.bits, widths.depth.bits))
-        scaled_shape = signed(max(widths.scaled_depth.bits, widths.depth.bits))  # f * S or f * M
+        shapes = RecursiveShapes.of(p)
+        centred_shape, scaled_shape = shapes.centred, shapes.scaled
         node_layout = data.StructLayout({
             "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
             "centred": centred_shape,
@@ -284,76 +273,44 @@ class RecursiveCore(wiring.Component):
         with m.If(step & tag.previous & tag.first):
             m.d.sync += previous_window_sum.eq(next_window_sum)
 
-        # --- term: one absolute difference and one accumulator, in clocked stages ------------------
-        # ``term`` (the window memory's output, one cycle after the step) is registered as it is
-        # (``fetched``: a block RAM's clock-to-output is half a 100 MHz period on the ECP5), then
-        # scaled by f (``product``, the multiplier between registers), then forms the difference,
-        # ``magnitude`` its absolute value, ``accumulate`` the sum: one carry chain per clock. What the term subtracts besides the window word, C + Msum of placement
-        # q-1, is summed on the step itself.
-        window_sum_shape = signed(widths.window_sum.bits)
-        offset_shape = signed(max(centred_shape.width, window_sum_shape.width) + 1)
-        # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
-        term_shape = signed(max(widths.term.bits, widths.difference.bits))
-        # Which term each stage holds (a placement's first or last), through the stages in order.
-        flags_layout = data.StructLayout({"valid": 1, "first": 1, "last": 1})
-        m.submodules.term_flags = term_flags = DelayLine(flags_layout, TermStage.ACCUMULATE, enable=True)
-        m.submodules.term_offsets = term_offsets = DelayLine(offset_shape, TermStage.PRODUCT, enable=True)
-        product_offset = term_offsets.o  # C + Msum at the product stage
-        fetched_word = Signal(signed(p.depth_bits))
-        product_word = Signal(scaled_shape)
-        magnitude_term = Signal(term_shape)
-        abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
-        accumulator = Signal(unsigned(widths.accumulator.bits))
-        out_value = Signal(unsigned(widths.accumulator.bits))
-        out_full = Signal()
-        out_i, out_j = Signal(range(rows)), Signal(range(cols))
-
-        accumulate = term_flags.o  # the flags at the accumulate stage
-        accumulator_new = Mux(accumulate.first, 0, accumulator) + abs_term
-        surface_taken = self.surface.valid & self.surface.ready
-        # Only a placement's last term needs the output register; while that is still full, every
-        # stage holds (the model's schedule, with ``surface.ready`` high, never holds).
-        hold = accumulate.valid & accumulate.last & out_full & ~self.surface.ready
-        m.d.comb += [response.ready.eq(~hold), term_flags.en.eq(~hold), term_offsets.en.eq(~hold)]
+        # --- term: one absolute difference and one accumulator (``TermUnit``) -----------------------
+        # What the term subtracts besides the window word, C + Msum of placement q-1, is summed on the
+        # step itself; the window word follows from the memory read on the same edge.
+        m.submodules.terms = terms = TermUnit(parameters=p)
         # On the step of a placement's first node, Msum of the previous placement moves from
         # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
         previous_sum = Mux(tag.first, next_window_sum, previous_window_sum)
         m.d.comb += [
-            term_flags.i.valid.eq(step & tag.previous),
-            term_flags.i.first.eq(tag.first),
-            term_flags.i.last.eq(tag.last),
-            term_offsets.i.eq(tag.centred + Mux(mean, previous_sum, 0)),
+            response.ready.eq(terms.advance),
+            terms.term.valid.eq(step & tag.previous),
+            terms.term.first.eq(tag.first),
+            terms.term.last.eq(tag.last),
+            terms.term.offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
+            terms.word.eq(window_read.data),
+            terms.factor.eq(factor),
+            terms.empty.eq(empty),
         ]
-        with m.If(~hold):
-            m.d.sync += [
-                fetched_word.eq(window_read.data),
-                product_word.eq(factor * fetched_word),
-                # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
-                magnitude_term.eq(product_word - product_offset),
-                abs_term.eq(Mux(empty, 0, abs(magnitude_term))),
-            ]
-            with m.If(accumulate.valid):
-                m.d.sync += accumulator.eq(accumulator_new)
 
+        # --- the surface: the term unit's values, placed in raster order ----------------------------
+        out_i, out_j = Signal(range(rows)), Signal(range(cols))
+        surface_taken = self.surface.valid & self.surface.ready
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
         m.d.comb += [
-            self.surface.valid.eq(out_full),
-            self.surface.payload.values[0].eq(out_value),
+            self.surface.valid.eq(terms.value.valid),
+            terms.value.ready.eq(self.surface.ready),
+            self.surface.payload.values[0].eq(terms.value.payload),
             self.surface.payload.count.eq(1),
             self.surface.payload.i.eq(out_i),
             self.surface.payload.j.eq(out_j),
             self.surface.payload.last.eq(surface_last),
         ]
         with m.If(surface_taken):
-            m.d.sync += out_full.eq(0)
             with m.If(surface_last):
                 m.d.sync += running.eq(0)
             with m.Elif(out_j == cols - 1):
                 m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
             with m.Else():
                 m.d.sync += out_j.eq(out_j + 1)
-        with m.If(~hold & accumulate.valid & accumulate.last):
-            m.d.sync += [out_value.eq(accumulator_new), out_full.eq(1)]
 
         # The reducer watches the surface's transfers and answers on ``best``.
         m.d.comb += [
