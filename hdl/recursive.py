@@ -42,6 +42,7 @@ from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
+from lost.hdl.recursive_patch import NodeCompaction
 from lost.hdl.recursive_term import RecursiveShapes, TermUnit
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
@@ -94,89 +95,25 @@ class RecursiveCore(wiring.Component):
         widths = p.widths
         nodes_total = h * w
 
-        # --- the patch: loaded while idle, compacted to its valid nodes at start ------------------
-        m.submodules.patch = patch = memory.Memory(shape=p.patch_word, depth=nodes_total, init=[])
-        patch_write, patch_read = patch.write_port(), patch.read_port()
-        # A node's map offset and its centred depth C (n * S - Ssum with mean compensation, S without);
-        # a plain depth is wider than the centred bound when n = 1.
-        shapes = RecursiveShapes.of(p)
-        centred_shape, scaled_shape = shapes.centred, shapes.scaled
-        node_layout = data.StructLayout({
-            "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
-            "centred": centred_shape,
-        })
-        m.submodules.nodes = nodes = memory.Memory(shape=node_layout, depth=nodes_total, init=[])
-        nodes_write = nodes.write_port()
-        # Transparent: the first node may be written on the very edge the generator first reads it.
-        nodes_read = nodes.read_port(transparent_for=(nodes_write,))
-
+        # --- the patch: loaded while idle, compacted to its valid nodes at start (``NodeCompaction``) ---
         busy = Signal()
         running = Signal()
         m.submodules.reducer = reducer = BestFitReducer(parameters=p)
         m.d.comb += [busy.eq(running | reducer.busy), self.busy.eq(busy)]
+        start = self.start.valid & self.start.ready
 
-        load_index = Signal(range(nodes_total))
-        m.d.comb += [
-            self.patch_in.ready.eq(~busy),
-            patch_write.addr.eq(load_index),
-            patch_write.data.eq(self.patch_in.payload),
-            patch_write.en.eq(self.patch_in.valid & self.patch_in.ready),
-        ]
-        with m.If(patch_write.en):
-            m.d.sync += load_index.eq(Mux(load_index == nodes_total - 1, 0, load_index + 1))
-
-        mean = Signal()                                   # latched from the start command
-        count = Signal(range(nodes_total + 1))            # n, the valid nodes
-        patch_sum = Signal(signed(widths.window_sum.bits))
-
-        # f = n with mean compensation, 1 without; it scales map words and patch depths alike.
-        # A register of its own, kept equal to Mux(mean, count, 1), so that the multipliers' inputs are
-        # registers.
-        factor = Signal(range(nodes_total + 1))
-
-        # Preparation, two passes over the patch memory: read word k; one cycle later register it
-        # (``staged``); then count it and add it to Ssum (first pass), or register f * S (second pass,
-        # when n is known) and append the node with its centred depth f * S - Ssum a cycle after.
-        # The registers keep the memory's output, the multiplier and the subtraction on separate clocks.
-        prepare_index = Signal(range(nodes_total))
-        prepare_second = Signal()
-        prepare_offset = Signal(node_layout["offset"].shape)
-        prepare_col = Signal(range(w))
-        seen, seen_second = Signal(), Signal()
-        seen_offset = Signal(node_layout["offset"].shape)
-        append_index = Signal(range(nodes_total))
-        m.d.comb += patch_read.addr.eq(prepare_index)
-        word = patch_read.data
-        staged, staged_second = Signal(), Signal()
-        staged_depth = Signal.like(word.depth)
-        staged_offset = Signal(node_layout["offset"].shape)
-        m.d.sync += [
-            staged.eq(seen & word.valid),
-            staged_second.eq(seen_second),
-            staged_depth.eq(word.depth),
-            staged_offset.eq(seen_offset),
-        ]
-        with m.If(staged & ~staged_second):
-            m.d.sync += [
-                count.eq(count + 1),
-                factor.eq(Mux(mean, count + 1, 1)),
-                patch_sum.eq(patch_sum + staged_depth),
-            ]
-        scaled, scaled_offset = Signal(), Signal(node_layout["offset"].shape)
-        scaled_depth = Signal(scaled_shape)
-        m.d.sync += [
-            scaled.eq(staged & staged_second),
-            scaled_depth.eq(factor * staged_depth),
-            scaled_offset.eq(staged_offset),
-        ]
-        m.d.comb += [
-            nodes_write.addr.eq(append_index),
-            nodes_write.data.offset.eq(scaled_offset),
-            nodes_write.data.centred.eq(scaled_depth - Mux(mean, patch_sum, 0)),
-            nodes_write.en.eq(scaled),
-        ]
-        with m.If(scaled):
-            m.d.sync += append_index.eq(append_index + 1)
+        m.submodules.compaction = compaction = NodeCompaction(parameters=p)
+        wiring.connect(m, wiring.flipped(self.patch_in), compaction.patch_in)
+        m.d.comb += [compaction.accept.eq(~busy), compaction.start.eq(start),
+                     compaction.start_mode.eq(self.start.payload.mean_compensation)]
+        mean, factor, empty, count_last = compaction.mean, compaction.factor, compaction.empty, compaction.count_last
+        centred_shape = RecursiveShapes.of(p).centred
+        node_layout = compaction.node_layout
+        m.submodules.nodes = nodes = memory.Memory(shape=node_layout, depth=nodes_total, init=[])
+        nodes_write = nodes.write_port()
+        wiring.connect(m, compaction.nodes_write, nodes_write)
+        # Transparent: the first node may be written on the very edge the generator first reads it.
+        nodes_read = nodes.read_port(transparent_for=(nodes_write,))
 
         # --- the address generator: one map read per valid node and placement -------------------
         # After the last placement, one more round of n reads (``flush``) pushes its terms out.
@@ -210,9 +147,6 @@ class RecursiveCore(wiring.Component):
         take = ~queued | request.ready
         advance = generating & take
         # Without a valid node each placement still takes one step, whose term is zero.
-        # Registered once n is known, off the generator's path to the node memory's address.
-        empty = Signal()
-        count_last = Signal(range(nodes_total))  # n - 1
         last_node = (node_index == count_last) | empty
         m.d.comb += [
             request.valid.eq(queued),
@@ -323,55 +257,22 @@ class RecursiveCore(wiring.Component):
         m.d.comb += self.start.ready.eq(~busy)
         with m.FSM():
             with m.State("IDLE"):
-                with m.If(self.start.valid & self.start.ready):
-                    m.d.sync += [
-                        running.eq(1),
-                        mean.eq(self.start.payload.mean_compensation),
-                        count.eq(0),
-                        factor.eq(~self.start.payload.mean_compensation),
-                        patch_sum.eq(0),
-                        append_index.eq(0),
-                        prepare_index.eq(0),
-                        prepare_second.eq(0),
-                        prepare_offset.eq(0),
-                        prepare_col.eq(0),
-                        out_i.eq(0),
-                        out_j.eq(0),
-                    ]
+                with m.If(start):
+                    m.d.sync += [running.eq(1), out_i.eq(0), out_j.eq(0)]
                     m.next = "PREPARE"
             with m.State("PREPARE"):
-                m.d.sync += [seen.eq(1), seen_second.eq(prepare_second), seen_offset.eq(prepare_offset)]
-                with m.If(prepare_index == nodes_total - 1):
-                    m.d.sync += [prepare_index.eq(0), prepare_col.eq(0), prepare_offset.eq(0),
-                                 prepare_second.eq(1)]
-                    with m.If(prepare_second):
-                        m.next = "PREPARE_LAST"
-                with m.Else():
-                    m.d.sync += prepare_index.eq(prepare_index + 1)
-                    with m.If(prepare_col == w - 1):
-                        m.d.sync += [prepare_col.eq(0), prepare_offset.eq(prepare_offset + W - w + 1)]
-                    with m.Else():
-                        m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
-            with m.State("PREPARE_LAST"):
-                # The last patch word is seen on this cycle; staged on the next, scaled on the one after.
-                m.d.sync += seen.eq(0)
-                m.next = "PREPARE_STAGED"
-            with m.State("PREPARE_STAGED"):
-                # n is final from this cycle on (the last first-pass word was counted on the edge before).
-                m.d.sync += [empty.eq(count == 0), count_last.eq(count - 1)]
-                m.next = "PREPARE_SCALED"
-            with m.State("PREPARE_SCALED"):
-                # The last patch word is appended on this cycle's edge.
-                m.d.sync += [
-                    generating.eq(1),
-                    flushing.eq(0),
-                    has_previous.eq(0),
-                    node_index.eq(0),
-                    base.eq(0),
-                    gen_i.eq(0),
-                    gen_j.eq(0),
-                ]
-                m.next = "RUN"
+                with m.If(compaction.done):
+                    # The last valid node is appended on this cycle's edge.
+                    m.d.sync += [
+                        generating.eq(1),
+                        flushing.eq(0),
+                        has_previous.eq(0),
+                        node_index.eq(0),
+                        base.eq(0),
+                        gen_i.eq(0),
+                        gen_j.eq(0),
+                    ]
+                    m.next = "RUN"
             with m.State("RUN"):
                 with m.If(~running):
                     m.next = "IDLE"

@@ -1,11 +1,12 @@
 # amaranth: UnusedElaboratable=no
-"""The recursive core's TermUnit alone: sum |f * M - offset| per placement, at its latency, under back-pressure."""
+"""The recursive core's components alone against NumPy models: NodeCompaction's node list, TermUnit's sums."""
 
 import numpy as np
 import pytest
 from amaranth.sim import Simulator
 
 from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.recursive_patch import NodeCompaction
 from lost.hdl.recursive_term import TermStage, TermUnit
 
 PARAMS = CorrelatorParameters(map_shape=(6, 6), patch_shape=(3, 3), depth_bits=16, lanes=1)
@@ -62,3 +63,52 @@ def test_every_placements_value_in_order(factor, empty, ready_share, gap_share):
     sim.add_testbench(bench)
     sim.run()
     assert received == expected
+
+
+@pytest.mark.parametrize("map_shape, patch_shape, mode, share", [((7, 9), (3, 4), True, 0.6), ((5, 5), (2, 2), False, 0.7),
+                                                                  ((4, 6), (2, 3), True, 0.0), ((3, 3), (1, 1), True, 1.0)])
+def test_node_compaction_lists_the_valid_nodes_with_their_centred_depths(map_shape, patch_shape, mode, share):
+    (_, W), (h, w) = map_shape, patch_shape
+    rng = np.random.default_rng([h, w, int(mode)])
+    params = CorrelatorParameters(map_shape=map_shape, patch_shape=patch_shape, depth_bits=16, lanes=1)
+    dut = NodeCompaction(parameters=params)
+    patch = rng.integers(-(2**15), 2**15, size=patch_shape)
+    mask = rng.random(patch_shape) < share
+    n = int(mask.sum())
+    f = n if mode else 1
+    patch_sum = int(patch[mask].sum())
+    expected = [(k * W + l, f * int(patch[k, l]) - (patch_sum if mode else 0))
+                for k in range(h) for l in range(w) if mask[k, l]]
+    written, result = [], {}
+
+    async def bench(ctx):
+        ctx.set(dut.accept, 1)
+        for depth, valid in zip(patch.flat, mask.flat):
+            ctx.set(dut.patch_in.valid, 1)
+            ctx.set(dut.patch_in.payload, {"depth": int(depth), "valid": bool(valid)})
+            await ctx.tick()
+        ctx.set(dut.patch_in.valid, 0)
+        ctx.set(dut.accept, 0)
+        ctx.set(dut.start, 1)
+        ctx.set(dut.start_mode, mode)
+        await ctx.tick()  # edge 0: the start beat
+        ctx.set(dut.start, 0)
+        for edge in range(1, 2 * h * w + 6):
+            done = ctx.get(dut.done)
+            if ctx.get(dut.nodes_write.en):
+                written.append((ctx.get(dut.nodes_write.addr), ctx.get(dut.nodes_write.data.offset),
+                                ctx.get(dut.nodes_write.data.centred)))
+            await ctx.tick()
+            if done:
+                result.update(done_edge=edge, empty=ctx.get(dut.empty), count_last=ctx.get(dut.count_last),
+                              factor=ctx.get(dut.factor), mean=ctx.get(dut.mean))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert written == [(index, offset, centred) for index, (offset, centred) in enumerate(expected)]
+    assert result["done_edge"] == 2 * h * w + 3
+    assert (result["empty"], result["factor"], result["mean"]) == (n == 0, f, int(mode))
+    if n:
+        assert result["count_last"] == n - 1
