@@ -82,3 +82,35 @@ def test_the_flow_appends_each_placed_build_once(tmp_path, monkeypatch):
     assert [(row["variant"], row["lanes"], row["commit"]) for row in rows] == [("recursive", "1", "c0ffee1"),
                                                                                ("window", "1", "c0ffee1")]
     assert json.loads((tmp_path / "report.json").read_text())["configurations"][-1]["routed"] is False
+
+
+def test_lut4_equivalent_counts_a_carry_cell_as_two():
+    from lost.hdl.flow.breakdown import lut4_equivalent
+
+    assert lut4_equivalent({"LUT4": 5, "CCU2C": 3, "TRELLIS_FF": 9}) == 11
+    assert lut4_equivalent({}) == 0
+
+
+@pytest.mark.fpga
+def test_breakdown_counts_the_cells_of_each_component(tmp_path):
+    from amaranth.hdl import Module
+    from amaranth.lib import wiring
+    from amaranth.lib.wiring import In, Out
+
+    from lost.hdl.blocks import AdderTree
+    from lost.hdl.flow.breakdown import cell_counts, lut4_equivalent
+
+    class Top(wiring.Component):
+        leaves: In(4 * 12)
+        total: Out(14)
+
+        def elaborate(self, platform):
+            m = Module()
+            m.submodules.tree = tree = AdderTree(count=4, leaf=(0, 4095), total=(0, 4 * 4095))
+            m.d.comb += [tree.leaves.eq(self.leaves), self.total.eq(tree.sum)]
+            return m
+
+    counts = cell_counts(Top(), "top", tmp_path)
+    # The tree is its own module: two 13-bit and one 14-bit adder in carry cells, its registers beside.
+    assert lut4_equivalent(counts["top.tree"]) >= 2 * 13 + 14 and counts["top.tree"]["TRELLIS_FF"] == 2 * 13 + 14
+    assert lut4_equivalent(counts["top"]) == 0
