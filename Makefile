@@ -57,11 +57,13 @@ $(FPGA_STAMP): $(STAMP)
 	touch $@
 
 # The flow's own tests, then every configuration (cached per netlist and seed in build/fpga; about an
-# hour from scratch on 2 cores), its report (build/fpga/report.json, report.md) and the side-by-side
+# hour from scratch on 2 cores), its report (build/fpga/report.json, report.md), each placed build's
+# figures appended to docs/fpga_figures.csv (and docs/fpga.md's table regenerated from it) and the side-by-side
 # with the software correlators. SYNTH_ARGS passes options, e.g. SYNTH_ARGS="--seeds 1 2 3 --lanes 1 2".
 synth: $(FPGA_STAMP)
 	$(BIN)/python -m pytest -m fpga tests
-	$(BIN)/python -m lost.hdl.synth --out build/fpga $(SYNTH_ARGS)
+	$(BIN)/python -m lost.hdl.flow.synth --out build/fpga --figures docs/fpga_figures.csv $(SYNTH_ARGS)
+	$(BIN)/python -m lost.hdl.flow.figures --update docs/fpga.md
 	$(BIN)/python benchmarks/side_by_side.py build/fpga/report.json
 
 # The device for the ULX3S (LFE5U-85F): build/bitstream/ulx3s_lost.bit and summary.json (Fmax against the
@@ -73,11 +75,11 @@ $(BITSTREAM_STAMP): $(STAMP)
 	touch $@
 
 bitstream: $(BITSTREAM_STAMP)
-	$(BIN)/python -m lost.hdl.bitstream --out build/bitstream $(BITSTREAM_ARGS)
+	$(BIN)/python -m lost.hdl.flow.bitstream --out build/bitstream $(BITSTREAM_ARGS)
 
-# Verilog of each correlator variant at 501 x 501 / 10 x 10 (python -m lost.hdl.generate --help for sizes).
+# Verilog of each correlator variant at 501 x 501 / 10 x 10 (python -m lost.hdl.flow.generate --help for sizes).
 verilog: setup
-	$(BIN)/python -m lost.hdl.generate --out build/verilog
+	$(BIN)/python -m lost.hdl.flow.generate --out build/verilog
 
 # verilator --lint-only -Wall on each; the waivers and their reasons are in sim/verilator.py.
 lint: verilog

@@ -4,7 +4,7 @@
 flow) prints one markdown table:
 
 * each FPGA configuration of the report: cycles of one correlation (cycle model) over the post-route
-  Fmax (nextpnr), as ``python -m lost.hdl.synth`` measured them;
+  Fmax (nextpnr), as ``python -m lost.hdl.flow.synth`` measured them;
 * the project's exact software correlator (``lost.host.correlate``, backend ``software``) and OpenCV's
   ``matchTemplate`` (``TM_SQDIFF`` on float32, not exact, not mean-compensated), both timed here on
   this machine: the best of several rounds, after a warm-up;
@@ -25,9 +25,9 @@ import cv2
 import numpy as np
 
 from lost import model
-from lost.hdl.synth import PAPER_SECONDS
 from lost.host import correlate
 from lost.host.terrain import synthetic_terrain
+from lost.model.paper import PAPER_SECONDS
 
 
 def best_time(function, *, rounds: int = 20) -> float:
@@ -78,11 +78,11 @@ def markdown(table: list[tuple[str, str, float, str]]) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("report", nargs="?", type=Path, default=Path("build/fpga/report.json"),
-                        help="the FPGA report of `python -m lost.hdl.synth` (build/fpga/report.json)")
+                        help="the FPGA report of `python -m lost.hdl.flow.synth` (build/fpga/report.json)")
     parser.add_argument("--rounds", type=int, default=20, help="timed rounds of each software correlator (20)")
     args = parser.parse_args(argv)
     if not args.report.exists():
-        parser.error(f"{args.report} does not exist: run `python -m lost.hdl.synth` (or `make synth`) first")
+        parser.error(f"{args.report} does not exist: run `python -m lost.hdl.flow.synth` (or `make synth`) first")
     if args.rounds < 1:
         parser.error(f"--rounds must be at least 1, got {args.rounds}")
     print(markdown(rows(json.loads(args.report.read_text()), rounds=args.rounds)), end="")

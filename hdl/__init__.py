@@ -1,4 +1,8 @@
-"""Amaranth gateware of the correlator (the HDL issue)."""
+"""Amaranth gateware of the correlator: the cores, their components and the shared pipeline blocks.
+
+The tooling beside it (Verilog generation, the measurement harness, synthesis, the figures, the
+bitstream) is :mod:`lost.hdl.flow`; the component map with each latency and test is ``docs/fpga.md``.
+"""
 
 from .interface import (
     BestFitBeat,

@@ -42,6 +42,8 @@ from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
+from lost.hdl.recursive_patch import NodeCompaction
+from lost.hdl.recursive_term import RecursiveShapes, TermUnit
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
 
@@ -93,89 +95,25 @@ class RecursiveCore(wiring.Component):
         widths = p.widths
         nodes_total = h * w
 
-        # --- the patch: loaded while idle, compacted to its valid nodes at start ------------------
-        m.submodules.patch = patch = memory.Memory(shape=p.patch_word, depth=nodes_total, init=[])
-        patch_write, patch_read = patch.write_port(), patch.read_port()
-        # A node's map offset and its centred depth C (n * S - Ssum with mean compensation, S without);
-        # a plain depth is wider than the centred bound when n = 1.
-        centred_shape = signed(max(widths.centred_depth.bits, widths.depth.bits))
-        scaled_shape = signed(max(widths.scaled_depth.bits, widths.depth.bits))  # f * S or f * M
-        node_layout = data.StructLayout({
-            "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
-            "centred": centred_shape,
-        })
-        m.submodules.nodes = nodes = memory.Memory(shape=node_layout, depth=nodes_total, init=[])
-        nodes_write = nodes.write_port()
-        # Transparent: the first node may be written on the very edge the generator first reads it.
-        nodes_read = nodes.read_port(transparent_for=(nodes_write,))
-
+        # --- the patch: loaded while idle, compacted to its valid nodes at start (``NodeCompaction``) ---
         busy = Signal()
         running = Signal()
         m.submodules.reducer = reducer = BestFitReducer(parameters=p)
         m.d.comb += [busy.eq(running | reducer.busy), self.busy.eq(busy)]
+        start = self.start.valid & self.start.ready
 
-        load_index = Signal(range(nodes_total))
-        m.d.comb += [
-            self.patch_in.ready.eq(~busy),
-            patch_write.addr.eq(load_index),
-            patch_write.data.eq(self.patch_in.payload),
-            patch_write.en.eq(self.patch_in.valid & self.patch_in.ready),
-        ]
-        with m.If(patch_write.en):
-            m.d.sync += load_index.eq(Mux(load_index == nodes_total - 1, 0, load_index + 1))
-
-        mean = Signal()                                   # latched from the start command
-        count = Signal(range(nodes_total + 1))            # n, the valid nodes
-        patch_sum = Signal(signed(widths.window_sum.bits))
-
-        # f = n with mean compensation, 1 without; it scales map words and patch depths alike.
-        # A register of its own, kept equal to Mux(mean, count, 1), so that the multipliers' inputs are
-        # registers.
-        factor = Signal(range(nodes_total + 1))
-
-        # Preparation, two passes over the patch memory: read word k; one cycle later register it
-        # (``staged``); then count it and add it to Ssum (first pass), or register f * S (second pass,
-        # when n is known) and append the node with its centred depth f * S - Ssum a cycle after.
-        # The registers keep the memory's output, the multiplier and the subtraction on separate clocks.
-        prepare_index = Signal(range(nodes_total))
-        prepare_second = Signal()
-        prepare_offset = Signal(node_layout["offset"].shape)
-        prepare_col = Signal(range(w))
-        seen, seen_second = Signal(), Signal()
-        seen_offset = Signal(node_layout["offset"].shape)
-        append_index = Signal(range(nodes_total))
-        m.d.comb += patch_read.addr.eq(prepare_index)
-        word = patch_read.data
-        staged, staged_second = Signal(), Signal()
-        staged_depth = Signal.like(word.depth)
-        staged_offset = Signal(node_layout["offset"].shape)
-        m.d.sync += [
-            staged.eq(seen & word.valid),
-            staged_second.eq(seen_second),
-            staged_depth.eq(word.depth),
-            staged_offset.eq(seen_offset),
-        ]
-        with m.If(staged & ~staged_second):
-            m.d.sync += [
-                count.eq(count + 1),
-                factor.eq(Mux(mean, count + 1, 1)),
-                patch_sum.eq(patch_sum + staged_depth),
-            ]
-        scaled, scaled_offset = Signal(), Signal(node_layout["offset"].shape)
-        scaled_depth = Signal(scaled_shape)
-        m.d.sync += [
-            scaled.eq(staged & staged_second),
-            scaled_depth.eq(factor * staged_depth),
-            scaled_offset.eq(staged_offset),
-        ]
-        m.d.comb += [
-            nodes_write.addr.eq(append_index),
-            nodes_write.data.offset.eq(scaled_offset),
-            nodes_write.data.centred.eq(scaled_depth - Mux(mean, patch_sum, 0)),
-            nodes_write.en.eq(scaled),
-        ]
-        with m.If(scaled):
-            m.d.sync += append_index.eq(append_index + 1)
+        m.submodules.compaction = compaction = NodeCompaction(parameters=p)
+        wiring.connect(m, wiring.flipped(self.patch_in), compaction.patch_in)
+        m.d.comb += [compaction.accept.eq(~busy), compaction.start.eq(start),
+                     compaction.start_mode.eq(self.start.payload.mean_compensation)]
+        mean, factor, empty, count_last = compaction.mean, compaction.factor, compaction.empty, compaction.count_last
+        centred_shape = RecursiveShapes.of(p).centred
+        node_layout = compaction.node_layout
+        m.submodules.nodes = nodes = memory.Memory(shape=node_layout, depth=nodes_total, init=[])
+        nodes_write = nodes.write_port()
+        wiring.connect(m, compaction.nodes_write, nodes_write)
+        # Transparent: the first node may be written on the very edge the generator first reads it.
+        nodes_read = nodes.read_port(transparent_for=(nodes_write,))
 
         # --- the address generator: one map read per valid node and placement -------------------
         # After the last placement, one more round of n reads (``flush``) pushes its terms out.
@@ -209,9 +147,6 @@ class RecursiveCore(wiring.Component):
         take = ~queued | request.ready
         advance = generating & take
         # Without a valid node each placement still takes one step, whose term is zero.
-        # Registered once n is known, off the generator's path to the node memory's address.
-        empty = Signal()
-        count_last = Signal(range(nodes_total))  # n - 1
         last_node = (node_index == count_last) | empty
         m.d.comb += [
             request.valid.eq(queued),
@@ -272,88 +207,44 @@ class RecursiveCore(wiring.Component):
         with m.If(step & tag.previous & tag.first):
             m.d.sync += previous_window_sum.eq(next_window_sum)
 
-        # --- term: one absolute difference and one accumulator, in clocked stages ------------------
-        # ``term`` (the window memory's output, one cycle after the step) is registered as it is
-        # (``fetched``: a block RAM's clock-to-output is half a 100 MHz period on the ECP5), then
-        # scaled by f (``product``, the multiplier between registers), then forms the difference,
-        # ``magnitude`` its absolute value, ``accumulate`` the sum: one carry chain per clock. What the term subtracts besides the window word, C + Msum of placement
-        # q-1, is summed on the step itself.
-        window_sum_shape = signed(widths.window_sum.bits)
-        offset_shape = signed(max(centred_shape.width, window_sum_shape.width) + 1)
-        term_valid, term_first, term_last = Signal(), Signal(), Signal()
-        term_offset = Signal(offset_shape)
-        # A plain term is a difference; for n = 1 that exceeds the mean-compensated bound (zero).
-        term_shape = signed(max(widths.term.bits, widths.difference.bits))
-        fetched_valid, fetched_first, fetched_last = Signal(), Signal(), Signal()
-        fetched_word, fetched_offset = Signal(signed(p.depth_bits)), Signal(offset_shape)
-        product_valid, product_first, product_last = Signal(), Signal(), Signal()
-        product_word, product_offset = Signal(scaled_shape), Signal(offset_shape)
-        magnitude_valid, magnitude_first, magnitude_last = Signal(), Signal(), Signal()
-        magnitude_term = Signal(term_shape)
-        accumulate_valid, accumulate_first, accumulate_last = Signal(), Signal(), Signal()
-        abs_term = Signal(unsigned(max(widths.abs_term.bits, widths.abs_difference.bits)))
-        accumulator = Signal(unsigned(widths.accumulator.bits))
-        out_value = Signal(unsigned(widths.accumulator.bits))
-        out_full = Signal()
+        # --- term: one absolute difference and one accumulator (``TermUnit``) -----------------------
+        # What the term subtracts besides the window word, C + Msum of placement q-1, is summed on the
+        # step itself; the window word follows from the memory read on the same edge.
+        m.submodules.terms = terms = TermUnit(parameters=p)
+        # On the step of a placement's first node, Msum of the previous placement moves from
+        # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
+        previous_sum = Mux(tag.first, next_window_sum, previous_window_sum)
+        m.d.comb += [
+            response.ready.eq(terms.advance),
+            terms.term.valid.eq(step & tag.previous),
+            terms.term.first.eq(tag.first),
+            terms.term.last.eq(tag.last),
+            terms.term.offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
+            terms.word.eq(window_read.data),
+            terms.factor.eq(factor),
+            terms.empty.eq(empty),
+        ]
+
+        # --- the surface: the term unit's values, placed in raster order ----------------------------
         out_i, out_j = Signal(range(rows)), Signal(range(cols))
-
-        accumulator_new = Mux(accumulate_first, 0, accumulator) + abs_term
         surface_taken = self.surface.valid & self.surface.ready
-        # Only a placement's last term needs the output register; while that is still full, every
-        # stage holds (the model's schedule, with ``surface.ready`` high, never holds).
-        hold = accumulate_valid & accumulate_last & out_full & ~self.surface.ready
-        m.d.comb += response.ready.eq(~hold)
-        with m.If(~hold):
-            # On the step of a placement's first node, Msum of the previous placement moves from
-            # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
-            previous_sum = Mux(tag.first, next_window_sum, previous_window_sum)
-            m.d.sync += [
-                term_valid.eq(step & tag.previous),
-                term_first.eq(tag.first),
-                term_last.eq(tag.last),
-                term_offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
-                fetched_valid.eq(term_valid),
-                fetched_first.eq(term_first),
-                fetched_last.eq(term_last),
-                fetched_word.eq(window_read.data),
-                fetched_offset.eq(term_offset),
-                product_valid.eq(fetched_valid),
-                product_first.eq(fetched_first),
-                product_last.eq(fetched_last),
-                product_word.eq(factor * fetched_word),
-                product_offset.eq(fetched_offset),
-                # f * M - C - Msum = n * (M - S) - (Msum - Ssum) with mean compensation; M - S without.
-                magnitude_valid.eq(product_valid),
-                magnitude_first.eq(product_first),
-                magnitude_last.eq(product_last),
-                magnitude_term.eq(product_word - product_offset),
-                accumulate_valid.eq(magnitude_valid),
-                accumulate_first.eq(magnitude_first),
-                accumulate_last.eq(magnitude_last),
-                abs_term.eq(Mux(empty, 0, abs(magnitude_term))),
-            ]
-            with m.If(accumulate_valid):
-                m.d.sync += accumulator.eq(accumulator_new)
-
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
         m.d.comb += [
-            self.surface.valid.eq(out_full),
-            self.surface.payload.values[0].eq(out_value),
+            self.surface.valid.eq(terms.value.valid),
+            terms.value.ready.eq(self.surface.ready),
+            self.surface.payload.values[0].eq(terms.value.payload),
             self.surface.payload.count.eq(1),
             self.surface.payload.i.eq(out_i),
             self.surface.payload.j.eq(out_j),
             self.surface.payload.last.eq(surface_last),
         ]
         with m.If(surface_taken):
-            m.d.sync += out_full.eq(0)
             with m.If(surface_last):
                 m.d.sync += running.eq(0)
             with m.Elif(out_j == cols - 1):
                 m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
             with m.Else():
                 m.d.sync += out_j.eq(out_j + 1)
-        with m.If(~hold & accumulate_valid & accumulate_last):
-            m.d.sync += [out_value.eq(accumulator_new), out_full.eq(1)]
 
         # The reducer watches the surface's transfers and answers on ``best``.
         m.d.comb += [
@@ -366,55 +257,22 @@ class RecursiveCore(wiring.Component):
         m.d.comb += self.start.ready.eq(~busy)
         with m.FSM():
             with m.State("IDLE"):
-                with m.If(self.start.valid & self.start.ready):
-                    m.d.sync += [
-                        running.eq(1),
-                        mean.eq(self.start.payload.mean_compensation),
-                        count.eq(0),
-                        factor.eq(~self.start.payload.mean_compensation),
-                        patch_sum.eq(0),
-                        append_index.eq(0),
-                        prepare_index.eq(0),
-                        prepare_second.eq(0),
-                        prepare_offset.eq(0),
-                        prepare_col.eq(0),
-                        out_i.eq(0),
-                        out_j.eq(0),
-                    ]
+                with m.If(start):
+                    m.d.sync += [running.eq(1), out_i.eq(0), out_j.eq(0)]
                     m.next = "PREPARE"
             with m.State("PREPARE"):
-                m.d.sync += [seen.eq(1), seen_second.eq(prepare_second), seen_offset.eq(prepare_offset)]
-                with m.If(prepare_index == nodes_total - 1):
-                    m.d.sync += [prepare_index.eq(0), prepare_col.eq(0), prepare_offset.eq(0),
-                                 prepare_second.eq(1)]
-                    with m.If(prepare_second):
-                        m.next = "PREPARE_LAST"
-                with m.Else():
-                    m.d.sync += prepare_index.eq(prepare_index + 1)
-                    with m.If(prepare_col == w - 1):
-                        m.d.sync += [prepare_col.eq(0), prepare_offset.eq(prepare_offset + W - w + 1)]
-                    with m.Else():
-                        m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
-            with m.State("PREPARE_LAST"):
-                # The last patch word is seen on this cycle; staged on the next, scaled on the one after.
-                m.d.sync += seen.eq(0)
-                m.next = "PREPARE_STAGED"
-            with m.State("PREPARE_STAGED"):
-                # n is final from this cycle on (the last first-pass word was counted on the edge before).
-                m.d.sync += [empty.eq(count == 0), count_last.eq(count - 1)]
-                m.next = "PREPARE_SCALED"
-            with m.State("PREPARE_SCALED"):
-                # The last patch word is appended on this cycle's edge.
-                m.d.sync += [
-                    generating.eq(1),
-                    flushing.eq(0),
-                    has_previous.eq(0),
-                    node_index.eq(0),
-                    base.eq(0),
-                    gen_i.eq(0),
-                    gen_j.eq(0),
-                ]
-                m.next = "RUN"
+                with m.If(compaction.done):
+                    # The last valid node is appended on this cycle's edge.
+                    m.d.sync += [
+                        generating.eq(1),
+                        flushing.eq(0),
+                        has_previous.eq(0),
+                        node_index.eq(0),
+                        base.eq(0),
+                        gen_i.eq(0),
+                        gen_j.eq(0),
+                    ]
+                    m.next = "RUN"
             with m.State("RUN"):
                 with m.If(~running):
                     m.next = "IDLE"

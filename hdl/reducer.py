@@ -38,14 +38,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
+from amaranth.hdl import Module, Mux, Signal, unsigned
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
-from amaranth.utils import ceil_log2
 
 from lost.model.cycles import reducer_geometry
 
+from .blocks import DelayLine, MinimumTree
 from .interface import CorrelatorParameters
+from .reducer_scan import RunnerUpScan, row_minimum_layout
 
 __all__ = ["BestFitReducer"]
 
@@ -97,8 +98,7 @@ class BestFitReducer(wiring.Component):
         row_shape, col_shape = unsigned(p.row_bits), unsigned(p.col_bits)
         values_layout = data.ArrayLayout(value_shape, lanes)
 
-        row_minimum_layout = data.StructLayout({"value": value_shape, "col": col_shape})
-        m.submodules.row_minima = row_minima = memory.Memory(shape=row_minimum_layout, depth=rows, init=[])
+        m.submodules.row_minima = row_minima = memory.Memory(shape=row_minimum_layout(p), depth=rows, init=[])
         m.submodules.row_slots = row_slots = memory.Memory(
             shape=values_layout, depth=slots * beats_per_row, init=[])
         minima_write, minima_read = row_minima.write_port(), row_minima.read_port()
@@ -106,11 +106,9 @@ class BestFitReducer(wiring.Component):
 
         def delayed(value, shape, cycles, name):
             """``value`` through ``cycles`` registers."""
-            for stage in range(cycles):
-                register = Signal(shape, name=f"{name}_d{stage + 1}")
-                m.d.sync += register.eq(value)
-                value = register
-            return value
+            m.submodules[name] = line = DelayLine(shape, cycles)
+            m.d.comb += line.i.eq(value)
+            return line.o
 
         # --- collecting: one beat per cycle, through a fixed pipeline --------------------------------
         # Stage "in": the transferred beat, registered before any logic.
@@ -129,9 +127,15 @@ class BestFitReducer(wiring.Component):
         ]
 
         # The beat's minimum by a compare tree with a register per level (lowest lane first on ties).
-        leaves = [(lane < in_count, in_values[lane], in_j + lane) for lane in range(lanes)]
-        _, beat_value, beat_col = _tree(m, leaves, _earlier_smaller, "beat", (1, value_shape, col_shape))
-        levels = ceil_log2(lanes)
+        m.submodules.beat_tree = beat_tree = MinimumTree(count=lanes, key=value_shape, payload=col_shape)
+        for lane in range(lanes):
+            m.d.comb += [
+                beat_tree.leaves[lane].valid.eq(lane < in_count),
+                beat_tree.leaves[lane].key.eq(in_values[lane]),
+                beat_tree.leaves[lane].payload.eq(in_j + lane),
+            ]
+        beat_value, beat_col = beat_tree.root.key, beat_tree.root.payload
+        levels = beat_tree.latency
         meta_layout = data.StructLayout({
             "valid": 1, "last": 1, "i": row_shape, "first_in_row": 1, "row_end": 1,
         })
@@ -230,161 +234,38 @@ class BestFitReducer(wiring.Component):
         with m.If(write_valid):
             m.d.sync += next_address.eq(address + 1)
 
-        # --- scanning: one memory word per cycle after the last beat is stored ----------------------
-        scan_rows_end = rows
-        scan_end = rows + slots * beats_per_row
-        scanning = Signal()
-        step = Signal(range(scan_end + 1))
-        slot_index = Signal(range(slots))
-        slot_col = Signal(range(beats_per_row * lanes + 1))  # the first column of the word read
+        # --- scanning: one memory word per cycle after the last beat is stored (``RunnerUpScan``) ----
+        m.submodules.scan = scan = RunnerUpScan(parameters=p)
+        wiring.connect(m, scan.minima_read, minima_read)
+        wiring.connect(m, scan.slots_read, slots_read)
+        best_taken = self.best.valid & self.best.ready
         m.d.comb += [
-            minima_read.addr.eq(step),
-            slots_read.addr.eq(step - scan_rows_end),
-        ]
-        # What the memories' data registers hold this cycle: the word read for the previous step.
-        seen, seen_final = Signal(), Signal()
-        seen_row_minimum = Signal()
-        seen_slot = Signal(range(slots))
-        seen_cols = [Signal.like(slot_col, name=f"seen_col{lane}") for lane in range(lanes)]
-        seen_row = Signal(row_shape)
-
-        # The band's bounds, registered: the best fit is final before the scan starts.
-        band_rows = Signal(range(-r, rows)), Signal(range(rows + r))
-        band_cols = Signal(range(-r, cols)), Signal(range(cols + r))
-        m.d.sync += [
-            band_rows[0].eq(best_i - r), band_rows[1].eq(best_i + r),
-            band_cols[0].eq(best_j - r), band_cols[1].eq(best_j + r),
+            scan.start.eq(write_last),
+            scan.best_i.eq(best_i),
+            scan.best_j.eq(best_j),
+            *(scan.slot_rows[s].eq(tag[s]) for s in range(slots)),
+            *(scan.slot_in_band[s].eq(in_band[s]) for s in range(slots)),
+            scan.taken.eq(best_taken),
         ]
 
-        def outside(index, band):
-            return (index < band[0]) | (index > band[1])
-
-        # The memories' outputs are registered before any logic (``fetched``): a block RAM's clock-to-output
-        # alone is half a 100 MHz period on the ECP5.
-        fetched, fetched_final = delayed(seen, 1, 1, "fetched"), delayed(seen_final, 1, 1, "fetched_final")
-        fetched_row_minimum = delayed(seen_row_minimum, 1, 1, "fetched_row_minimum")
-        fetched_slot = delayed(seen_slot, seen_slot.shape(), 1, "fetched_slot")
-        fetched_cols = [delayed(seen_col, seen_col.shape(), 1, f"fetched_col{lane}")
-                        for lane, seen_col in enumerate(seen_cols)]
-        fetched_row = delayed(seen_row, row_shape, 1, "fetched_row")
-        fetched_minimum = delayed(minima_read.data, row_minimum_layout, 1, "fetched_minimum")
-        fetched_words = delayed(slots_read.data, values_layout, 1, "fetched_words")
-
-        # Candidates, one per lane, keyed (value, i, j): the smallest key is the smallest value, then the
-        # first in raster order. A row minimum is a candidate when its row lies outside the band; a slot
-        # word's lane when the slot holds a row of the band and its column lies outside [bj - r, bj + r].
-        key_shape = unsigned(p.value_bits + p.row_bits + p.col_bits)
-        minimum = fetched_minimum
-        slot_row = Signal(row_shape)
-        slot_in_band = Signal()
-        with m.Switch(fetched_slot):
-            for s in range(slots):
-                with m.Case(s):
-                    m.d.comb += [slot_row.eq(tag[s]), slot_in_band.eq(in_band[s])]
-        candidates = []
-        for lane in range(lanes):
-            col = fetched_cols[lane]
-            slot_ok = ~fetched_row_minimum & slot_in_band & (col < cols) & outside(col, band_cols)
-            key = Cat(col[:p.col_bits], slot_row, fetched_words[lane])
-            if lane == 0:
-                row_ok = fetched_row_minimum & outside(fetched_row, band_rows)
-                key = Mux(fetched_row_minimum, Cat(minimum.col, fetched_row, minimum.value), key)
-                candidates.append((fetched & (row_ok | slot_ok), key))
-            else:
-                candidates.append((fetched & slot_ok, key))
-        leaves = []
-        for lane, (ok, key) in enumerate(candidates):
-            leaf_ok, leaf_key = Signal(name=f"leaf{lane}_ok"), Signal(key_shape, name=f"leaf{lane}_key")
-            m.d.sync += [leaf_ok.eq(ok), leaf_key.eq(key)]
-            leaves.append((leaf_ok, leaf_key))
-        candidate_ok, candidate_key = _tree(m, leaves, _smaller_key, "candidate", (1, key_shape))
-        candidate_final = delayed(fetched & fetched_final, 1, levels + 1, "candidate_final")
-
-        runner_key = Signal(key_shape)
-        runner_valid = Signal()
-        with m.If(candidate_ok & (~runner_valid | (candidate_key < runner_key))):
-            m.d.sync += [runner_key.eq(candidate_key), runner_valid.eq(1)]
-
-        done = Signal()
         # One register from the last beat's arrival to the best beat's transfer: the core's start and load
         # handshakes depend on it.
         busy = Signal()
         with m.If(self.surface.valid & beat.last):
             m.d.sync += busy.eq(1)
-        with m.If(self.best.valid & self.best.ready):
+        with m.If(best_taken):
             m.d.sync += busy.eq(0)
         m.d.comb += [
-            self.best.valid.eq(done),
+            self.best.valid.eq(scan.done),
             self.best.payload.value.eq(best_value),
             self.best.payload.i.eq(best_i),
             self.best.payload.j.eq(best_j),
-            self.best.payload.runner_up_value.eq(runner_key[p.row_bits + p.col_bits:]),
-            self.best.payload.runner_up_i.eq(runner_key[p.col_bits:p.row_bits + p.col_bits]),
-            self.best.payload.runner_up_j.eq(runner_key[:p.col_bits]),
-            self.best.payload.runner_up_valid.eq(runner_valid),
+            self.best.payload.runner_up_value.eq(scan.runner.value),
+            self.best.payload.runner_up_i.eq(scan.runner.i),
+            self.best.payload.runner_up_j.eq(scan.runner.j),
+            self.best.payload.runner_up_valid.eq(scan.runner.valid),
             self.busy.eq(busy),
         ]
 
-        # --- state -------------------------------------------------------------------------------
-        with m.If(write_last):
-            m.d.sync += [scanning.eq(1), step.eq(0), runner_valid.eq(0), slot_index.eq(0), slot_col.eq(0)]
-        m.d.sync += seen.eq(scanning)
-        with m.If(scanning):
-            m.d.sync += [
-                seen_final.eq(step == scan_end - 1),
-                seen_row_minimum.eq(step < scan_rows_end),
-                seen_row.eq(step),
-                seen_slot.eq(slot_index),
-                *(seen_col.eq(slot_col + lane) for lane, seen_col in enumerate(seen_cols)),
-                step.eq(step + 1),
-            ]
-            with m.If(step >= scan_rows_end):
-                with m.If(slot_col == (beats_per_row - 1) * lanes):
-                    m.d.sync += [slot_col.eq(0), slot_index.eq(slot_index + 1)]
-                with m.Else():
-                    m.d.sync += slot_col.eq(slot_col + lanes)
-            with m.If(step == scan_end - 1):
-                m.d.sync += scanning.eq(0)
-        with m.If(candidate_final):
-            # The last word reaches the runner-up on this edge; it is final on the next.
-            m.d.sync += done.eq(1)
-        with m.If(self.best.valid & self.best.ready):
-            m.d.sync += done.eq(0)
-
         return m
 
-
-def _earlier_smaller(first, second):
-    """Whether the later lane ``second`` (ok, value, col) replaces ``first``: smaller, ties to the first."""
-    return second[0] & (~first[0] | (second[1] < first[1]))
-
-
-def _smaller_key(first, second):
-    """Whether candidate ``second`` (ok, key) replaces ``first``: a smaller key (keys are distinct)."""
-    return second[0] & (~first[0] | (second[1] < first[1]))
-
-
-def _tree(m, leaves, replaces, name, shapes):
-    """Reduce ``leaves`` (tuples of values) pairwise, lower index first, one register per level.
-
-    ``replaces(first, second)`` says whether the pair's later item wins. The root comes
-    ``ceil_log2(len(leaves))`` cycles after the leaves; with one leaf it is the leaf itself.
-    """
-    level, depth = list(leaves), 0
-    while len(level) > 1:
-        depth += 1
-        merged = []
-        for k in range(0, len(level), 2):
-            pair = level[k:k + 2]
-            if len(pair) == 2:
-                take = replaces(pair[0], pair[1])
-                item = tuple(Mux(take, b, a) for a, b in zip(*pair))
-                item = (pair[0][0] | pair[1][0],) + item[1:]
-            else:
-                item = pair[0]
-            registers = tuple(Signal(shape, name=f"{name}_l{depth}_{k // 2}_{field}")
-                              for field, shape in enumerate(shapes))
-            m.d.sync += [register.eq(value) for register, value in zip(registers, item)]
-            merged.append(registers)
-        level = merged
-    return level[0]

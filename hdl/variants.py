@@ -1,6 +1,6 @@
 """The one registry of the correlator's hardware variants.
 
-Verilog generation (:mod:`lost.hdl.generate`), synthesis (:mod:`lost.hdl.synth`), the Verilator
+Verilog generation (:mod:`lost.hdl.flow.generate`), synthesis (:mod:`lost.hdl.flow.synth`), the Verilator
 benches (:mod:`lost.sim`), the device top-level (:mod:`lost.hdl.device`), the host's hardware
 backends and the tests all look a variant up here: its name (also the Verilog module's), its core
 classes, its lane count, its number on the wire (the device's identify reply) and its cycle model.
@@ -64,7 +64,7 @@ class Variant:
         memory: str = "on-chip",
         **options: Any,
     ):
-        """The gateware of this variant at these sizes (``options`` go to the class, e.g. ``global_enable``)."""
+        """The gateware of this variant at these sizes (``options`` go to the class, e.g. ``enable_buffer``)."""
         sizes = {"map_shape": tuple(map_shape), "patch_shape": tuple(patch_shape), "depth_bits": depth_bits,
                  "exclusion_radius": exclusion_radius}
         if self.kind == "window":

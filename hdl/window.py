@@ -45,119 +45,54 @@ the output queue, one per beat it holds, so a beat always finds room and ``surfa
 nothing but the issue of further steps. The cycles are modelled exactly by
 :mod:`lost.model.cycles_window`, whose :func:`~lost.model.cycles_window.window_timing` gives the
 pipeline its constants.
+
+The core is made of components, each with its latency in its docstring and a test of its own against
+a NumPy model (``tests/hdl/test_window_parts.py``):
+
+* :class:`~lost.hdl.window_patch.PatchPreparation`: the patch memory and the pass at start;
+* :class:`~lost.hdl.sequencer.MapSequencer`: the map reads (a stream of requests and words);
+* :class:`~lost.hdl.window_columns.StepWindow`: the step register, line buffers and window register;
+* :class:`~lost.hdl.window_lane.WindowLane`, one per lane: the threshold terms (masked depths,
+  window sum, divider, selected differences, their sums, the products, the value);
+* :class:`~lost.hdl.window_queue.CreditQueue`: the output queue and the credits for issuing steps;
+* :class:`~lost.hdl.reducer.BestFitReducer`: the best fit and runner-up.
+
+What stays here is the step issue, the beat each step completes (carried beside the stages) and the
+state machine. The stages are named by :class:`~lost.hdl.window_lane.PipelineStages`. The lane and the
+window follow the step enable rather than a stream's handshake: their ports are step-synchronous.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
-from amaranth.hdl import Cat, Const, Instance, Module, Mux, Shape, Signal, signed, unsigned
+from amaranth.hdl import Const, Module, Mux, Signal, Value, signed, unsigned
 from amaranth.lib import data, memory, wiring
-from amaranth.lib.fifo import SyncFIFO
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
+from lost.hdl.blocks import DelayLine, index_range
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
-from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
-from lost.model.widths import bits_for
+from lost.hdl.window_columns import StepWindow
+from lost.hdl.window_lane import PipelineStages, WindowLane
+from lost.hdl.window_patch import PatchPreparation
+from lost.hdl.window_queue import CreditQueue
+from lost.model.cycles_window import WindowTiming, window_timing
 
-__all__ = ["WindowCore", "WindowCorrelator"]
-
-
-def _union_bits(*bounds: tuple[int, int]) -> Shape:
-    lo = min(b[0] for b in bounds)
-    hi = max(b[1] for b in bounds)
-    width, is_signed = bits_for(lo, hi)
-    return signed(width) if is_signed else unsigned(width)
+__all__ = ["PipelineStages", "WindowCore", "WindowCorrelator"]
 
 
-def _index(count: int) -> range:
-    """The range of an index below ``count``, at least one bit wide (Verilog has no empty vector)."""
-    return range(max(count, 2))
+#: How a high-fan-out enable reaches its loads: ``(module, enable) -> the value the loads see``.
+EnableBuffer = Callable[[Module, Value], Value]
 
 
-def _pipelined_sum(m: Module, enable: Any, values: list, leaf: tuple[int, int], cap: tuple[int, int], name: str) -> Any:
-    """Sum ``values`` with a balanced adder tree, one register level per adder level.
-
-    The registers load when ``enable`` is high, or on every clock when it is ``None``. They are
-    reset-less, like every datapath register here: a reset would only add a net to thousands of them.
-
-    Each register is as wide as the sums it can hold: ``k`` leaves in ``[leaf_lo, leaf_hi]`` give
-    ``[k * leaf_lo, k * leaf_hi]``, never more than the bound ``cap`` of the whole sum.
-    """
-    level, leaves = 0, 1
-    while len(values) > 1:
-        # One array register per level (fewer, wider signals keep the generated Verilog small).
-        leaves *= 2
-        lo, hi = max(leaves * leaf[0], cap[0]), min(leaves * leaf[1], cap[1])
-        sums = Signal(data.ArrayLayout(_union_bits((lo, hi)), (len(values) + 1) // 2), name=f"{name}_l{level}",
-                      reset_less=True)
-        loads = [sums[index // 2].eq(pair[0] + pair[1] if len(pair) == 2 else pair[0])
-                 for index in range(0, len(values), 2) for pair in [values[index : index + 2]]]
-        if enable is None:
-            m.d.sync += loads
-        else:
-            with m.If(enable):
-                m.d.sync += loads
-        values = [sums[index] for index in range((len(values) + 1) // 2)]
-        level += 1
-    return values[0]
-
-
-#: The operand width of the device's multipliers (the ECP5's MULT18X18D): a product's wide operand is
-#: split there, so that each partial product is one multiplier with registers on both sides.
-_MULTIPLIER_BITS = 18
-
-
-def _pipelined_quotient(m: Module, enable: Any, dividend: Any, divisors: list, quotient_bits: int, stages: int,
-                        carry: Any, holds: list, name: str) -> tuple[list, Any]:
-    """``floor(dividend / divisor)`` by restoring division in ``stages`` registers loaded on ``enable``.
-
-    The dividend must be below ``divisor * 2**quotient_bits`` (so the first remainder, ``dividend >>
-    quotient_bits``, is below the divisor) and the divisor must hold still; ``divisors`` are copies of
-    it, each serving a run of the stages. Each stage takes ``ceil(quotient_bits / stages)`` quotient
-    bits (the last fewer, or none), so the latency is ``stages`` whatever the width. One register per
-    stage holds the dividend bits still to take and, shifted in behind them, the quotient bits made;
-    ``carry`` travels beside. The last stage's quotient is loaded into one register per signal in
-    ``holds``, held at zero while its signal is high: copies for a wide fan-out, which distinct resets
-    keep synthesis from merging. Returns those copies and ``carry``, ``stages`` loads later.
-    """
-    per_stage = -(-quotient_bits // stages)
-    divisor_bits = len(divisors[0])
-    remainder_shape = unsigned(divisor_bits)
-    remainder = dividend[quotient_bits:][:divisor_bits]
-    bits = dividend[:quotient_bits]
-    left = quotient_bits
-    for stage in range(stages):
-        divisor = divisors[stage * len(divisors) // stages]
-        for _ in range(min(per_stage, left)):
-            trial = Cat(bits[-1], remainder)  # 2 * remainder + the next dividend bit
-            reduced = trial - divisor
-            # The divisor fits when the difference is not negative: its sign is a sum bit of the
-            # carry chain, where a comparison's carry out would be rebuilt in LUTs.
-            fits = ~reduced[-1]
-            remainder = Mux(fits, reduced, trial)[:divisor_bits]
-            bits = Cat(fits, bits[:-1])
-            left -= 1
-        registers = Signal(data.StructLayout({"remainder": remainder_shape, "bits": unsigned(quotient_bits),
-                                              "carry": Shape.cast(carry.shape())}),
-                           name=f"{name}_s{stage}", reset_less=True)
-        with m.If(enable):
-            m.d.sync += [registers.remainder.eq(remainder), registers.carry.eq(carry)]
-            if stage < stages - 1:
-                m.d.sync += registers.bits.eq(bits)
-        if stage == stages - 1:
-            break
-        remainder, bits, carry = registers.remainder, registers.bits, registers.carry
-    quotients = [Signal(unsigned(quotient_bits), name=f"{name}_copy{c}", reset_less=True) for c in range(len(holds))]
-    for quotient, hold in zip(quotients, holds):
-        with m.If(hold):
-            m.d.sync += quotient.eq(0)
-        with m.Elif(enable):
-            m.d.sync += quotient.eq(bits)
-    return quotients, registers.carry
+def _check_enable_buffer(enable_buffer: Any) -> EnableBuffer | None:
+    if enable_buffer is not None and not callable(enable_buffer):
+        raise ValueError(f"enable_buffer must be None or a function (module, enable) -> Value, got {enable_buffer!r}")
+    return enable_buffer
 
 
 class WindowCore(wiring.Component):
@@ -165,7 +100,7 @@ class WindowCore(wiring.Component):
 
     Parameters
     ----------
-    map_shape, patch_shape, depth_bits, lanes, exclusion_radius, global_enable
+    map_shape, patch_shape, depth_bits, lanes, exclusion_radius, enable_buffer
         See :class:`WindowCorrelator`.
 
     Members
@@ -191,8 +126,8 @@ class WindowCore(wiring.Component):
     """
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
-                 global_enable: bool = False):
-        self._global_enable = bool(global_enable)
+                 enable_buffer: EnableBuffer | None = None):
+        self._enable_buffer = _check_enable_buffer(enable_buffer)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -216,101 +151,42 @@ class WindowCore(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         p, t = self._parameters, self._timing
-        (H, _), (h, w), L, b = p.map_shape, p.patch_shape, p.lanes, p.depth_bits
-        widths = p.widths
-        nodes = h * w
+        (H, _), (h, w), L = p.map_shape, p.patch_shape, p.lanes
         Ho, Wo = p.surface_shape
         G = t.groups
-
-        depth = signed(b)
-        count = unsigned(widths.count.bits)
-        window_sum = signed(widths.window_sum.bits)
-        # Lifted: 2**b - S, M - S + 2**b and the quotient all lie in [1, 2**(b+1) - 1].
-        lift = 1 << b
-        lifted = unsigned(b + 1)
-        lifted_sum_hi = nodes * (2 * lift - 1)
-        # The dividend N = sum_valid M - Ssum + f * 2**b with mean compensation; without it the same
-        # register carries sum_valid M - Ssum (the correction), the dividend being 2**b.
-        carried = _union_bits((widths.sum_difference.lo, lifted_sum_hi))
-        bias = _union_bits((-nodes * widths.depth.hi, nodes * (lift - widths.depth.lo)))
-        value_bits = widths.accumulator.bits
-        # The quotient meets every node's comparator: one register would drive h * w of them across a
-        # lane, so each lane keeps a copy per ``copy_nodes`` consecutive nodes (a patch row of Nygren's
-        # 10 x 10, whose comparators sit together), loaded from one of ``sources`` copies of the
-        # divider's last stage, each serving ``per_source`` of them: a fan-out of a few at each level.
-        # A copy is held at zero while none of its nodes is valid (it is then unused): distinct resets
-        # keep synthesis from merging the copies.
-        copy_nodes = 10
-        copies = -(-nodes // copy_nodes)
-        sources = ceil_log2(copies) if copies > 2 else 1
-        per_source = -(-copies // sources)
-
-        # ---- the patch, its count and sum, and its lifted depths 2**b - S (formed at start) -----------
-        # Like the map memory, the patch persists through a reset until reloaded. Its depths, read one
-        # node per clock by the pass at start, live in a small memory; its valid bits, which every
-        # lane needs at once, in a reset-less register.
-        m.submodules.patch_memory = patch_memory = memory.Memory(shape=depth, depth=nodes, init=[])
-        patch_write = patch_memory.write_port()
-        patch_read = patch_memory.read_port()
-        patch_valid = Signal(nodes, reset_less=True)
-        lifted_patch = Signal(data.ArrayLayout(lifted, nodes), reset_less=True)
-        group_valid = [patch_valid[c * copy_nodes:(c + 1) * copy_nodes].any() for c in range(copies)]
-        source_valid = [patch_valid[s * per_source * copy_nodes:(s + 1) * per_source * copy_nodes].any()
-                        for s in range(sources)]
-        mean_compensation = Signal()
-        valid_count = Signal(count)
-        patch_sum = Signal(window_sum)
-        factor = Signal(count)
-        dividend_bias = Signal(bias)  # f * 2**b - Ssum with mean compensation, -Ssum without
+        stages = PipelineStages.of(t)
 
         idle = Signal()
         m.submodules.reducer = reducer = BestFitReducer(parameters=p)
         ready_for_more = idle & ~reducer.busy
-        m.d.comb += [
-            self.patch_in.ready.eq(ready_for_more),
-            self.start.ready.eq(ready_for_more),
-            self.busy.eq(~ready_for_more),
-        ]
+        m.d.comb += [self.start.ready.eq(ready_for_more), self.busy.eq(~ready_for_more)]
+        start = self.start.valid & self.start.ready
 
-        # Patch words since the last start (or reset) fill nodes 0, 1, ...; the valid bits shift in.
-        patch_pointer = Signal(_index(nodes))
-        loading = self.patch_in.valid & self.patch_in.ready
+        # ---- the patch, its count and sum, and its lifted depths 2**b - S (formed at start) -----------
+        m.submodules.patch = patch = PatchPreparation(parameters=p)
+        wiring.connect(m, wiring.flipped(self.patch_in), patch.patch_in)
         m.d.comb += [
-            patch_write.addr.eq(patch_pointer),
-            patch_write.data.eq(self.patch_in.payload.depth),
-            patch_write.en.eq(loading),
+            patch.accept.eq(ready_for_more),
+            patch.idle.eq(idle),
+            patch.start.eq(start),
+            patch.start_mode.eq(self.start.payload.mean_compensation),
         ]
-        with m.If(loading):
-            m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
-            m.d.sync += [patch_valid[x].eq(patch_valid[x + 1]) for x in range(nodes - 1)]
-            m.d.sync += patch_valid[nodes - 1].eq(self.patch_in.payload.valid)
 
         # ---- the steps: one map read or flush step issued per credit, taken on the next edge ----------
-        m.submodules.sequencer = sequencer = MapSequencer(
-            addr_width=ceil_log2(self.map_depth), shape=self.map_word)
+        m.submodules.sequencer = sequencer = MapSequencer(addr_width=ceil_log2(self.map_depth), shape=self.map_word)
         wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
-
-        # The output queue holds every beat the pipeline can still write: a step is issued only against
-        # a credit, returned when its beat leaves the queue (or when it leaves the pipeline without a
-        # beat), so the lanes never wait for ``surface.ready``. The queue adds no latency: a beat
-        # written on one edge can transfer on the next.
-        m.submodules.output_queue = output_queue = SyncFIFO(
-            width=Shape.cast(p.surface_beat).width, depth=t.queue_depth)
-        m.d.comb += [
-            self.surface.valid.eq(output_queue.r_rdy),
-            self.surface.payload.eq(output_queue.r_data),
-            output_queue.r_en.eq(self.surface.ready),
-        ]
+        m.submodules.output_queue = output_queue = CreditQueue(shape=p.surface_beat, depth=t.queue_depth)
+        wiring.connect(m, output_queue.surface, wiring.flipped(self.surface))
 
         issuing = Signal()  # steps of this correlation are left to issue
         issuing_words = Signal()  # ... and map words among them
         request_addr = Signal(range(self.map_depth + 1))
         flush_left = Signal(range(t.flush_steps + 1))
-        credits = Signal(range(t.queue_depth + 1))
         issue = Signal()
         m.d.comb += [
-            issue.eq(issuing & (credits != 0) & (sequencer.request.ready | ~issuing_words)),
-            sequencer.request.valid.eq(issuing & issuing_words & (credits != 0)),
+            issue.eq(issuing & output_queue.has_credit & (sequencer.request.ready | ~issuing_words)),
+            output_queue.issue.eq(issue),
+            sequencer.request.valid.eq(issuing & issuing_words & output_queue.has_credit),
             sequencer.request.payload.addr.eq(request_addr),
             # Every word is taken on the edge after its request: nothing downstream stalls.
             sequencer.response.ready.eq(1),
@@ -331,21 +207,17 @@ class WindowCore(wiring.Component):
         advance_register = Signal()
         step_is_word = Signal()
         m.d.sync += [advance_register.eq(issue), step_is_word.eq(issue & issuing_words)]
-        if self._global_enable:
-            advance = Signal()
-            m.submodules.advance_buffer = Instance("DCCA", i_CLKI=advance_register, i_CE=1, o_CLKO=advance)
-        else:
-            advance = advance_register
+        advance = advance_register if self._enable_buffer is None else self._enable_buffer(m, advance_register)
 
         step_row = Signal(range(H + t.flush_steps + 2))
-        step_group = Signal(_index(G))
+        step_group = Signal(index_range(G))
         with m.If(advance):
             with m.If(step_group == G - 1):
                 m.d.sync += [step_group.eq(0), step_row.eq(step_row + 1)]
             with m.Else():
                 m.d.sync += step_group.eq(step_group + 1)
 
-        # ---- the beat a step completes (known when the step is taken) -------------------------------
+        # ---- the beat a step completes (known when the step is taken), through every stage ------------
         meta_layout = data.StructLayout({
             "live": 1, "emit": 1, "i": unsigned(p.row_bits), "j": unsigned(p.col_bits),
             "count": p.surface_beat["count"].shape, "last": 1,
@@ -363,188 +235,62 @@ class WindowCore(wiring.Component):
             step_meta.count.eq(Mux(beat_group == t.out_groups - 1, Wo - (t.out_groups - 1) * L, L)),
             step_meta.last.eq((beat_row == Ho - 1) & (beat_group == t.out_groups - 1)),
         ]
-
-        # ---- step register: the words and their beat ----------------------------------------------
-        row_layout = data.ArrayLayout(depth, L)
-        step_nodes = Signal(row_layout, reset_less=True)
-        step_group_reg = Signal(_index(G))
-        step_was_word = Signal()
-        # The beat of each step-synchronous stage.
-        sync_meta = Signal(data.ArrayLayout(meta_layout, t.step_stages), reset_less=True)
+        # The beat of each step-synchronous stage (cleared between correlations: see ``clearing``).
+        sync_meta = Signal(data.ArrayLayout(meta_layout, stages.quotient), reset_less=True)
         with m.If(advance):
-            m.d.sync += [
-                step_group_reg.eq(step_group),
-                step_was_word.eq(step_is_word),
-                sync_meta[0].eq(step_meta),
-            ]
-            m.d.sync += step_nodes.eq(sequencer.response.payload.data)
-            for x in range(1, t.step_stages):
-                m.d.sync += sync_meta[x].eq(sync_meta[x - 1])
-
-        # ---- line buffers: rows r-1 .. r-h+1 of the group being taken ------------------------------
-        # Each is a delay of G steps. A block RAM's output is slow, so it is read one step ahead (the
-        # next step's group) into a register that loads with the step, and the next line buffer is
-        # written from that register: no path runs from one block RAM to another. With G >= 3 the
-        # entry read was written at least one step before, so the read port needs no transparency; a
-        # delay of one or two steps is a register or two.
-        read_ahead = Mux(step_group == G - 1, 0, step_group + 1)
-        buffer_rows = []
-        for x in range(h - 1):
-            entering = step_nodes if x == 0 else buffer_rows[x - 1]
-            stages = G if G <= 2 else 1
-            delayed = [Signal(row_layout, name=f"line_buffer_{x}_out{y}", reset_less=True) for y in range(stages)]
-            if G <= 2:
-                with m.If(advance):
-                    m.d.sync += [delayed[y].eq(delayed[y - 1] if y else entering) for y in range(G)]
-            else:
-                line = memory.Memory(shape=row_layout, depth=G, init=[])
-                m.submodules[f"line_buffer_{x}"] = line
-                write = line.write_port()
-                read = line.read_port()
-                m.d.comb += [
-                    read.addr.eq(read_ahead),
-                    read.en.eq(advance),
-                    write.addr.eq(step_group_reg),
-                    write.en.eq(advance & step_was_word),
-                    write.data.eq(entering),
-                ]
-                with m.If(advance):
-                    m.d.sync += delayed[0].eq(read.data)
-            buffer_rows.append(delayed[-1])
-
-        # ---- window register: columns, oldest first; the newest L enter on the right ---------------
-        # The quotient takes step_stages - 2 steps after the window register (the masked depths, the
-        # window-sum tree, the dividend, the quotient stages): the columns its lanes start on sit that
-        # many steps of L columns above those the terms take.
-        top = (t.step_stages - 2) * L
-        span = top + (t.lead + 1) * L
-        # One signal per column: fewer signals than one per node, while the Python simulator (whose
-        # generated code spells masks as decimal literals) still handles their width.
-        window = [Signal(data.ArrayLayout(depth, h), name=f"window_{c}", reset_less=True) for c in range(span)]
-        with m.If(advance):
-            for c in range(span - L):
-                for k in range(h):
-                    m.d.sync += window[c][k].eq(window[c + L][k])
-            for q in range(L):
-                column = [buffer_rows[h - 2 - k][q] for k in range(h - 1)] + [step_nodes[q]]
-                for k in range(h):
-                    m.d.sync += window[span - L + q][k].eq(column[k])
-
-        # ---- the term stages run every clock; a valid bit says which state is a new step -------------
-        # ``fresh``: the last edge was a step, so the window's bottom and the window sums hold a new
-        # placement; otherwise the lanes recompute the previous one and their result is dropped.
+            m.d.sync += sync_meta[0].eq(step_meta)
+            m.d.sync += [sync_meta[x].eq(sync_meta[x - 1]) for x in range(1, stages.quotient)]
+        # The term stages run every clock: ``fresh`` says the last edge was a step, so the window's bottom
+        # and the window sums hold a new placement; otherwise the lanes recompute the previous one and
+        # their result is dropped. Only the valid bits need a reset: after one, no stale step may reach the queue.
         fresh = Signal()
         m.d.sync += fresh.eq(advance)
-        # Only the valid bits need a reset: after one, no stale step may reach the queue.
-        free_meta = Signal(data.ArrayLayout(meta_layout, t.term_stages), reset_less=True)
-        free_valid = Signal(t.term_stages)
-        m.d.sync += [free_meta[0].eq(sync_meta[t.step_stages - 1]), free_valid[0].eq(fresh)]
-        for x in range(1, t.term_stages):
-            m.d.sync += [free_meta[x].eq(free_meta[x - 1]), free_valid[x].eq(free_valid[x - 1])]
+        m.submodules.term_meta = term_meta = DelayLine(meta_layout, stages.value, reset_less=True)
+        m.submodules.term_valid = term_valid = DelayLine(1, stages.value)
+        m.d.comb += [term_meta.i.eq(sync_meta[stages.quotient - 1]), term_valid.i.eq(fresh)]
+
+        # ---- the step register, the line buffers and the window register -------------------------------
+        # The columns the lanes' sums start on sit ``window_to_quotient`` steps of L columns above those
+        # their terms take (by then the same columns have moved down the register).
+        top = stages.window_to_quotient * L
+        m.submodules.window = window = StepWindow(lanes=L, rows=h, groups=G, span=top + (t.lead + 1) * L,
+                                                  depth_bits=p.depth_bits)
+        m.d.comb += [
+            window.advance.eq(advance),
+            window.word.eq(sequencer.response.payload.data),
+            window.group.eq(step_group),
+            window.is_word.eq(step_is_word),
+        ]
 
         # ---- the lanes ------------------------------------------------------------------------------
         lane_values = []
         for q in range(L):
-            # The mode and f reach much of a lane: each lane has registers of its own for them, one for
-            # each of its parts (the dividend, each run of quotient stages, the products).
-            mode = Signal(name=f"lane{q}_mode_replica")
-            term_mode = Signal(name=f"lane{q}_term_mode_replica")
-            divisors = [Signal(count, name=f"lane{q}_factor_replica{r}") for r in range(-(-QUOTIENT_STAGES // 6))]
-            lane_factor = Signal(count, name=f"lane{q}_product_factor_replica")
-            m.d.sync += [mode.eq(mean_compensation), term_mode.eq(mean_compensation), lane_factor.eq(factor)]
-            m.d.sync += [divisor.eq(factor) for divisor in divisors]
-            # Window sum of the valid nodes, on the columns as they arrive (step-synchronous). An
-            # invalid node's depth register is held at zero by its synchronous reset: no LUT per bit.
-            masked = Signal(data.ArrayLayout(depth, nodes), name=f"lane{q}_masked", reset_less=True)
-            for k in range(h):
-                for l in range(w):
-                    x = k * w + l
-                    with m.If(~patch_valid[x]):
-                        m.d.sync += masked[x].eq(0)
-                    with m.Elif(advance):
-                        m.d.sync += masked[x].eq(window[top + q + l][k])
-            wsum = _pipelined_sum(m, advance, [masked[x] for x in range(nodes)], (widths.depth.lo, widths.depth.hi),
-                                  (widths.window_sum.lo, widths.window_sum.hi), f"lane{q}_wsum")
-            # The dividend (or the correction), then t + 2**b = floor(N / f) over the quotient stages.
-            carried_in = Signal(carried, name=f"lane{q}_carried_in", reset_less=True)
-            with m.If(advance):
-                m.d.sync += carried_in.eq(wsum + dividend_bias)
-            quotients, carried_out = _pipelined_quotient(
-                m, advance, Mux(mode, carried_in, lift), divisors, b + 1, QUOTIENT_STAGES, carried_in,
-                [~valid for valid in source_valid], f"lane{q}_quotient")
-
-            # The same columns, step_stages - 2 steps later, at the bottom of the register: the lifted
-            # differences M - S + 2**b, those above the quotient (d > t) and their count, their sums.
-            quotient_copy = [Signal(lifted, name=f"lane{q}_quotient{c}", reset_less=True) for c in range(copies)]
-            for c in range(copies):
-                with m.If(~group_valid[c]):
-                    m.d.sync += quotient_copy[c].eq(0)
-                with m.Else():
-                    m.d.sync += quotient_copy[c].eq(quotients[c // per_source])
-            # carried_term[x] is stage x + 1's.
-            carried_term = Signal(data.ArrayLayout(carried, t.term_stages - 3), name=f"lane{q}_carried",
-                                  reset_less=True)
-            m.d.sync += carried_term[0].eq(carried_out)
-            m.d.sync += [carried_term[x].eq(carried_term[x - 1]) for x in range(1, t.term_stages - 3)]
-            difference = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_difference", reset_less=True)
-            above = Signal(data.ArrayLayout(lifted, nodes), name=f"lane{q}_above", reset_less=True)
-            selected = Signal(nodes, name=f"lane{q}_selected", reset_less=True)
-            for k in range(h):
-                for l in range(w):
-                    x = k * w + l
-                    # d' > q as the sign of q - d': a sum bit of the carry chain, where a comparison's
-                    # carry out would be rebuilt in LUTs.
-                    chosen = patch_valid[x] & (quotient_copy[x // copy_nodes] - difference[x])[-1]
-                    m.d.sync += [
-                        difference[x].eq(window[q + l][k] + lifted_patch[x]),
-                        # A register's synchronous reset: one LUT per node, none per bit.
-                        above[x].eq(Mux(chosen, difference[x], 0)),
-                        selected[x].eq(chosen),
-                    ]
-            above_sum = _pipelined_sum(m, None, [above[x] for x in range(nodes)], (0, 2 * lift - 1),
-                                       (0, lifted_sum_hi), f"lane{q}_above_sum")
-            above_count = _pipelined_sum(m, None, [selected[x] for x in range(nodes)], (0, 1), (0, nodes),
-                                         f"lane{q}_above_count")
-            # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact): the
-            # dividend beside the sums' last level, then each product as two partial products of a
-            # multiplier's width, then their sums (with the correction), then V.
-            dividend = Signal(lifted_sum_hi.bit_length(), name=f"lane{q}_dividend", reset_less=True)
-            m.d.sync += dividend.eq(Mux(term_mode, carried_term[t.term_stages - 5], lift))
-            correction = Signal(carried, name=f"lane{q}_correction", reset_less=True)
-            m.d.sync += correction.eq(Mux(term_mode, 0, carried_term[t.term_stages - 4]))
-            partials = Signal(data.ArrayLayout(unsigned(value_bits), 4), name=f"lane{q}_partials", reset_less=True)
-            m.d.sync += [
-                partials[0].eq(lane_factor * above_sum[:_MULTIPLIER_BITS]),
-                partials[1].eq(lane_factor * above_sum[_MULTIPLIER_BITS:]),
-                partials[2].eq(above_count * dividend[:_MULTIPLIER_BITS]),
-                partials[3].eq(above_count * dividend[_MULTIPLIER_BITS:]),
+            m.submodules[f"lane{q}"] = lane = WindowLane(parameters=p)
+            m.d.comb += [
+                lane.advance.eq(advance),
+                *(lane.sum_window[l].eq(window.columns[top + q + l]) for l in range(w)),
+                *(lane.term_window[l].eq(window.columns[q + l]) for l in range(w)),
+                lane.patch_valid.eq(patch.patch_valid),
+                lane.lifted_patch.eq(patch.lifted_patch),
+                lane.mean_compensation.eq(patch.mean_compensation),
+                lane.factor.eq(patch.factor),
+                lane.dividend_bias.eq(patch.dividend_bias),
             ]
-            doubled_sum = Signal(value_bits, name=f"lane{q}_doubled_sum", reset_less=True)
-            count_product = Signal(value_bits, name=f"lane{q}_count_product", reset_less=True)
-            m.d.sync += [
-                doubled_sum.eq(((partials[0] + (partials[1] << _MULTIPLIER_BITS)) << 1) - correction),
-                count_product.eq(partials[2] + (partials[3] << _MULTIPLIER_BITS)),
-            ]
-            value = Signal(unsigned(value_bits), name=f"lane{q}_value", reset_less=True)
-            m.d.sync += value.eq(doubled_sum - (count_product << 1))
-            lane_values.append(value)
+            lane_values.append(lane.value)
 
-        # ---- into the output queue ---------------------------------------------------------------------
-        last_meta = free_meta[t.term_stages - 1]
-        last_valid = free_valid[t.term_stages - 1] & last_meta.live
-        beat = Signal(p.surface_beat)
+        # ---- into the output queue; a credit comes back with each step leaving without a beat ----------
+        last_meta = term_meta.o
+        last_valid = term_valid.o & last_meta.live
+        beat = output_queue.write.payload
         m.d.comb += [
             beat.i.eq(last_meta.i),
             beat.j.eq(last_meta.j),
             beat.count.eq(last_meta.count),
             beat.last.eq(last_meta.last),
-            output_queue.w_data.eq(beat),
-            output_queue.w_en.eq(last_valid & last_meta.emit),
+            output_queue.write.valid.eq(last_valid & last_meta.emit),
+            output_queue.passed.eq(last_valid & ~last_meta.emit),
         ]
         m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(L)]
-        # A credit comes back with each beat leaving the queue and each step leaving without a beat.
-        returned = (last_valid & ~last_meta.emit) + (output_queue.r_rdy & output_queue.r_en)
-        m.d.sync += credits.eq(credits - issue + returned)
 
         # The reducer watches the surface's transfers (registering each before any logic, so the
         # queue's read stays out of its paths) and answers on ``best``.
@@ -555,76 +301,29 @@ class WindowCore(wiring.Component):
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
         # ---- control ----------------------------------------------------------------------------------
-        prepare_step = Signal(range(nodes + 2))
-        lifting = Signal()  # the pass takes a node: n, Ssum and lifted_patch (cycles 3 .. hw + 2)
-        # The patch is read in place (not rotated), so a reset mid-pass leaves it intact; the memory's
-        # read register and one after it (a block RAM's output is slow) keep the pass's paths short.
-        node = Signal(_index(nodes))
-        with m.If(idle | (node == nodes - 1)):
-            m.d.sync += node.eq(0)
-        with m.Else():
-            m.d.sync += node.eq(node + 1)
-        head_read = Signal(depth)
-        head_depth = Signal(depth)
-        head_valid_read = Signal()
-        head_valid = Signal()
-        m.d.comb += [patch_read.addr.eq(node), head_read.eq(patch_read.data)]
-        m.d.sync += [
-            head_valid_read.eq(patch_valid.bit_select(node, 1)),
-            head_depth.eq(head_read),
-            head_valid.eq(head_valid_read),
-        ]
-        # Outside the state machine, so that a register alone enables the pass's registers.
-        with m.If(lifting):
-            m.d.sync += [lifted_patch[x].eq(lifted_patch[x + 1]) for x in range(nodes - 1)]
-            m.d.sync += [
-                lifted_patch[nodes - 1].eq(lift - head_depth),
-                valid_count.eq(valid_count + head_valid),
-                patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
-            ]
-        with m.If(idle):
-            m.d.sync += [valid_count.eq(0), patch_sum.eq(0), prepare_step.eq(0)]
         # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
         # own, so that the start beat's condition reaches only the pass's few registers.
         clearing = Signal(init=1)
         m.d.sync += clearing.eq(idle)
+        m.d.comb += output_queue.clear.eq(clearing)
         with m.If(clearing):
             m.d.sync += [
                 request_addr.eq(0),
                 flush_left.eq(t.flush_steps),
-                credits.eq(t.queue_depth),
                 step_row.eq(0),
                 step_group.eq(0),
             ]
             # The step-synchronous stages may still hold the last correlation's flush steps.
-            m.d.sync += [sync_meta[x].live.eq(0) for x in range(t.step_stages)]
+            m.d.sync += [sync_meta[x].live.eq(0) for x in range(stages.quotient)]
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
-                with m.If(self.start.valid & self.start.ready):
-                    m.d.sync += [
-                        mean_compensation.eq(self.start.payload.mean_compensation),
-                        patch_pointer.eq(0),
-                    ]
-                    m.next = "COUNT"
-            with m.State("COUNT"):
-                # n, sum_valid S and the lifted depths, from node k - 2 on cycle k = 2 .. hw + 1.
-                m.d.sync += prepare_step.eq(prepare_step + 1)
-                with m.If(prepare_step == 1):
-                    m.d.sync += lifting.eq(1)
-                with m.If(prepare_step == nodes + 1):
-                    m.d.sync += [
-                        lifting.eq(0),
-                        factor.eq(Mux(mean_compensation, valid_count + head_valid, 1)),
-                    ]
-                    m.next = "BIAS"
-            with m.State("BIAS"):
-                m.d.sync += [
-                    dividend_bias.eq(Mux(mean_compensation, factor << b, 0) - patch_sum),
-                    issuing.eq(1),
-                    issuing_words.eq(1),
-                ]
-                m.next = "RUN"
+                with m.If(start):
+                    m.next = "PREPARE"
+            with m.State("PREPARE"):
+                with m.If(patch.done):
+                    m.d.sync += [issuing.eq(1), issuing_words.eq(1)]
+                    m.next = "RUN"
             with m.State("RUN"):
                 with m.If(self.surface.valid & self.surface.ready & self.surface.payload.last):
                     m.next = "IDLE"
@@ -655,10 +354,12 @@ class WindowCorrelator(wiring.Component):
         words per row, each map row padded to a multiple of ``L``.
     exclusion_radius : int
         Chebyshev radius around the best fit outside which the runner-up is searched.
-    global_enable : bool
-        Route the step enable, which reaches every register of the step-synchronous stages, through
-        an ECP5 ``DCCA`` onto a global net (synthesis for the ECP5 only: the simulators know no
-        ``DCCA``).
+    enable_buffer : callable or None
+        ``enable_buffer(m, enable) -> Value``: how the step enable, a register that reaches every
+        register of the step-synchronous stages, is carried to them; ``None`` (the default, and every
+        simulation) uses the register's own net. A device-specific choice, made by whoever builds for
+        a device: the synthesis flow passes the ECP5's global buffer
+        (:func:`lost.hdl.flow.harness.ecp5_global_buffer`).
 
     Members
     -------
@@ -672,8 +373,8 @@ class WindowCorrelator(wiring.Component):
     """
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
-                 global_enable: bool = False):
-        self._global_enable = bool(global_enable)
+                 enable_buffer: EnableBuffer | None = None):
+        self._enable_buffer = _check_enable_buffer(enable_buffer)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -695,7 +396,7 @@ class WindowCorrelator(wiring.Component):
 
         m.submodules.core = core = WindowCore(
             map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits, lanes=L,
-            exclusion_radius=p.exclusion_radius, global_enable=self._global_enable)
+            exclusion_radius=p.exclusion_radius, enable_buffer=self._enable_buffer)
         m.submodules.map_memory = map_memory = memory.Memory(
             shape=core.map_word, depth=core.map_depth, init=[])
         wiring.connect(m, core.map_read, map_memory.read_port())
@@ -703,9 +404,9 @@ class WindowCorrelator(wiring.Component):
         # The loader: word c of map row r goes to lane c % L of memory row r * ceil(W / L) + c // L.
         write = map_memory.write_port(granularity=1)
         row_base = Signal(range(core.map_depth + 1))
-        group = Signal(_index(core.timing.groups))
-        lane = Signal(_index(L))
-        column = Signal(_index(W))
+        group = Signal(index_range(core.timing.groups))
+        lane = Signal(index_range(L))
+        column = Signal(index_range(W))
         loading = self.map_in.valid & self.map_in.ready
         m.d.comb += [
             self.map_in.ready.eq(~core.busy),

@@ -73,7 +73,7 @@ class DeviceConfig:
 
 def build_device(config: DeviceConfig, build_dir: Path) -> Path:
     """Write the device's Verilog under ``build_dir`` (only when its text changed); return the file."""
-    from lost.hdl.generate import write_verilog
+    from lost.hdl.flow.generate import write_verilog
 
     return write_verilog(config.device(), name=TOPLEVEL, out=build_dir)
 

@@ -10,8 +10,8 @@ from amaranth.lib import memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.sim import Simulator
 
-from lost.hdl.harness import MeasurementHarness
-from lost.hdl.synth import (
+from lost.hdl.flow.harness import MeasurementHarness
+from lost.hdl.flow.synth import (
     CONFIGURATIONS,
     Configuration,
     FlowError,
@@ -132,12 +132,16 @@ def test_synthesis_harness_resets_the_core_through_a_registered_global_buffer():
 def test_the_window_core_takes_its_step_enable_from_a_global_buffer_only_when_asked():
     from amaranth.back import rtlil
 
+    from lost.hdl.flow.harness import ecp5_global_buffer
     from lost.hdl.window import WindowCore, WindowCorrelator
 
     sizes = {"map_shape": (8, 9), "patch_shape": (3, 2), "lanes": 2}
-    assert "cell \\DCCA" in rtlil.convert(WindowCore(global_enable=True, **sizes))
-    assert "cell \\DCCA" in rtlil.convert(WindowCorrelator(global_enable=True, **sizes))
+    # The device-specific buffer is supplied by the builder (the flow), never chosen by the core.
+    assert "cell \\DCCA" in rtlil.convert(WindowCore(enable_buffer=ecp5_global_buffer, **sizes))
+    assert "cell \\DCCA" in rtlil.convert(WindowCorrelator(enable_buffer=ecp5_global_buffer, **sizes))
     assert "DCCA" not in rtlil.convert(WindowCore(**sizes))
+    with pytest.raises(ValueError, match="enable_buffer must be None or a function"):
+        WindowCore(enable_buffer=True, **sizes)
     # The synthesis builds ask for it.
     assert "DCCA" in rtlil.convert(Configuration("window", lanes=1, map_shape=(12, 12), patch_shape=(3, 3)).core())
 
@@ -240,7 +244,7 @@ def test_markdown_table_says_met_or_not_reached():
 
 
 def test_a_seed_the_router_fails_on_is_reported_and_the_others_kept(tmp_path, monkeypatch):
-    from lost.hdl import synth
+    from lost.hdl.flow import synth
 
     config = Configuration("recursive", map_shape=(20, 20), patch_shape=(4, 4))
 
@@ -280,7 +284,7 @@ def test_a_seed_the_router_fails_on_is_reported_and_the_others_kept(tmp_path, mo
 
 
 def test_when_abc9_fails_the_classic_abc_maps_the_design_and_the_report_says_so(tmp_path, monkeypatch):
-    from lost.hdl import synth
+    from lost.hdl.flow import synth
 
     calls = []
 
@@ -360,7 +364,7 @@ def test_bad_target_is_named(tmp_path):
 
 
 def test_the_on_chip_map_shrinks_until_the_whole_correlator_fits_and_no_place_takes_prefixes(tmp_path, monkeypatch):
-    from lost.hdl import synth
+    from lost.hdl.flow import synth
 
     placed = {}
 

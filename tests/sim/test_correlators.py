@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from lost.hdl.generate import write_variants
+from lost.hdl.flow.generate import write_variants
 from lost.sim.cocotb.correlator import ENVIRONMENT_VARIABLE, BenchConfig
 from lost.sim.verilator import build_and_test, build_folder_lock
 

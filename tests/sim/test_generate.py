@@ -1,4 +1,4 @@
-"""``lost.hdl.generate``: the Verilog text of a variant, and its compacted memory initializers."""
+"""``lost.hdl.flow.generate``: the Verilog text of a variant, and its compacted memory initializers."""
 
 import re
 
@@ -7,7 +7,7 @@ from amaranth.hdl import Module, unsigned
 from amaranth.lib import memory, wiring
 from amaranth.lib.wiring import In, Out
 
-from lost.hdl.generate import VARIANTS, compact_zero_initializers, main, to_verilog, variant
+from lost.hdl.flow.generate import VARIANTS, compact_zero_initializers, main, to_verilog, variant
 from lost.sim.verilator import lint
 
 

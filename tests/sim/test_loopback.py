@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from lost.hdl.generate import write_verilog
+from lost.hdl.flow.generate import write_verilog
 from lost.sim.cocotb.loopback import Loopback
 from lost.sim.verilator import build_and_test, build_folder_lock, lint
 

@@ -30,7 +30,17 @@ from amaranth.hdl import Cat, ClockDomain, Instance, Module, Signal, Value
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["MeasurementHarness"]
+__all__ = ["MeasurementHarness", "ecp5_global_buffer"]
+
+
+def ecp5_global_buffer(m: Module, signal: Value) -> Value:
+    """``signal`` through an ECP5 ``DCCA`` clock buffer onto a global net (synthesis only: the simulators
+    know no ``DCCA``). nextpnr promotes only clocks to globals, so a reset or enable that fans out to
+    thousands of flip-flops is routed this way, or its net alone is the longest path. The window core
+    takes it as its ``enable_buffer``; the harness routes the core's reset through it."""
+    buffered = Signal(name=f"{signal.name}_global" if isinstance(signal, Signal) else "global")
+    m.submodules[f"{buffered.name}_buffer"] = Instance("DCCA", i_CLKI=signal, i_CE=1, o_CLKO=buffered)
+    return buffered
 
 
 def _check_positive(name: str, value: Any) -> int:
@@ -121,7 +131,7 @@ class MeasurementHarness(wiring.Component):
             m.domains.sync = sync = ClockDomain("sync")
             reset_pin = Signal(reset_less=True)
             m.d.sync += reset_pin.eq(self.reset)
-            m.submodules.reset_buffer = Instance("DCCA", i_CLKI=reset_pin, i_CE=1, o_CLKO=sync.rst)
+            m.d.comb += sync.rst.eq(ecp5_global_buffer(m, reset_pin))
             m.d.comb += sync.clk.eq(self.clk)
 
         inputs, outputs = [], []

@@ -5,8 +5,8 @@
 (DP16KD) and DSP (MULT18X18D) cells it used. nextpnr aims at 12 MHz without a constraint, so the
 target is always given; its result moves with the placer seed, so the seed is part of every result.
 
-``python -m lost.hdl.synth`` builds every :data:`CONFIGURATIONS` entry inside a
-:class:`~lost.hdl.harness.MeasurementHarness`, synthesizes each once, places and routes it with a few
+``python -m lost.hdl.flow.synth`` builds every :data:`CONFIGURATIONS` entry inside a
+:class:`~lost.hdl.flow.harness.MeasurementHarness`, synthesizes each once, places and routes it with a few
 seeds, keeps the best, and writes ``build/fpga/report.json`` and ``build/fpga/report.md``: per variant
 and lane count the post-route Fmax, LUT4/FF/EBR/DSP, the cycles of one 501 x 501 / 10 x 10
 correlation from the cycle models, the time at that Fmax, the map bandwidth an external memory must
@@ -29,6 +29,10 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from amaranth.back import rtlil
+
+from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE, PAPER_SECONDS
+
+from . import figures
 
 __all__ = [
     "CONFIGURATIONS",
@@ -126,7 +130,7 @@ def parse_nextpnr_report(report: dict, clock: str | None = None) -> dict:
 
 
 #: The folder holding ``hdl/``; replaced by :data:`CHECKOUT_TOKEN` in the RTLIL's source attributes.
-_CHECKOUT = Path(__file__).resolve().parents[1]
+_CHECKOUT = Path(__file__).resolve().parents[2]
 CHECKOUT_TOKEN = "<lost>"
 
 #: Registers the gateware names ``*_replica*`` are copies of one value placed near their loads (a
@@ -250,11 +254,6 @@ def place_and_route(
 
 # ---- the configurations the issue measures ----------------------------------------------------------
 
-#: The paper's sizes (FOI-R--0764--SE, section 8.3): a 501 x 501 map and a 10 x 10 sonar patch.
-PAPER_MAP_SHAPE = (501, 501)
-PAPER_PATCH_SHAPE = (10, 10)
-#: The 2002 hardware correlator's time for one correlation at the paper's sizes.
-PAPER_SECONDS = 0.266
 #: The goals of the issue: the recursive variant at least matches the paper, the window one is 1000 times faster.
 GOAL_SECONDS = {"recursive": PAPER_SECONDS, "window": PAPER_SECONDS / 1000}
 #: The DP16KD block RAM of the ECP5: 18 kbit, of which 1024 words of 16 bits serve a depth word.
@@ -304,17 +303,20 @@ class Configuration:
 
     def core(self):
         """The gateware: the core alone (external) or the correlator with its map memory (on-chip)."""
-        options = {"global_enable": True} if self.variant == "window" else {}
+        from .harness import ecp5_global_buffer
+
+        # The step enable reaches every step-synchronous register: on the ECP5, a global net.
+        options = {"enable_buffer": ecp5_global_buffer} if self.variant == "window" else {}
         return self._registered().build(map_shape=self.map_shape, patch_shape=self.patch_shape,
                                         memory=self.memory, **options)
 
     def _registered(self):
-        from .variants import variant, window_variant
+        from lost.hdl.variants import variant, window_variant
 
         return window_variant(self.lanes) if self.variant == "window" else variant("recursive_correlator")
 
     def design(self):
-        """The core inside its :class:`~lost.hdl.harness.MeasurementHarness`."""
+        """The core inside its :class:`~lost.hdl.flow.harness.MeasurementHarness`."""
         from .harness import MeasurementHarness
 
         return MeasurementHarness(core=self.core(), global_reset=True)
@@ -569,8 +571,8 @@ def critical_path_lines(entries: Sequence[dict]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m lost.hdl.synth``: build the configurations and write the report."""
-    parser = argparse.ArgumentParser(prog="python -m lost.hdl.synth", description=__doc__.split("\n\n")[0])
+    """``python -m lost.hdl.flow.synth``: build the configurations and write the report."""
+    parser = argparse.ArgumentParser(prog="python -m lost.hdl.flow.synth", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=Path("build/fpga"), help="output folder (build/fpga)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2], help="placer seeds per configuration")
     parser.add_argument("--target-mhz", type=float, default=250.0,
@@ -584,6 +586,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "beginning (window_l1_onchip: the on-chip build whatever its map size)")
     parser.add_argument("--lanes", type=int, nargs="+", default=list(WINDOW_LANES), metavar="L",
                         help=f"window lane counts, built in order until one is over the LUT budget (default: {' '.join(map(str, WINDOW_LANES))})")
+    parser.add_argument("--figures", type=Path, metavar="CSV",
+                        help="append each placed build's figures to this versioned CSV (make synth: docs/fpga_figures.csv)")
     parser.add_argument("--on-chip", type=int, nargs="*", metavar="LANES", default=[1],
                         help="window lane counts also built with the map on chip, at the largest map that fits (default: 1)")
     args = parser.parse_args(argv)
@@ -596,7 +600,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 (json.loads(report_path.read_text())["configurations"] if report_path.exists() else [])}
 
     entries: dict[str, dict] = {}
-    command = "python -m lost.hdl.synth " + " ".join(sys.argv[1:] if argv is None else argv)
+    command = "python -m lost.hdl.flow.synth " + " ".join(sys.argv[1:] if argv is None else argv)
 
     def write() -> str:
         # After every configuration, so an interrupted run keeps what it measured.
@@ -616,12 +620,18 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     wanted = set(args.only) if args.only else None
 
+    commit = figures.gateware_commit()
+
     def take(config: Configuration) -> None:
         if wanted is None or config.name in wanted:
-            entries[config.name] = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz,
-                                          router=args.router,
-                                          place=not any(config.name.startswith(name) for name in args.no_place or ()))
+            entries[config.name] = entry = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz,
+                                                  router=args.router,
+                                                  place=not any(config.name.startswith(name) for name in args.no_place or ()))
             write()
+            if entry["routed"] and args.figures is not None:
+                row = figures.row_of(entry, commit=commit)
+                if not figures.recorded(figures.read(args.figures), row):
+                    figures.append(row, args.figures)
         elif config.name in previous:
             entries[config.name] = previous[config.name]
 

@@ -1,6 +1,6 @@
 """Verilog of each correlator variant, for Verilator, lint and the FPGA flow.
 
-``python -m lost.hdl.generate --out build/verilog`` writes one file per variant, named after its
+``python -m lost.hdl.flow.generate --out build/verilog`` writes one file per variant, named after its
 top-level module: ``recursive_correlator.v`` and ``window_correlator_l1.v``/``_l4.v`` (the window core
 with 1 and 4 lanes), at the paper's 501 x 501 map and 10 x 10 patch unless ``--map``/``--patch`` say
 otherwise. ``emit_src=False`` keeps absolute source paths out of the Verilog, so the files are the
@@ -23,14 +23,14 @@ from pathlib import Path
 from amaranth.back import verilog
 from amaranth.lib import wiring
 
+from lost.hdl.variants import VARIANTS, variant
+from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE
 from lost.model.shapes import shape_argument
-
-from .variants import VARIANTS, variant
 
 __all__ = ["VARIANTS", "compact_zero_initializers", "to_verilog", "variant", "write_verilog", "write_variants"]
 
-DEFAULT_MAP_SHAPE = (501, 501)
-DEFAULT_PATCH_SHAPE = (10, 10)
+DEFAULT_MAP_SHAPE = PAPER_MAP_SHAPE
+DEFAULT_PATCH_SHAPE = PAPER_PATCH_SHAPE
 
 
 _INITIAL_BLOCK = re.compile(r"^  initial begin\n((?:    .+\[\d+\] = \d+'h[0-9a-fA-F]+;\n)+)  end\n", re.MULTILINE)
@@ -114,7 +114,7 @@ def write_variants(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m lost.hdl.generate", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m lost.hdl.flow.generate", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("build/verilog"), help="output folder")
     parser.add_argument("--map", type=shape_argument, default=DEFAULT_MAP_SHAPE, help="map shape, ROWSxCOLS")
     parser.add_argument("--patch", type=shape_argument, default=DEFAULT_PATCH_SHAPE, help="patch shape, ROWSxCOLS")

@@ -1,6 +1,6 @@
 """The device's bitstream for the ULX3S (LFE5U-85F), with the open flow from PyPI.
 
-``python -m lost.hdl.bitstream --out build/bitstream`` (``make bitstream``) builds
+``python -m lost.hdl.flow.bitstream --out build/bitstream`` (``make bitstream``) builds
 :class:`~lost.hdl.device.CorrelatorDevice` on amaranth-boards' ``ULX3S_85F_Platform``: the board's
 25 MHz clock through an ECP5 PLL (``EHXPLLL``) to 60 MHz, so that the UART's divisor of 20 gives
 exactly 3 Mbaud on the FTDI link (75 MHz with divisor 25 missed timing: 70.1 MHz); Yosys, nextpnr-ecp5
@@ -25,8 +25,8 @@ from typing import Any
 
 from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Instance, Module, ResetSignal, Signal
 
-from .device import CorrelatorDevice
-from .variants import DEFAULT_VARIANT
+from lost.hdl.device import CorrelatorDevice
+from lost.hdl.variants import DEFAULT_VARIANT
 
 __all__ = ["BAUD", "CLOCK_HZ", "UlX3SDevice", "main"]
 
@@ -93,7 +93,7 @@ def _summary(report: dict) -> dict:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m lost.hdl.bitstream", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m lost.hdl.flow.bitstream", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("build/bitstream"))
     parser.add_argument("--variant", default=DEFAULT_VARIANT)
     parser.add_argument("--seed", type=int, default=1, help="nextpnr's placer seed")

@@ -1,0 +1,279 @@
+"""Pipeline blocks every core shares: a delay line, an adder tree, a minimum tree, replicated registers.
+
+Each block is a :class:`~amaranth.lib.wiring.Component` with a fixed latency, stated in its docstring
+and checked against a NumPy model in ``tests/hdl/test_blocks.py`` (as maia-hdl does for every block).
+Every register of a tree is on a level of its own, so that no path runs through more than one adder or
+one comparison. None of them knows a device: a register meant to stay a separate copy is only *named*
+``*_replica*``; keeping it apart through synthesis is the flow's choice (:mod:`lost.hdl.flow.synth`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, signed, unsigned
+from amaranth.lib import data, wiring
+from amaranth.lib.wiring import In, Out
+from amaranth.utils import ceil_log2
+
+from lost.model.widths import bits_for
+
+__all__ = ["AdderTree", "DelayLine", "MinimumTree", "Replicas", "index_range", "minimum_item", "shape_for", "tree_levels"]
+
+
+def shape_for(lo: int, hi: int) -> Shape:
+    """The narrowest shape holding every integer of ``[lo, hi]``: unsigned unless ``lo < 0``."""
+    width, is_signed = bits_for(lo, hi)
+    return signed(width) if is_signed else unsigned(width)
+
+
+def index_range(count: int) -> range:
+    """The range of an index below ``count``, at least one bit wide (Verilog has no empty vector)."""
+    return range(max(count, 2))
+
+
+def tree_levels(count: int) -> int:
+    """Register levels of a binary tree over ``count`` leaves: ``ceil(log2(count))``, 0 for one leaf."""
+    return ceil_log2(count)
+
+
+def _check_count(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return value
+
+
+class DelayLine(wiring.Component):
+    """``depth`` registers in a row: ``taps[k]`` is ``i`` as it was ``k + 1`` loads ago.
+
+    Latency: ``depth`` loads from ``i`` to ``o`` (``o`` is ``taps[depth - 1]``); with ``depth = 0``,
+    ``o`` is ``i`` itself. Without ``enable`` every clock loads.
+
+    Parameters
+    ----------
+    shape : ShapeLike
+        Of the value delayed (a layout too).
+    depth : int
+        Registers, at least 0.
+    enable : bool
+        Load only on clocks when ``en`` is high.
+    reset_less : bool
+        Registers without a reset (a datapath's: a reset would only add a net to each).
+
+    Members
+    -------
+    i : ``In(shape)``
+    en : ``In(1)``
+        Only with ``enable``.
+    taps : ``Out(ArrayLayout(shape, depth))``
+        Every register, the newest first (absent when ``depth`` is 0).
+    o : ``Out(shape)``
+        The oldest.
+    """
+
+    def __init__(self, shape: ShapeLike, depth: int, *, enable: bool = False, reset_less: bool = False):
+        if isinstance(depth, bool) or not isinstance(depth, int) or depth < 0:
+            raise ValueError(f"depth must be a non-negative integer, got {depth!r}")
+        self._shape, self._depth, self._enable, self._reset_less = shape, depth, bool(enable), bool(reset_less)
+        members = {"i": In(shape), "o": Out(shape)}
+        if depth:
+            members["taps"] = Out(data.ArrayLayout(shape, depth))
+        if enable:
+            members["en"] = In(1)
+        super().__init__(members)
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        value = self.i
+        for stage in range(self._depth):
+            register = Signal(self._shape, name=f"d{stage + 1}", reset_less=self._reset_less)
+            load = register.eq(value)
+            if self._enable:
+                with m.If(self.en):
+                    m.d.sync += load
+            else:
+                m.d.sync += load
+            m.d.comb += self.taps[stage].eq(register)
+            value = register
+        m.d.comb += self.o.eq(value)
+        return m
+
+
+class AdderTree(wiring.Component):
+    """The sum of ``count`` leaves by a balanced adder tree, one register level per adder level.
+
+    Latency: :func:`tree_levels` ``(count)`` loads (``ceil(log2(count))``); one leaf passes through.
+    Pairs are summed in order (leaves 0 + 1, 2 + 3, ...; an odd last one is carried up alone).
+
+    Each level's registers are as wide as the sums they can hold: ``k`` leaves in ``[leaf_lo,
+    leaf_hi]`` give ``[k * leaf_lo, k * leaf_hi]``, never more than ``total`` (the bounds of the whole
+    sum, e.g. over the valid nodes only). The registers are reset-less (datapath registers).
+
+    Parameters
+    ----------
+    count : int
+        Leaves.
+    leaf : (int, int)
+        ``(lo, hi)`` of one leaf; the leaves' shape is :func:`shape_for` of it.
+    total : (int, int)
+        ``(lo, hi)`` of the sum.
+    enable : bool
+        Load only on clocks when ``en`` is high.
+
+    Members
+    -------
+    leaves : ``In(ArrayLayout(shape_for(*leaf), count))``
+    en : ``In(1)``
+        Only with ``enable``.
+    sum : ``Out(shape)``
+        As wide as the last level (the leaf's shape for one leaf).
+    """
+
+    def __init__(self, *, count: int, leaf: tuple[int, int], total: tuple[int, int], enable: bool = False):
+        self._count = _check_count("count", count)
+        self._leaf, self._total, self._enable = tuple(leaf), tuple(total), bool(enable)
+        self.leaf_shape = shape_for(*self._leaf)
+        self.level_shapes = []
+        leaves, values = 1, count
+        while values > 1:
+            leaves *= 2
+            values = (values + 1) // 2
+            self.level_shapes.append(shape_for(max(leaves * self._leaf[0], self._total[0]),
+                                               min(leaves * self._leaf[1], self._total[1])))
+        members = {
+            "leaves": In(data.ArrayLayout(self.leaf_shape, count)),
+            "sum": Out(self.level_shapes[-1] if self.level_shapes else self.leaf_shape),
+        }
+        if enable:
+            members["en"] = In(1)
+        super().__init__(members)
+
+    @property
+    def latency(self) -> int:
+        return len(self.level_shapes)
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        values = [self.leaves[k] for k in range(self._count)]
+        for level, shape in enumerate(self.level_shapes):
+            # One array register per level (fewer, wider signals keep the generated Verilog small).
+            sums = Signal(data.ArrayLayout(shape, (len(values) + 1) // 2), name=f"l{level}", reset_less=True)
+            loads = [sums[k // 2].eq(values[k] + values[k + 1] if k + 1 < len(values) else values[k])
+                     for k in range(0, len(values), 2)]
+            if self._enable:
+                with m.If(self.en):
+                    m.d.sync += loads
+            else:
+                m.d.sync += loads
+            values = [sums[k] for k in range((len(values) + 1) // 2)]
+        m.d.comb += self.sum.eq(values[0])
+        return m
+
+
+def minimum_item(key: ShapeLike, payload: ShapeLike | None = None) -> data.StructLayout:
+    """An item of a :class:`MinimumTree`: ``valid``, ``key`` and, if given, a ``payload`` carried along."""
+    fields = {"valid": 1, "key": key}
+    if payload is not None:
+        fields["payload"] = payload
+    return data.StructLayout(fields)
+
+
+class MinimumTree(wiring.Component):
+    """The valid leaf with the smallest key, by a compare tree with one register per level.
+
+    Pairs are compared in order (leaves 0 with 1, 2 with 3, ...), the later one winning only with a
+    strictly smaller key or when the earlier one is not valid: of equal keys the lowest leaf wins. The
+    root is valid when any leaf is; its key and payload are then the winner's (dls_cores'
+    ``dlsc_min_tree``, which carries the index, is the shape). With no valid leaf, the root's key and
+    payload are those of some leaf and mean nothing.
+
+    Latency: :func:`tree_levels` ``(count)`` clocks; one leaf passes through. The registers have a
+    reset (an invalid root after a reset).
+
+    Parameters
+    ----------
+    count : int
+        Leaves.
+    key : ShapeLike
+        Compared as its shape says (unsigned or signed).
+    payload : ShapeLike or None
+        Carried with the key (a column, an index).
+
+    Members
+    -------
+    leaves : ``In(ArrayLayout(minimum_item(key, payload), count))``
+    root : ``Out(minimum_item(key, payload))``
+    """
+
+    def __init__(self, *, count: int, key: ShapeLike, payload: ShapeLike | None = None):
+        self._count = _check_count("count", count)
+        self.item = minimum_item(key, payload)
+        super().__init__({
+            "leaves": In(data.ArrayLayout(self.item, count)),
+            "root": Out(self.item),
+        })
+
+    @property
+    def latency(self) -> int:
+        return tree_levels(self._count)
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        level = [self.leaves[k] for k in range(self._count)]
+        depth = 0
+        while len(level) > 1:
+            depth += 1
+            merged = []
+            for k in range(0, len(level), 2):
+                register = Signal(self.item, name=f"l{depth}_{k // 2}")
+                if k + 1 < len(level):
+                    first, second = level[k], level[k + 1]
+                    take = second.valid & (~first.valid | (second.key < first.key))
+                    m.d.sync += [
+                        register.valid.eq(first.valid | second.valid),
+                        register.key.eq(Mux(take, second.key, first.key)),
+                    ]
+                    if "payload" in self.item.members:
+                        m.d.sync += register.payload.eq(Mux(take, second.payload, first.payload))
+                else:
+                    m.d.sync += register.eq(level[k])
+                merged.append(register)
+            level = merged
+        m.d.comb += self.root.eq(level[0])
+        return m
+
+
+class Replicas(wiring.Component):
+    """``count`` registers all loaded from ``i``: copies of one slow-changing value near their loads.
+
+    A value that reaches much of a design (a mode bit, a divisor) has a fan-out no one register
+    drives fast; each part takes its own copy. The registers are named ``copy<k>_replica`` so that the
+    synthesis flow can keep them apart (Yosys would merge equal registers); the gateware itself marks
+    nothing device-specific.
+
+    Latency: 1 clock. The registers have a reset (to ``init``).
+
+    Parameters
+    ----------
+    shape : ShapeLike
+    count : int
+    init : int
+        The registers' reset value.
+
+    Members
+    -------
+    i : ``In(shape)``
+    o : ``Out(ArrayLayout(shape, count))``
+    """
+
+    def __init__(self, shape: ShapeLike, count: int, *, init: int = 0):
+        self._shape, self._count, self._init = shape, _check_count("count", count), init
+        super().__init__({"i": In(shape), "o": Out(data.ArrayLayout(shape, count))})
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        for k in range(self._count):
+            register = Signal(self._shape, name=f"copy{k}_replica", init=self._init)
+            m.d.sync += register.eq(self.i)
+            m.d.comb += self.o[k].eq(register)
+        return m

@@ -1,0 +1,128 @@
+"""The window correlator's step register, line buffers and window register: map rows in, columns out."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from amaranth.hdl import Module, Mux, Signal, signed
+from amaranth.lib import data, memory, wiring
+from amaranth.lib.wiring import In, Out
+
+from lost.hdl.blocks import index_range
+
+__all__ = ["StepWindow"]
+
+
+class StepWindow(wiring.Component):
+    """Memory rows of ``L`` map words in raster order, one per step; ``span`` window columns out.
+
+    Step-synchronous (every register loads on ``advance`` only; no stream fits: the window follows
+    the step enable). ``h - 1`` line buffers, each a delay of ``G = ceil(W / L)`` steps, hold the map
+    rows above the one being taken; each step the window register moves ``L`` columns to the left and
+    takes ``L`` new columns of ``h`` words on the right (the word of the step register at the bottom).
+
+    Latency: the words taken by step ``s`` (``word``, ``group`` and ``is_word`` sampled on edge
+    ``e_s``) are in the step register after ``e_s``, and in ``columns[span - L + lane]`` (the bottom
+    row of each) after ``e_{s+1}``; ``L`` columns further left after each later step. A map row's word
+    is in the column's row ``h - 1 - k`` after ``k * G`` more steps (through the line buffers).
+
+    A line buffer is a block RAM when ``G >= 3``: it is read one step ahead (the next step's group)
+    into a register that loads with the step, and the next buffer is written from that register, so
+    no path runs from one block RAM to another; the entry read was written at least one step before,
+    so the read port needs no transparency. A delay of one or two steps is a register or two.
+
+    Parameters
+    ----------
+    lanes : int
+        ``L``, words per step.
+    rows : int
+        ``h``, the patch's rows: words per column.
+    groups : int
+        ``G``, steps per map row.
+    span : int
+        Columns held.
+    depth_bits : int
+
+    Members
+    -------
+    advance : ``In(1)``
+        The step enable.
+    word : ``In(ArrayLayout(signed(depth_bits), lanes))``
+        The step's memory row (its content is ignored for a flush step).
+    group : ``In(range(groups))``
+        The group (memory row within its map row) of the step being taken.
+    is_word : ``In(1)``
+        The step carries a map word (a flush step does not enter the line buffers).
+    columns : ``Out(ArrayLayout(signed(depth_bits), rows)).array(span)``
+        Oldest first; row ``h - 1`` of a column is the newest map row.
+    """
+
+    def __init__(self, *, lanes: int, rows: int, groups: int, span: int, depth_bits: int):
+        for name, value in (("lanes", lanes), ("rows", rows), ("groups", groups), ("span", span)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        if span < lanes:
+            raise ValueError(f"span must hold at least one step's {lanes} columns, got {span}")
+        self._lanes, self._rows, self._groups, self._span = lanes, rows, groups, span
+        self._depth = signed(depth_bits)
+        self.row_layout = data.ArrayLayout(self._depth, lanes)
+        super().__init__({
+            "advance": In(1),
+            "word": In(self.row_layout),
+            "group": In(index_range(groups)),
+            "is_word": In(1),
+            # One signal per column (an array of ports, not one wide port): the Python simulator spells a
+            # signal's mask as a decimal literal, which a span of 10-row columns would make too long.
+            "columns": Out(data.ArrayLayout(self._depth, rows)).array(span),
+        })
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        L, h, G, span = self._lanes, self._rows, self._groups, self._span
+        advance, row_layout = self.advance, self.row_layout
+
+        # The step register: the words and the group they were read for.
+        step_nodes = Signal(row_layout, reset_less=True)
+        step_group = Signal(index_range(G))
+        step_was_word = Signal()
+        with m.If(advance):
+            m.d.sync += [step_group.eq(self.group), step_was_word.eq(self.is_word), step_nodes.eq(self.word)]
+
+        # Line buffers: rows r-1 .. r-h+1 of the group being taken.
+        read_ahead = Mux(self.group == G - 1, 0, self.group + 1)
+        buffer_rows = []
+        for x in range(h - 1):
+            entering = step_nodes if x == 0 else buffer_rows[x - 1]
+            registers = G if G <= 2 else 1
+            delayed = [Signal(row_layout, name=f"line_buffer_{x}_out{y}", reset_less=True) for y in range(registers)]
+            if G <= 2:
+                with m.If(advance):
+                    m.d.sync += [delayed[y].eq(delayed[y - 1] if y else entering) for y in range(G)]
+            else:
+                m.submodules[f"line_buffer_{x}"] = line = memory.Memory(shape=row_layout, depth=G, init=[])
+                write = line.write_port()
+                read = line.read_port()
+                m.d.comb += [
+                    read.addr.eq(read_ahead),
+                    read.en.eq(advance),
+                    write.addr.eq(step_group),
+                    write.en.eq(advance & step_was_word),
+                    write.data.eq(entering),
+                ]
+                with m.If(advance):
+                    m.d.sync += delayed[0].eq(read.data)
+            buffer_rows.append(delayed[-1])
+
+        # The window register: one signal per column (fewer signals than one per node, while the Python
+        # simulator, whose generated code spells masks as decimal literals, still handles their width).
+        window = [Signal(data.ArrayLayout(self._depth, h), name=f"window_{c}", reset_less=True) for c in range(span)]
+        with m.If(advance):
+            for c in range(span - L):
+                for k in range(h):
+                    m.d.sync += window[c][k].eq(window[c + L][k])
+            for q in range(L):
+                column = [buffer_rows[h - 2 - k][q] for k in range(h - 1)] + [step_nodes[q]]
+                for k in range(h):
+                    m.d.sync += window[span - L + q][k].eq(column[k])
+        m.d.comb += [self.columns[c].eq(window[c]) for c in range(span)]
+        return m

@@ -1,0 +1,166 @@
+"""The window correlator's patch: stored as it arrives, prepared once per correlation at start.
+
+The lanes need, for a whole correlation, the patch's valid bits, its lifted depths ``2**b - S``, the
+mode, ``f`` (``n`` with mean compensation, 1 without) and the dividend's bias ``f * 2**b - Ssum``
+(``-Ssum`` without). :class:`PatchPreparation` keeps the patch and forms them in one pass over it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from amaranth.hdl import Module, Mux, Signal
+from amaranth.lib import data, memory, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from lost.hdl.blocks import index_range
+from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.window_lane import LaneArithmetic
+
+__all__ = ["PatchPreparation"]
+
+
+class PatchPreparation(wiring.Component):
+    """The patch memory, and the pass at start that forms ``n``, ``Ssum`` and the lifted depths.
+
+    Patch words accepted since the last ``start`` (or reset) fill nodes ``0, 1, ...`` (raster order);
+    like the map, the patch persists through a reset until reloaded: its depths live in a small memory
+    read in place by the pass (so a reset mid-pass leaves it intact), its valid bits, which every lane
+    needs at once, in a reset-less register.
+
+    Latency: with ``start`` high in the cycle ending on edge 0, ``done`` is high in the cycle ending
+    on edge ``h * w + 3`` (the pass takes a node per clock, after the memory's read register and one
+    after it: a block RAM's output is slow), when ``dividend_bias`` loads; every output holds from
+    edge ``h * w + 3`` until the next ``start``. ``factor``, ``lifted_patch`` and ``patch_valid`` are
+    final an edge earlier.
+
+    Parameters
+    ----------
+    parameters : CorrelatorParameters
+
+    Members
+    -------
+    patch_in : ``In(stream.Signature(PatchWord(b)))``
+        Ready while ``accept`` is high.
+    accept : ``In(1)``
+        The core takes patch words (it is idle).
+    idle : ``In(1)``
+        The core runs no correlation: the pass's sums are cleared.
+    start : ``In(1)``
+        A start beat transfers (it must be while ``idle``); ``start_mode`` is its ``mean_compensation``.
+    start_mode : ``In(1)``
+    done : ``Out(1)``
+        The pass's last cycle.
+    patch_valid, lifted_patch, mean_compensation, factor, dividend_bias : ``Out(...)``
+        As the :class:`~lost.hdl.window_lane.WindowLane`'s ports of those names.
+    """
+
+    def __init__(self, *, parameters: CorrelatorParameters):
+        if not isinstance(parameters, CorrelatorParameters):
+            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        self._parameters = p = parameters
+        self._arithmetic = a = LaneArithmetic.of(p)
+        nodes = p.patch_shape[0] * p.patch_shape[1]
+        super().__init__({
+            "patch_in": In(stream.Signature(p.patch_word)),
+            "accept": In(1),
+            "idle": In(1),
+            "start": In(1),
+            "start_mode": In(1),
+            "done": Out(1),
+            "patch_valid": Out(nodes),
+            "lifted_patch": Out(data.ArrayLayout(a.lifted, nodes)),
+            "mean_compensation": Out(1),
+            "factor": Out(a.count),
+            "dividend_bias": Out(a.bias),
+        })
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        p, a = self._parameters, self._arithmetic
+        (h, w), b = p.patch_shape, p.depth_bits
+        nodes = h * w
+        idle = self.idle
+
+        m.submodules.patch_memory = patch_memory = memory.Memory(shape=a.depth, depth=nodes, init=[])
+        patch_write = patch_memory.write_port()
+        patch_read = patch_memory.read_port()
+        patch_valid = Signal(nodes, reset_less=True)
+        lifted_patch = Signal(data.ArrayLayout(a.lifted, nodes), reset_less=True)
+        mean_compensation = Signal()
+        valid_count = Signal(a.count)
+        patch_sum = Signal(a.window_sum)
+        factor = Signal(a.count)
+        dividend_bias = Signal(a.bias)
+        m.d.comb += [
+            self.patch_valid.eq(patch_valid),
+            self.lifted_patch.eq(lifted_patch),
+            self.mean_compensation.eq(mean_compensation),
+            self.factor.eq(factor),
+            self.dividend_bias.eq(dividend_bias),
+        ]
+
+        # Patch words since the last start (or reset) fill nodes 0, 1, ...; the valid bits shift in.
+        patch_pointer = Signal(index_range(nodes))
+        loading = self.patch_in.valid & self.patch_in.ready
+        m.d.comb += [
+            self.patch_in.ready.eq(self.accept),
+            patch_write.addr.eq(patch_pointer),
+            patch_write.data.eq(self.patch_in.payload.depth),
+            patch_write.en.eq(loading),
+        ]
+        with m.If(loading):
+            m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
+            m.d.sync += [patch_valid[x].eq(patch_valid[x + 1]) for x in range(nodes - 1)]
+            m.d.sync += patch_valid[nodes - 1].eq(self.patch_in.payload.valid)
+
+        # The pass reads the patch in place: the memory's read register and one after it keep its paths short.
+        prepare_step = Signal(range(nodes + 2))
+        lifting = Signal()  # the pass takes a node: n, Ssum and lifted_patch (cycles 3 .. hw + 2)
+        node = Signal(index_range(nodes))
+        with m.If(idle | (node == nodes - 1)):
+            m.d.sync += node.eq(0)
+        with m.Else():
+            m.d.sync += node.eq(node + 1)
+        head_read = Signal(a.depth)
+        head_depth = Signal(a.depth)
+        head_valid_read = Signal()
+        head_valid = Signal()
+        m.d.comb += [patch_read.addr.eq(node), head_read.eq(patch_read.data)]
+        m.d.sync += [
+            head_valid_read.eq(patch_valid.bit_select(node, 1)),
+            head_depth.eq(head_read),
+            head_valid.eq(head_valid_read),
+        ]
+        # Outside the state machine, so that a register alone enables the pass's registers.
+        with m.If(lifting):
+            m.d.sync += [lifted_patch[x].eq(lifted_patch[x + 1]) for x in range(nodes - 1)]
+            m.d.sync += [
+                lifted_patch[nodes - 1].eq(a.lift - head_depth),
+                valid_count.eq(valid_count + head_valid),
+                patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
+            ]
+        with m.If(idle):
+            m.d.sync += [valid_count.eq(0), patch_sum.eq(0), prepare_step.eq(0)]
+
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(self.start):
+                    m.d.sync += [mean_compensation.eq(self.start_mode), patch_pointer.eq(0)]
+                    m.next = "COUNT"
+            with m.State("COUNT"):
+                # n, sum_valid S and the lifted depths, from node k - 2 on cycle k = 2 .. hw + 1.
+                m.d.sync += prepare_step.eq(prepare_step + 1)
+                with m.If(prepare_step == 1):
+                    m.d.sync += lifting.eq(1)
+                with m.If(prepare_step == nodes + 1):
+                    m.d.sync += [
+                        lifting.eq(0),
+                        factor.eq(Mux(mean_compensation, valid_count + head_valid, 1)),
+                    ]
+                    m.next = "BIAS"
+            with m.State("BIAS"):
+                m.d.comb += self.done.eq(1)
+                m.d.sync += dividend_bias.eq(Mux(mean_compensation, factor << b, 0) - patch_sum)
+                m.next = "IDLE"
+        return m
