@@ -272,8 +272,9 @@ class BayesFilter:
         if not terrain:
             self.counts[f"{kind}_rejected_{reason}"] += 1
             # The trust rules watch the slant ranges only; a refused fix is counted, the terrain decides usability.
-            if kind == "range":
-                self._trust.range_outcome(refused=True)
+            if kind == "range" and self._trust.range_outcome(refused=True):
+                self._reinitialize()
+                self._stage = "reinitialized"
             return
         self._stage = "rejected"
         if self._trust.rejected(reason):

@@ -17,7 +17,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   ``NIS = d^T (P_prior - P_post)^-1 d``, d the shift of the mean, is chi-square with 2 degrees of freedom
   for a consistent linear-Gaussian update (there d = K nu and Cov(d) = P_prior - P_post).
 - Usable: the largest 1-sigma axis of the covariance stays under ``usable_sigma_nodes`` map nodes for
-  ``usable_updates`` terrain updates in a row (MB-System: under a threshold for 200 updates). A
+  ``usable_updates`` terrain updates in a row (``usable_updates_point`` for the single-depth form;
+  MB-System: under a threshold for 200 updates). A
   multimodal posterior has a wide covariance, so look-alike terrain lowers the flag by itself. A
   refused terrain update lowers it, and so do three refused slant ranges among the last ten (one
   is an outlier, several say the estimate has moved away from the range). Look-alike terrain: a
@@ -33,6 +34,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
+  So does ``2 reinit_after`` slant ranges refused in a row: the terrain holds the density where
+  every range says it is not (``reinitialized_by_ranges``).
 """
 
 from __future__ import annotations
@@ -113,6 +116,7 @@ class Trust:
         self.good_in_row = 0
         self.usable = False
         self._ranges: deque[bool] = deque(maxlen=10)  # True: refused
+        self._ranges_refused_in_row = 0
         self._misfits: deque[float] = deque(maxlen=MISFIT_MEMORY)
         self.misfit_level = 1.0
 
@@ -151,7 +155,8 @@ class Trust:
             self.good_in_row += 1
         else:
             self.good_in_row = 0
-        self.usable = self.good_in_row >= self._p.usable_updates
+        needed = self._p.usable_updates if self._p.matching == "patch" else self._p.usable_updates_point
+        self.usable = self.good_in_row >= needed
 
     def watch(self, covariance: np.ndarray) -> None:
         """Between updates the flag drops as soon as the covariance outgrows the threshold."""
@@ -179,12 +184,25 @@ class Trust:
         narrow = self.sigma_max(covariance) <= 2.0 * self._p.usable_sigma_nodes * self._node_m
         return narrow and on_map_mass < EDGE_MASS
 
-    def range_outcome(self, refused: bool) -> None:
-        """A slant range was used or refused; several refused lower the usable flag."""
+    def range_outcome(self, refused: bool) -> bool:
+        """A slant range was used or refused; several refused lower the usable flag. True: re-initialize now.
+
+        Twice ``reinit_after`` ranges refused in a row, while the terrain updates are taken, say the
+        terrain holds the density on a wrong place that every range contradicts (measured: the
+        single-depth form locked 230 m off on ``demo`` and refused 286 ranges in a row).
+        """
         self._ranges.append(refused)
+        self._ranges_refused_in_row = self._ranges_refused_in_row + 1 if refused else 0
         if sum(self._ranges) >= 3:
             self.good_in_row = 0
             self.usable = False
+        if self._ranges_refused_in_row >= 2 * self._p.reinit_after:
+            self._ranges_refused_in_row = 0
+            self._ranges.clear()
+            self.counts["reinitializations"] += 1
+            self.counts["reinitialized_by_ranges"] += 1
+            return True
+        return False
 
     def rejected(self, reason: str) -> bool:
         """A terrain update was refused; True when the filter should re-initialize now."""

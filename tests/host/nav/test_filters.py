@@ -346,3 +346,23 @@ def test_a_velocity_bias_misplaces_a_realtime_patch_by_bias_times_age_and_the_pa
     pf._b = np.tile(bias[:, None], (1, 3))
     shift_x, shift_y = pf._patch_shift(40.0)
     np.testing.assert_allclose([shift_x[0], shift_y[0]], bias * 40.0)
+
+
+def test_ranges_that_contradict_a_terrain_lock_twenty_times_in_a_row_reinitialize_it():
+    """The terrain holds the density 150 m east of the truth (a wrong lock); every range says otherwise."""
+    from lost.host.nav.stages import TrackFrame
+
+    grid = _map(shape=(120, 100))
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(use_slant_range=True, initial_sigma_m=20.0, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
+    pmf = PointMassFilter(lik, params, grid=grid)
+    truth = np.array([300.0, 200.0])
+    pmf.start(0.0, truth + (150.0, 0.0), _observation())
+    for k in range(2 * params.reinit_after):
+        truth = truth + (0.0, 10.0)
+        pmf.predict(Motion(dt_s=1.0, velocity_mps=np.array([0.0, 10.0])))
+        ship = TrackFrame(truth[0] - 1000.0, truth[1], 90.0)
+        assert pmf.counts["reinitializations"] == 0, k
+        pmf.update(_observation(_patch_at(grid, *(truth + (150.0, 0.0))), slant=1000.0, frame=ship))
+    assert pmf.counts["range_rejected_innovation"] == 2 * params.reinit_after
+    assert pmf.counts["reinitialized_by_ranges"] == 1 and pmf.estimate().stage == "reinitialized"
