@@ -197,7 +197,8 @@ def write_track_csv(path: Path, result: NavResult) -> None:
 
     Each Bayesian filter that ran adds ``<name>_x_m``, ``<name>_y_m``, its covariance
     (``<name>_sxx``, ``<name>_syy``, ``<name>_sxy``, m**2), ``<name>_usable`` (0/1), ``<name>_nis``,
-    ``<name>_stage``, ``<name>_rejected`` and ``<name>_error_m``.
+    ``<name>_stage``, ``<name>_rejected``, ``<name>_error_m`` and ``<name>_depth_bias_m`` (the
+    single-depth form's depth-bias estimate, measured minus map; empty for the patch form).
     """
     started = np.flatnonzero(np.isfinite(result.estimate[:, 0]))
     first = int(started[0]) if started.size else -1
@@ -210,7 +211,8 @@ def write_track_csv(path: Path, result: NavResult) -> None:
     ]
     filters = {name: track for name, track in result.tracks.items() if name != "lost"}
     for name in filters:
-        header += [f"{name}_{column}" for column in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "nis", "stage", "rejected", "error_m")]
+        header += [f"{name}_{column}" for column in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "nis", "stage", "rejected", "error_m",
+                                                       "depth_bias_m")]
     filter_errors = {name: horizontal_error(track.position, truth) for name, track in filters.items()}
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
@@ -237,7 +239,7 @@ def write_track_csv(path: Path, result: NavResult) -> None:
 def _filter_cells(track: FilterTrack, n: int, error: float) -> list[str]:
     c = track.covariance[n]
     return [*map(_fmt, track.position[n]), _fmt(c[0, 0]), _fmt(c[1, 1]), _fmt(c[0, 1]), str(int(track.usable[n])), _fmt(track.nis[n]),
-            str(track.stage[n]), str(track.rejected[n]), _fmt(error)]
+            str(track.stage[n]), str(track.rejected[n]), _fmt(error), _fmt(track.depth_bias_m[n])]
 
 
 def write_summary(path: Path, summary: dict[str, Any]) -> None:

@@ -288,4 +288,6 @@ class BayesFilter:
 
     def estimate(self) -> Estimate:
         mean, cov = self._moments()
-        return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected)
+        bias = self.depth_bias_m[0] if self._p.matching == "point" else float("nan")
+        return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected,
+                        depth_bias_m=bias)

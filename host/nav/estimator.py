@@ -116,6 +116,8 @@ class Estimate:
         Normalized innovation squared of the terrain update at this record (NaN without one).
     rejected : str
         Why a measurement of this record was refused ("" when none was).
+    depth_bias_m : float
+        The single-depth form's depth-bias estimate, measured minus map (NaN for the patch form).
     """
 
     position: np.ndarray
@@ -124,6 +126,7 @@ class Estimate:
     stage: str
     nis: float = float("nan")
     rejected: str = ""
+    depth_bias_m: float = float("nan")
 
 
 class Estimator(Protocol):

@@ -309,6 +309,7 @@ class FilterTrack:
     nis : (N,) array, the terrain update's NIS (NaN without one)
     rejected : (N,) str array, why a measurement was refused ("" when none was)
     ms : (N,) array, wall time of the estimator's predict + update at each record, milliseconds
+    depth_bias_m : (N,) array, the single-depth form's depth-bias estimate (NaN for the patch form)
     counts : dict, every skip, rejection and re-initialization the estimator made
     """
 
@@ -319,12 +320,13 @@ class FilterTrack:
     nis: np.ndarray
     rejected: np.ndarray
     ms: np.ndarray
+    depth_bias_m: np.ndarray
     counts: dict[str, int] = field(default_factory=dict)
 
     @classmethod
     def empty(cls, n: int) -> FilterTrack:
         return cls(np.full((n, 2), np.nan), np.full((n, 2, 2), np.nan), np.zeros(n, bool), np.full(n, "uninitialized", dtype="<U14"),
-                   np.full(n, np.nan), np.full(n, "", dtype="<U32"), np.full(n, np.nan))
+                   np.full(n, np.nan), np.full(n, "", dtype="<U32"), np.full(n, np.nan), np.full(n, np.nan))
 
 
 @dataclass(frozen=True)
@@ -547,6 +549,7 @@ class _RecordLoop:
         track = self.tracks[estimator.name]
         track.position[n], track.covariance[n], track.usable[n] = answer.position, answer.covariance, answer.usable
         track.stage[n], track.nis[n], track.rejected[n], track.ms[n] = answer.stage, answer.nis, answer.rejected, ms
+        track.depth_bias_m[n] = answer.depth_bias_m
         if isinstance(estimator, PatentEstimator):
             last = estimator.last
             self.patent["predicted"][n] = last["predicted"]

@@ -45,6 +45,7 @@ def test_one_estimator_writes_its_track_with_covariance(tmp_path, capsys):
     assert float(late["pmf_sxx"]) > 0 and float(late["pmf_syy"]) > 0 and late["pmf_usable"] == "1"
     assert float(late["pmf_error_m"]) < 3.0 * math.sqrt(float(late["pmf_sxx"]) + float(late["pmf_syy"]))
     assert "pmf converged after" in capsys.readouterr().out
+    assert {r["pmf_depth_bias_m"] for r in rows} == {""}  # the patch form has no depth bias to report
 
 
 def test_run_by_builtin_name_with_backend_and_matching(tmp_path):

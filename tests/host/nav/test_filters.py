@@ -292,6 +292,7 @@ def test_the_point_form_estimates_a_depth_bias_and_is_lost_without_it(kind):
     f, errors = _point_tow(kind, grid, depth_bias_sigma_m=4.0)
     mean, sigma = f.depth_bias_m
     assert abs(mean - 4.0) < 0.3 and sigma < 0.5
+    assert f.estimate().depth_bias_m == mean  # what track.csv's <name>_depth_bias_m reports
     assert np.sqrt(np.mean(errors**2)) < 3.0
     # Without the state the 4 m reads as terrain elsewhere: tens of metres off, refusals, a re-initialization.
     f, errors = _point_tow(kind, grid, depth_bias_sigma_m=0.0)
