@@ -53,17 +53,18 @@ EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 #: Runs longer than this many records show a progress bar.
-PROGRESS_RECORDS = 1000
+PROGRESS_ITEMS = 1000
 
 
-def _progress(total: int):
-    if total <= PROGRESS_RECORDS:
+def progress_bar(total: int, description: str):
+    """A progress bar on stderr over ``total`` items (records, pings), or None for a run too short to need one."""
+    if total <= PROGRESS_ITEMS:
         return None
     from rich.console import Console
     from rich.progress import track
 
     console = Console(stderr=True)
-    return lambda iterable: track(iterable, total=total, description="navigating", console=console, transient=True)
+    return lambda iterable: track(iterable, total=total, description=description, console=console, transient=True)
 
 
 class _Collector(logging.Handler):
@@ -101,7 +102,7 @@ def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: s
         warnings.append("the records have USBL travel times but no sound-speed profile was given (--svp CAST.csv): "
                         "they are not used; the straight-line slant_range_m is, where there is one")
     start = time.perf_counter()
-    result = navigate(records, grid, params, estimators=estimators, progress=_progress(len(records)), profile=profile)
+    result = navigate(records, grid, params, estimators=estimators, progress=progress_bar(len(records), "navigating"), profile=profile)
     elapsed = time.perf_counter() - start
     summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
     summary["sound_speed_profile"] = profile_source

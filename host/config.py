@@ -35,7 +35,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 __all__ = [
-    "ConfigError", "validate_fields", "navigation_parameters", "read_navigation_table",
+    "ConfigError", "validate_fields", "build", "read_toml", "navigation_parameters", "read_navigation_table",
     "PositiveFloat", "NonNegativeFloat", "PositiveInt", "NonNegativeInt", "Fraction", "FiniteFloat",
 ]
 
@@ -159,6 +159,21 @@ def navigation_parameters(table: Mapping[str, Any], where: str = "navigation"):
         raise ConfigError(f"[{where}]: {error}") from None
 
 
+def build(cls: type, table: Any, where: str) -> Any:
+    """A table of a settings file as ``cls``, its values checked first by the strict schema of ``cls``'s type hints."""
+    return cls(**validate_fields(cls, table, where))
+
+
+def read_toml(path: Path, what: str) -> dict[str, Any]:
+    """The tables of a TOML file; ``FileNotFoundError`` names ``what`` was looked for, bad TOML is a ``ConfigError``."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no {what} at {path}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise ConfigError(f"{path} is not valid TOML: {error}") from None
+
+
 def read_navigation_table(path: str | Path) -> dict[str, Any]:
     """The ``[navigation]`` table of a TOML file (a scenario, or a file holding only that table).
 
@@ -169,11 +184,9 @@ def read_navigation_table(path: str | Path) -> dict[str, Any]:
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(f"no configuration file at {path}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise ConfigError(f"{path} is not valid TOML: {error}") from None
+        data = read_toml(path, "configuration file")
+    except FileNotFoundError as error:
+        raise ConfigError(str(error)) from None
     table = data.get("navigation")
     if table is None:
         raise ConfigError(f"{path} has no [navigation] table (it has: {', '.join(data) or 'nothing'})")

@@ -29,7 +29,6 @@ The physics, kept simple and stated
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -38,7 +37,18 @@ import numpy as np
 from pydantic import Field
 from scipy import ndimage
 
-from .config import ConfigError, Fraction, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, navigation_parameters, validate_fields
+from .config import (
+    ConfigError,
+    Fraction,
+    NonNegativeFloat,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    build,
+    navigation_parameters,
+    read_toml,
+    validate_fields,
+)
 from .grid import Grid
 from .records import NavRecords, SonarPatch
 from .shipped import shipped_names, shipped_path
@@ -362,11 +372,6 @@ def _check_physics(scenario: Scenario) -> None:
         )
 
 
-def _build(cls: type, table: Any, where: str) -> Any:
-    """A table of the file as ``cls``, its values checked first by the strict schema of ``cls``'s type hints (lost.host.config)."""
-    return cls(**validate_fields(cls, table, where))
-
-
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file.
 
@@ -376,12 +381,7 @@ def load_scenario(path: str | Path) -> Scenario:
         Invalid TOML, an unknown table or field, or a value out of range.
     """
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FileNotFoundError(f"no scenario file at {path}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise ValueError(f"{path} is not valid TOML: {error}") from None
+    data = read_toml(path, "scenario file")
     tables = {"terrain": TerrainSpec, "map": MapSpec, "fault": FaultSpec, "ship": ShipSpec, "cable": CableSpec, "current": CurrentSpec,
               "vehicle": VehicleSpec}
     top = {"name", "description", "seed", "duration_s", "rate_hz", "sensors", "navigation", *tables}
@@ -402,10 +402,10 @@ def load_scenario(path: str | Path) -> Scenario:
     try:
         for key, cls in tables.items():
             if key in data:
-                kwargs[key] = _build(cls, data[key], key)
+                kwargs[key] = build(cls, data[key], key)
         if not isinstance(sensors, dict):
             raise ConfigError(f"[sensors] must be a table of sensor tables, got {sensors!r}")
-        kwargs["sensors"] = {name: _build(_SENSORS[name], table, f"sensors.{name}") for name, table in sensors.items()}
+        kwargs["sensors"] = {name: build(_SENSORS[name], table, f"sensors.{name}") for name, table in sensors.items()}
         kwargs["navigation"] = dict(data.get("navigation", {}))
         kwargs["base_dir"] = path.parent
         return Scenario(**kwargs)

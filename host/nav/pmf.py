@@ -98,17 +98,21 @@ class PointMassFilter(BayesFilter):
         half = max(half_width_m, self._min_half)
         n = int(min(self._p.pmf_cells, max(math.ceil(2.0 * half / self._min_cell), 8)))
         old = (self._centre, self._cell, self._n) if density is not None else None
-        bias_mean = self.depth_bias_m[0] if self._depth_bias.size > 1 else 0.0
+        # Only the single-depth form has a depth bias to carry; the patch form skips the work.
+        carry_bias = self._p.matching == "point"
+        bias_mean = self.depth_bias_m[0] if carry_bias and self._depth_bias.size > 1 else 0.0
         old_bias = self._depth_bias
         self._centre, self._n, self._cell = np.asarray(centre, float).copy(), n, 2.0 * half / n
         if old is None:
             self._p_grid = np.full((n, n), 1.0 / n**2)
-            self._depth_bias = np.full((n, n), bias_mean)
+            if carry_bias:
+                self._depth_bias = np.full((n, n), bias_mean)
             return
         carried = self._splat(density, *old)
         total = carried.sum()
         self._p_grid = carried / total if total > 0 else np.full((n, n), 1.0 / n**2)
-        self._depth_bias = _ratio(self._splat(density * old_bias, *old), carried, bias_mean)
+        if carry_bias:
+            self._depth_bias = _ratio(self._splat(density * old_bias, *old), carried, bias_mean)
         self.counts["regrids"] += 1
         # A coarse cell's mass was spread over the cell, not on its centre: keep that spread on finer cells.
         old_cell = old[1]
@@ -181,9 +185,10 @@ class PointMassFilter(BayesFilter):
         blurred = ndimage.gaussian_filter(self._p_grid, sigma_cells, mode="constant", truncate=3.0)
         total = blurred.sum()
         if total > 0:
-            # Each cell's depth bias: the mass-weighted mean of the biases its mass came from.
-            carried_bias = ndimage.gaussian_filter(self._p_grid * self._depth_bias, sigma_cells, mode="constant", truncate=3.0)
-            self._depth_bias = _ratio(carried_bias, blurred, self.depth_bias_m[0])
+            if self._p.matching == "point":
+                # Each cell's depth bias: the mass-weighted mean of the biases its mass came from.
+                carried_bias = ndimage.gaussian_filter(self._p_grid * self._depth_bias, sigma_cells, mode="constant", truncate=3.0)
+                self._depth_bias = _ratio(carried_bias, blurred, self.depth_bias_m[0])
             self._p_grid = blurred / total
         # Mass that spread past the edge is gone from the grid; its variance is not: add it to the cells.
         self._pending_var = 0.0

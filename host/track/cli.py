@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import progress_bar
 from ..errors import UsageError
 from .detections import read_detections, write_detections
 from .evaluate import score
@@ -34,17 +35,6 @@ from .tracker import TrackerParameters
 __all__ = ["add_track_command", "run_track"]
 
 #: Runs longer than this many pings show a progress bar.
-PROGRESS_PINGS = 1000
-
-
-def _progress(total: int):
-    if total <= PROGRESS_PINGS:
-        return None
-    from rich.console import Console
-    from rich.progress import track
-
-    console = Console(stderr=True)
-    return lambda iterable: track(iterable, total=total, description="tracking", console=console, transient=True)
 
 
 def _setting(text: str) -> tuple[str, object]:
@@ -102,7 +92,7 @@ def run_track(args: argparse.Namespace) -> int:
 
         write_detections(out / "detections.csv", pings)
         write_truth(out / "truth.csv", truth)
-    run = run_tracker(pings, sonar=sonar, parameters=params, seed=args.seed, progress=_progress(len(pings)))
+    run = run_tracker(pings, sonar=sonar, parameters=params, seed=args.seed, progress=progress_bar(len(pings), "tracking"))
     summary: dict = {
         "name": name, "input": str(args.input), "pings": len(pings), "detections": int(sum(p.detections for p in pings)),
         "tracker": params.as_dict(), "seed": args.seed, "truth_known": truth is not None,

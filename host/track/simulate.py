@@ -29,14 +29,13 @@ The physics, kept simple and stated
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..config import validate_fields
+from ..config import build, read_toml
 from ..shipped import shipped_names, shipped_path
 from .detections import Ping
 from .geometry import Sonar, polar_to_world, world_to_polar
@@ -145,11 +144,6 @@ class Simulation:
     false_alarms: int
 
 
-def _build(cls: type, table: Any, where: str) -> Any:
-    """A table of the file as ``cls``, checked first by the strict schema of its type hints (lost.host.config)."""
-    return cls(**validate_fields(cls, table, where))
-
-
 def load_scenario(path: str | Path) -> TrackScenario:
     """Read and validate a tracking scenario file.
 
@@ -159,10 +153,7 @@ def load_scenario(path: str | Path) -> TrackScenario:
         Invalid TOML, an unknown table or field, or a value out of range.
     """
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path} is not valid TOML: {error}") from None
+    data = read_toml(path, "tracking scenario file")
     top = {"name", "description", "seed", "duration_s", "sonar", "platform", "target", "tracker"}
     unknown = sorted(set(data) - top)
     if unknown:
@@ -170,10 +161,10 @@ def load_scenario(path: str | Path) -> TrackScenario:
     kwargs: dict[str, Any] = {key: data[key] for key in ("name", "description", "seed", "duration_s") if key in data}
     kwargs.setdefault("name", path.stem)
     if "sonar" in data:
-        kwargs["sonar"] = _build(SonarModel, data["sonar"], "sonar")
+        kwargs["sonar"] = build(SonarModel, data["sonar"], "sonar")
     if "platform" in data:
-        kwargs["platform"] = _build(PlatformSpec, data["platform"], "platform")
-    kwargs["targets"] = tuple(_build(TargetSpec, t, f"target {n}") for n, t in enumerate(data.get("target", [])))
+        kwargs["platform"] = build(PlatformSpec, data["platform"], "platform")
+    kwargs["targets"] = tuple(build(TargetSpec, t, f"target {n}") for n, t in enumerate(data.get("target", [])))
     kwargs["tracker"] = dict(data.get("tracker", {}))
     return TrackScenario(**kwargs)
 

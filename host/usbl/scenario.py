@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import ConfigError, validate_fields
+from ..config import ConfigError, build
 from ..shipped import shipped_names, shipped_path
 from .filter import ImuNoise
 from .fix import UsblArray
@@ -143,7 +143,7 @@ def _build(cls: type, table: Any, path: Path, section: str = "") -> Any:
     if unknown:
         raise ValueError(f"{where}: unknown key(s) {unknown}; known: {sorted(known)}")
     try:
-        return cls(**validate_fields(cls, table, section))
+        return build(cls, table, section)
     except ConfigError as error:
         raise ConfigError(f"{path}: {error}") from None
 

@@ -184,11 +184,11 @@ def test_a_recorded_realtime_swath_is_centred_on_its_soundings(tmp_path, capsys)
 
 
 def test_long_runs_get_a_progress_bar_that_passes_every_record():
-    from lost.host.cli import PROGRESS_RECORDS, _progress
+    from lost.host.cli import PROGRESS_ITEMS, progress_bar
 
-    assert _progress(PROGRESS_RECORDS) is None
-    wrap = _progress(PROGRESS_RECORDS + 1)
-    assert list(wrap(range(PROGRESS_RECORDS + 1))) == list(range(PROGRESS_RECORDS + 1))
+    assert progress_bar(PROGRESS_ITEMS, "navigating") is None
+    wrap = progress_bar(PROGRESS_ITEMS + 1, "navigating")
+    assert list(wrap(range(PROGRESS_ITEMS + 1))) == list(range(PROGRESS_ITEMS + 1))
 
 
 def test_correlate_never_places_the_patch_on_a_hole(tmp_path, capsys):
