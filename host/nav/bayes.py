@@ -53,6 +53,20 @@ class BayesFilter:
         self._depth_bias: np.ndarray = np.zeros(1)
         self._depth_bias_var = params.depth_bias_sigma_m**2
         self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
+        self._layback: np.ndarray | None = None
+
+    def _search_prior(self) -> tuple[np.ndarray, float | None]:
+        """Where a re-initialized search is centred, and its prior's sigma (None: flat, the ML mode of section 5).
+
+        A towed vehicle has an anchor that does not drift: the cable model's lay-back position. The
+        search is then laid as the first one was, a Gaussian of ``initial_sigma_m`` around it; a flat
+        search over kilometres finds the terrain's best match anywhere on the slant range's ring (on
+        ``offset``, 900 m off on the ship's far side, which ranges and terrain both accepted for
+        minutes). Without a lay-back, the search is flat around the estimate.
+        """
+        if self._layback is not None:
+            return self._layback.copy(), self._p.initial_sigma_m
+        return self._moments()[0], None
 
     @property
     def _floor_var(self) -> float:
@@ -94,6 +108,8 @@ class BayesFilter:
     # -- the shared update ------------------------------------------------------------------------------
 
     def update(self, observation: Observation) -> None:
+        if observation.layback_m is not None:
+            self._layback = observation.layback_m
         if observation.patch is not None and self._p.matching == "patch":
             self._terrain_update(observation)
         elif self._p.matching == "point" and math.isfinite(observation.ocean_depth_m):
@@ -111,12 +127,10 @@ class BayesFilter:
         """Where a candidate's patch truly lies, less where it was reckoned: the velocity bias times the patch's age.
 
         The patch's soundings were placed ``age_s`` back by the measured velocity, which runs ahead of the
-        true one by the bias b: they lie b * age further along than reckoned (east, north). Only a filter
-        whose candidates carry their own bias (the particles) moves them: a bias estimated beside the
-        filter from its own corrections (the point-mass filter's) would feed back on itself through the
-        shift (measured: the point-mass filter diverged on ``demo`` and ``two_hour``).
+        true one by the bias b: they lie b * age further along than reckoned (east, north). The particles
+        move each patch by their own bias, the point-mass filter by its estimate.
         """
-        return 0.0, 0.0
+        raise NotImplementedError
 
     def _before_patch(self, patch, weight: float) -> None:
         """A hook before a patch is weighed: a particle cloud may redraw itself where the patch fits."""

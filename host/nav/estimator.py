@@ -86,6 +86,9 @@ class Observation:
         The USBL fix of the vehicle (east, north), metres; None without one.
     fix_covariance_m2 : (2, 2) array or None
         Its covariance, m**2.
+    layback_m : (2,) array or None
+        The cable model's position of the vehicle (behind the ship; cross-track unknown): where a
+        re-initialized search is centred, as the first one is. None without a ship fix or cable length.
     """
 
     t_s: float
@@ -96,6 +99,7 @@ class Observation:
     slant_range_m: float
     fix_position_m: np.ndarray | None = None
     fix_covariance_m2: np.ndarray | None = None
+    layback_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -59,7 +59,7 @@ class ParticleFilter(BayesFilter):
         self._n = int(params.pf_particles)
         self._pending_var = 0.0  # floor variance owed to the cloud, spread in the next prediction
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
-        self._search: tuple[np.ndarray, float] | None = None  # after a re-initialization: the square to search
+        self._search: tuple[np.ndarray, float, float | None] | None = None  # after a re-initialization: the square to search, the prior
 
     def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None, depth_bias_m: float = 0.0) -> None:
         """Particles around ``centre``: Gaussian of ``sigma_m``, or flat over a square of ``half_width_m``."""
@@ -146,24 +146,25 @@ class ParticleFilter(BayesFilter):
         self._keep_floor(post_cov)
 
     def _reinitialize(self) -> None:
-        mean, _ = self._moments()
+        centre, sigma = self._search_prior()
         half = self._p.pmf_sigmas * self._p.initial_sigma_m
         # The depth bias was learned where the cloud was: its mean stays, its confidence goes.
-        self._spawn(mean, half, None, depth_bias_m=self.depth_bias_m[0])
+        self._spawn(centre, half, sigma, depth_bias_m=self.depth_bias_m[0])
         self._depth_bias_var = max(self._depth_bias_var, self._p.depth_bias_sigma_m**2)
-        self._search = (mean, half)
+        self._search = (centre, half, sigma)
 
     def _before_patch(self, patch, weight: float) -> None:
         """After a re-initialization, draw the cloud where the next patch fits (importance sampling).
 
         A flat cloud over kilometres is too sparse to land on a narrow peak, so the particles are drawn
         from the patch's likelihood over a lattice of cells covering the search square, and weighted
-        by the inverse of that density: the update that follows multiplies the likelihood in, and the
-        two cancel, leaving samples of the flat prior times the likelihood (the ML mode of section 5).
+        by the prior over that density: the update that follows multiplies the likelihood in, and the
+        two cancel, leaving samples of the prior times the likelihood (with a flat prior, the ML mode of
+        section 5).
         """
         if self._search is None:
             return
-        (cx, cy), half = self._search
+        (cx, cy), half, sigma = self._search
         self._search = None
         cells = self._p.pmf_cells
         size = 2.0 * half / cells
@@ -177,7 +178,8 @@ class ParticleFilter(BayesFilter):
         pick = self._rng.choice(q.size, size=self._n, p=q)
         jitter = self._rng.uniform(-size / 2.0, size / 2.0, (2, self._n))
         self._x, self._y = x.ravel()[pick] + jitter[0], y.ravel()[pick] + jitter[1]
-        self._w = 1.0 / q[pick]
+        prior = 1.0 if sigma is None else np.exp(-0.5 * ((self._x - cx) ** 2 + (self._y - cy) ** 2) / sigma**2)
+        self._w = prior / q[pick]
         self._w /= self._w.sum()
         self._cached = None
         self.counts["redrawn_from_likelihood"] += 1

@@ -504,7 +504,8 @@ class _RecordLoop:
         observation = Observation(t_s=float(records.t_s[n]), frame=frame, patch=self._sonar[n],
                                   ocean_depth_m=depth + float(records.altitude_m[n]), vehicle_depth_m=self._last_depth,
                                   slant_range_m=self._slant_range(n), fix_position_m=None if fix is None else fix[0],
-                                  fix_covariance_m2=None if fix is None else fix[1])
+                                  fix_covariance_m2=None if fix is None else fix[1],
+                                  layback_m=self.layback[n].copy() if np.all(np.isfinite(self.layback[n])) else None)
         if self._dead is None:
             # Initialization: the lay-back model (cross-track zero), plus the requested offset.
             if not np.all(np.isfinite(self.layback[n])):

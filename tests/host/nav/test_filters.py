@@ -367,3 +367,42 @@ def test_ranges_that_contradict_a_terrain_lock_twenty_times_in_a_row_reinitializ
         pmf.update(_observation(_patch_at(grid, *(truth + (150.0, 0.0))), slant=1000.0, frame=ship))
     assert pmf.counts["range_rejected_innovation"] == 2 * params.reinit_after
     assert pmf.counts["reinitialized_by_ranges"] == 1 and pmf.estimate().stage == "reinitialized"
+
+
+def test_the_point_mass_filter_learns_its_bias_from_every_correction_and_moves_its_patches_by_it():
+    """A range's correction and the terrain's that follows are one drift: learning from the terrain's alone
+    read a range-versus-terrain tug of war as a bias of the opposite sign."""
+    grid = _map()
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), _quiet(velocity_bias_time_s=20.0), grid=grid)
+    truth = np.array([400.0, 400.0])
+    pmf.start(0.0, truth, _observation())
+    pmf.update(_observation(_patch_at(grid, *truth)))
+    assert pmf.estimate().usable and np.all(pmf.velocity_bias_mps == 0.0)
+    pmf._since_bias_update_s = 10.0
+    posterior, cov = pmf._p_grid.copy(), 4.0 * np.eye(2)
+    pmf._accept(posterior, cov, np.array([2.0, 0.0]), terrain=False)  # a range pulls 2 m east
+    np.testing.assert_array_equal(pmf.velocity_bias_mps, 0.0)  # a range alone teaches nothing yet
+    pmf._accept(posterior, cov, np.array([-5.0, 1.0]), terrain=True)  # the terrain pulls 5 m back west
+    # Net 3 m west in 10 s: the measured velocity ran 0.3 m/s fast east; the gain is 10 s / 20 s.
+    np.testing.assert_allclose(pmf.velocity_bias_mps, [0.15, -0.05])
+    np.testing.assert_allclose(pmf._patch_shift(40.0), [6.0, -2.0])
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_a_reinitialized_search_is_the_starts_gaussian_around_the_layback_or_flat_around_the_estimate(kind):
+    grid = _map(shape=(140, 140))
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(initial_sigma_m=60.0)
+    f = PointMassFilter(likelihood, params, grid=grid) if kind == "pmf" else ParticleFilter(likelihood, params, grid=grid, seed=3)
+    estimate, layback = np.array([700.0, 700.0]), np.array([500.0, 650.0])
+    f.start(0.0, estimate, _observation())
+    f.update(_observation())  # no lay-back known yet
+    f._reinitialize()
+    mean, cov = f._moments()
+    assert np.hypot(*(mean - estimate)) < 5.0
+    assert np.all(np.sqrt(np.diag(cov)) > 2.0 * params.initial_sigma_m)  # flat over pmf_sigmas initial sigmas
+    f.update(replace(_observation(), layback_m=layback))
+    f._reinitialize()
+    mean, cov = f._moments()
+    assert np.hypot(*(mean - layback)) < 5.0
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), params.initial_sigma_m, rtol=0.05)
