@@ -278,6 +278,8 @@ class BayesFilter:
             self.counts[f"{kind}_updates"] += 1
             if kind == "range":
                 self._trust.range_outcome(refused=False)
+            else:
+                self._trust.position_fixed()
         return True
 
     def _reject(self, reason: str, terrain: bool, kind: str = "range") -> None:

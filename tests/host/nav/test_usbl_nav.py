@@ -69,6 +69,21 @@ def test_a_fix_is_a_kalman_update_of_a_gaussian_prior(kind):
 
 
 @pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_a_used_fix_restarts_the_ins_error_growth_and_a_refused_one_does_not(kind):
+    """Eq. 6.2's growth runs from the last position fix: 600 s off the map it is about 24 m (1-sigma)."""
+    grid = _grid()
+    f = _filter(kind, _quiet(initial_sigma_m=10.0, gyro_bias_rps=4.8e-8, accel_bias_mps2=1e-4), grid)
+    start = np.array([400.0, 400.0])
+    f.start(0.0, start, _fix_observation(start, np.eye(2)))
+    f._trust.since_update_s = 600.0
+    f.update(_fix_observation(start + 500.0, np.eye(2)))  # far outside the gate: refused
+    assert f.counts["fix_rejected_gate"] == 1 and f._trust.since_update_s == 600.0
+    f.update(_fix_observation(start + 1.0, 25.0 * np.eye(2)))
+    assert f.counts["fix_updates"] == 1 and f._trust.since_update_s == 0.0
+    assert f._trust.growth_variance(1.0) < 1e-3
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
 def test_a_fix_outside_the_gate_is_refused_and_counted_and_the_range_is_used_instead(kind):
     grid = _grid()
     params = _quiet(initial_sigma_m=10.0, use_slant_range=True, reference_depth_m=0.0, slant_range_sigma_m=5.0)
