@@ -21,10 +21,10 @@ Measurement (eq. 3.5)
 The patch likelihood of :mod:`lost.host.nav.likelihood` at every cell centre, multiplied in and
 normalized; the slant range as a Gaussian in the horizontal range to the ship. Gated as
 :mod:`lost.host.nav.trust` says. The estimate is the mean (MMSE) with its covariance (section 4);
-``map_position`` the densest cell (MAP). After a re-initialization the prior is flat over the widened
-grid, or the start's Gaussian prior around the lay-back position for a towed vehicle (see
-``BayesFilter._search_prior``); without a prior the update is the maximum-likelihood estimate of
-section 5 (stage ``acquisition``).
+``map_position`` the densest cell (MAP). After a re-initialization the widened grid holds the start's
+Gaussian prior around the lay-back position of a towed vehicle, or is flat around the estimate without
+one (see ``BayesFilter._search_prior``): the update is then the maximum-likelihood estimate of section 5
+(stage ``acquisition``).
 
 Velocity bias
 -------------
@@ -265,4 +265,3 @@ class PointMassFilter(BayesFilter):
         """The grid's cell centres (x, y) and their probabilities."""
         x, y = np.broadcast_arrays(*self._cells())
         return x, y, self._p_grid
-
