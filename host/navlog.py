@@ -265,94 +265,26 @@ def read_navlog(
     """
     path = Path(path)
     h_w = _check_shape(patch_shape)
-    if sonar is not None and (node_m is None or not (np.isfinite(node_m) and node_m > 0)):
-        raise ValueError(f"gridding sonar soundings needs node_m, the map's node spacing in metres (got {node_m!r})")
-    if patch_centre not in PATCH_CENTRES:
-        raise ValueError(f"patch_centre must be one of {PATCH_CENTRES}, got {patch_centre!r}")
-    if not (np.isfinite(time_tolerance_s) and time_tolerance_s >= 0):
-        raise ValueError(f"time_tolerance_s must be a non-negative number of seconds, got {time_tolerance_s!r}")
-
+    _check_options(sonar, node_m, patch_centre, time_tolerance_s)
     table = _read_table(path)
-    columns = {c.strip().lower(): c for c in table.columns}
     notes: list[str] = []
-    position = _pick_pair(columns, _POSITION_FORMS, "ship position", notes, required=True)
-    velocity = _pick_pair(columns, _VELOCITY_FORMS, "velocity", notes, required=True)
-    truth = _pick_pair(columns, _TRUTH_FORMS, "truth position", notes, required=False)
-    patch_centre_columns = _pick_pair(columns, _PATCH_CENTRE_FORMS, "sonar patch centre", notes, required=False)
-    time_column = next((c for c in _TIME_COLUMNS if c in columns), None)
-    missing = ([] if time_column else ["t_s (or time_utc)"]) + [c for c in _SINGLE_REQUIRED if c not in columns]
-    if time_column == "t_s" and "time_utc" in columns:
-        notes.append("t_s used for the time; time_utc not read")
-    if missing:
-        raise ValueError(f"{path.name} lacks the required column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
-    used = (set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | set(patch_centre_columns or ())
-            | {c for c in (*_OPTIONAL, _PATCH_AGE) if c in columns})
-    unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
+    layout = _layout(table, path, notes)
     lines = _Lines(path, len(table))
-    values = {c: _numeric(table[columns[c]], c, path, lines) for c in used}
-    epoch, zone_warnings = None, []
-    if time_column == "t_s":
-        values["t_s"] = _numeric(table[columns["t_s"]], "t_s", path, lines)
-    else:
-        values["t_s"], epoch = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=None)
-        zone_warnings = _check_zones(table[columns["time_utc"]], lines, notes)
-        if epoch is not None:
-            notes.append(f"t_s counts seconds from time_utc {epoch.isoformat()}")
-
-    # A row without a time cannot be placed in the sequence: skip it, say so.
-    t = values["t_s"]
-    timeless = np.flatnonzero(~np.isfinite(t))
-    skipped = tuple((int(r), f"no time ({time_column} empty or NaN)") for r in timeless)
-    keep = np.isfinite(t)
-    if not keep.any():
-        raise ValueError(f"{path.name} has no record with a time ({len(t)} data row(s)); there is nothing to navigate")
-    kept_rows = np.flatnonzero(keep)
-    values = {c: v[keep] for c, v in values.items()}
-    _check_time(values["t_s"], kept_rows, lines, path)
+    values, epoch, zone_warnings = _read_values(table, layout, path, lines, notes)
+    values, kept_rows, skipped = _drop_timeless(values, layout.time_column, path, lines)
     # An empty patch centre or age is no missing reading: the record's patch (if any) is centred by patch_centre, aged 0.
-    nan_counts = {columns[c]: int(np.isnan(values[c]).sum()) for c in columns
-                  if c in used and c not in (*sum(_PATCH_CENTRE_FORMS, ()), _PATCH_AGE)}
-
-    if "slant_range_m" not in columns:
-        values["slant_range_m"] = np.full(keep.sum(), np.nan)
+    nan_counts = {layout.columns[c]: int(np.isnan(values[c]).sum()) for c in layout.columns
+                  if c in layout.used and c not in (*sum(_PATCH_CENTRE_FORMS, ()), _PATCH_AGE)}
+    if "slant_range_m" not in layout.columns:
+        values["slant_range_m"] = np.full(kept_rows.size, np.nan)
         notes.append("no slant_range_m column: slant range is NaN (not measured) for every record")
 
     impossible = _impossible_readings(values, kept_rows, lines, path)
-    geographic = position == ("lat", "lon")
-    usbl = _usbl_columns(values, columns, kept_rows, lines, path, geographic, notes)
-    if geographic:
-        if crs is None:
-            raise ValueError(f"{path.name} gives positions as lat/lon; pass crs= (the map's projected CRS) to project them")
-        ship_x, ship_y, convergence = _project(values["lat"], values["lon"], crs, path, kept_rows, lines, "lat/lon")
-        finite = convergence[np.isfinite(convergence)]
-        if finite.size:
-            notes.append(
-                f"positions projected from WGS 84 lat/lon to {crs}; headings, courses and velocities turned from "
-                f"true to grid north by the meridian convergence ({finite.min():+.3f} to {finite.max():+.3f} deg)"
-            )
-    else:
-        ship_x, ship_y = values["x_m"], values["y_m"]
-        convergence = np.zeros_like(ship_x)
-
-    heading = _wrap(values["ship_heading_deg"] + convergence)
-    if velocity == ("vel_x_mps", "vel_y_mps"):
-        vx, vy = values["vel_x_mps"], values["vel_y_mps"]
-        c, s = np.cos(np.radians(convergence)), np.sin(np.radians(convergence))
-        vel_x, vel_y = vx * c + vy * s, -vx * s + vy * c
-    else:
-        course = np.radians(values["course_deg"] + convergence)
-        vel_x, vel_y = values["speed_mps"] * np.sin(course), values["speed_mps"] * np.cos(course)
-
-    truth_x = truth_y = None
-    if truth == ("truth_x_m", "truth_y_m"):
-        truth_x, truth_y = values["truth_x_m"], values["truth_y_m"]
-    elif truth is not None:
-        if crs is None:
-            raise ValueError(f"{path.name} gives the truth as truth_lat/truth_lon; pass crs= to project it")
-        truth_x, truth_y, _ = _project(values["truth_lat"], values["truth_lon"], crs, path, kept_rows, lines, "truth_lat/truth_lon")
-    else:
-        notes.append("no truth position columns: the log has no reference track")
-
+    geographic = layout.position == ("lat", "lon")
+    usbl = _usbl_columns(values, layout.columns, kept_rows, lines, path, geographic, notes)
+    ship_x, ship_y, convergence = _ship_positions(values, geographic, crs, path, kept_rows, lines, notes)
+    vel_x, vel_y = _grid_velocity(values, layout.velocity, convergence)
+    truth_x, truth_y = _truth_positions(values, layout.truth, crs, path, kept_rows, lines, notes)
     sonar_patches: tuple[SonarPatch | None, ...] = ()
     sonar_stats: dict = {}
     if sonar is not None:
@@ -363,34 +295,126 @@ def read_navlog(
         )
 
     records = NavRecords(
-        t_s=values["t_s"],
-        ship_x_m=ship_x,
-        ship_y_m=ship_y,
-        ship_heading_deg=heading,
-        vehicle_depth_m=values["vehicle_depth_m"],
-        altitude_m=values["altitude_m"],
-        vel_x_mps=vel_x,
-        vel_y_mps=vel_y,
-        slant_range_m=values["slant_range_m"],
-        cable_out_m=values["cable_out_m"],
-        sonar=sonar_patches,
-        truth_x_m=truth_x,
-        truth_y_m=truth_y,
-        **usbl,
+        t_s=values["t_s"], ship_x_m=ship_x, ship_y_m=ship_y, ship_heading_deg=_wrap(values["ship_heading_deg"] + convergence),
+        vehicle_depth_m=values["vehicle_depth_m"], altitude_m=values["altitude_m"], vel_x_mps=vel_x, vel_y_mps=vel_y,
+        slant_range_m=values["slant_range_m"], cable_out_m=values["cable_out_m"], sonar=sonar_patches,
+        truth_x_m=truth_x, truth_y_m=truth_y, **usbl,
     )
-    warnings = zone_warnings + impossible + _check_motion(records, kept_rows, lines, path, time_column, geographic)
-    report = LoadReport(
-        path=str(path),
-        warnings=tuple(warnings),
-        rows=len(table),
-        records=len(records),
-        nan_counts=nan_counts,
-        skipped_rows=skipped,
-        unknown_columns=unknown,
-        notes=tuple(notes),
-        **sonar_stats,
-    )
+    warnings = zone_warnings + impossible + _check_motion(records, kept_rows, lines, path, layout.time_column, geographic)
+    report = LoadReport(path=str(path), warnings=tuple(warnings), rows=len(table), records=len(records), nan_counts=nan_counts,
+                        skipped_rows=skipped, unknown_columns=layout.unknown, notes=tuple(notes), **sonar_stats)
     return records, report
+
+
+def _check_options(sonar, node_m, patch_centre: str, time_tolerance_s: float) -> None:
+    """The reader's own arguments, each named when wrong."""
+    if sonar is not None and (node_m is None or not (np.isfinite(node_m) and node_m > 0)):
+        raise ValueError(f"gridding sonar soundings needs node_m, the map's node spacing in metres (got {node_m!r})")
+    if patch_centre not in PATCH_CENTRES:
+        raise ValueError(f"patch_centre must be one of {PATCH_CENTRES}, got {patch_centre!r}")
+    if not (np.isfinite(time_tolerance_s) and time_tolerance_s >= 0):
+        raise ValueError(f"time_tolerance_s must be a non-negative number of seconds, got {time_tolerance_s!r}")
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Which of a log's columns say what: each quantity's form, the time column, what is read, what is not known."""
+
+    columns: dict  # lower-cased, stripped name -> the header as written
+    position: tuple[str, str]
+    velocity: tuple[str, str]
+    truth: tuple[str, str] | None
+    time_column: str
+    used: frozenset
+    unknown: tuple[str, ...]
+
+
+def _layout(table, path: Path, notes: list[str]) -> _Layout:
+    """The log's layout from its header; the required columns missing are named together."""
+    columns = {c.strip().lower(): c for c in table.columns}
+    position = _pick_pair(columns, _POSITION_FORMS, "ship position", notes, required=True)
+    velocity = _pick_pair(columns, _VELOCITY_FORMS, "velocity", notes, required=True)
+    truth = _pick_pair(columns, _TRUTH_FORMS, "truth position", notes, required=False)
+    patch_centre = _pick_pair(columns, _PATCH_CENTRE_FORMS, "sonar patch centre", notes, required=False)
+    time_column = next((c for c in _TIME_COLUMNS if c in columns), None)
+    missing = ([] if time_column else ["t_s (or time_utc)"]) + [c for c in _SINGLE_REQUIRED if c not in columns]
+    if time_column == "t_s" and "time_utc" in columns:
+        notes.append("t_s used for the time; time_utc not read")
+    if missing:
+        raise ValueError(f"{path.name} lacks the required column(s) {', '.join(missing)}; it has {', '.join(table.columns)}")
+    used = frozenset(set(_SINGLE_REQUIRED) | set(position) | set(velocity) | set(truth or ()) | set(patch_centre or ())
+                     | {c for c in (*_OPTIONAL, _PATCH_AGE) if c in columns})
+    unknown = tuple(columns[c] for c in columns if c not in NAVLOG_COLUMNS)
+    return _Layout(columns, position, velocity, truth, time_column, used, unknown)
+
+
+def _read_values(table, layout: _Layout, path: Path, lines: _Lines, notes: list[str]) -> tuple[dict, object, list]:
+    """Every used column as numbers, and ``t_s`` (from ``time_utc`` if need be, with its epoch and zone warnings)."""
+    columns = layout.columns
+    values = {c: _numeric(table[columns[c]], c, path, lines) for c in layout.used}
+    epoch, zone_warnings = None, []
+    if layout.time_column == "t_s":
+        values["t_s"] = _numeric(table[columns["t_s"]], "t_s", path, lines)
+    else:
+        values["t_s"], epoch = _seconds(table[columns["time_utc"]], "time_utc", path, lines, epoch=None)
+        zone_warnings = _check_zones(table[columns["time_utc"]], lines, notes)
+        if epoch is not None:
+            notes.append(f"t_s counts seconds from time_utc {epoch.isoformat()}")
+    return values, epoch, zone_warnings
+
+
+def _drop_timeless(values: dict, time_column: str, path: Path, lines: _Lines) -> tuple[dict, np.ndarray, tuple]:
+    """A row without a time cannot be placed in the sequence: skipped and said so; the rest must run forward."""
+    t = values["t_s"]
+    keep = np.isfinite(t)
+    skipped = tuple((int(r), f"no time ({time_column} empty or NaN)") for r in np.flatnonzero(~keep))
+    if not keep.any():
+        raise ValueError(f"{path.name} has no record with a time ({len(t)} data row(s)); there is nothing to navigate")
+    kept_rows = np.flatnonzero(keep)
+    values = {c: v[keep] for c, v in values.items()}
+    _check_time(values["t_s"], kept_rows, lines, path)
+    return values, kept_rows, skipped
+
+
+def _ship_positions(values: dict, geographic: bool, crs: str | None, path: Path, kept_rows: np.ndarray, lines: _Lines,
+                    notes: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ship's grid position and the meridian convergence (degrees, 0 for a log already on the grid)."""
+    if not geographic:
+        return values["x_m"], values["y_m"], np.zeros_like(values["x_m"])
+    if crs is None:
+        raise ValueError(f"{path.name} gives positions as lat/lon; pass crs= (the map's projected CRS) to project them")
+    ship_x, ship_y, convergence = _project(values["lat"], values["lon"], crs, path, kept_rows, lines, "lat/lon")
+    finite = convergence[np.isfinite(convergence)]
+    if finite.size:
+        notes.append(
+            f"positions projected from WGS 84 lat/lon to {crs}; headings, courses and velocities turned from "
+            f"true to grid north by the meridian convergence ({finite.min():+.3f} to {finite.max():+.3f} deg)"
+        )
+    return ship_x, ship_y, convergence
+
+
+def _grid_velocity(values: dict, velocity: tuple[str, str], convergence: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """East and north velocity on the grid, from components or speed and course, turned by the convergence."""
+    if velocity == ("vel_x_mps", "vel_y_mps"):
+        vx, vy = values["vel_x_mps"], values["vel_y_mps"]
+        c, s = np.cos(np.radians(convergence)), np.sin(np.radians(convergence))
+        return vx * c + vy * s, -vx * s + vy * c
+    course = np.radians(values["course_deg"] + convergence)
+    return values["speed_mps"] * np.sin(course), values["speed_mps"] * np.cos(course)
+
+
+def _truth_positions(values: dict, truth: tuple[str, str] | None, crs: str | None, path: Path, kept_rows: np.ndarray,
+                     lines: _Lines, notes: list[str]) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The reference track on the grid, or None when the log has none (said in the notes)."""
+    if truth == ("truth_x_m", "truth_y_m"):
+        return values["truth_x_m"], values["truth_y_m"]
+    if truth is None:
+        notes.append("no truth position columns: the log has no reference track")
+        return None, None
+    if crs is None:
+        raise ValueError(f"{path.name} gives the truth as truth_lat/truth_lon; pass crs= to project it")
+    truth_x, truth_y, _ = _project(values["truth_lat"], values["truth_lon"], crs, path, kept_rows, lines, "truth_lat/truth_lon")
+    return truth_x, truth_y
 
 
 def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | os.PathLike | None = None) -> None:
