@@ -147,8 +147,9 @@ def _print_usbl(summary: dict) -> None:
           f"profile; fixes used: {used or 'none'}{f', LOST re-centred on {recentred}' if recentred else ''}")
 
 
-def _setting(text: str) -> tuple[str, object]:
-    """``NAME=VALUE`` of ``--set``: VALUE as a TOML value (``0.05``, ``true``, ``[0, 200]``, ``"cable"``), ``none`` for None."""
+def setting_argument(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` of ``--set`` (``lost`` and ``lost track``): VALUE as a TOML value (``0.05``, ``true``, ``[0, 200]``,
+    ``"cable"``), ``none`` for None, a bare word as a string; the settings' strict schema judges the type after."""
     name, sep, value = text.partition("=")
     if not sep or not name.strip():
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
@@ -381,7 +382,7 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
         sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",
                          help="the LOST patent pipeline, the point-mass filter, the particle filter, or all three on the same records (default)")
-        sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
+        sub.add_argument("--set", dest="settings", type=setting_argument, action="append", metavar="NAME=VALUE",
                          help="a navigation parameter (NavParameters), over the scenario's [navigation]; repeatable; "
                               "VALUE is TOML, or none for the patent's default (e.g. --set u=0.005 --set cross_damping_per_s=none)")
 

@@ -17,12 +17,11 @@ from __future__ import annotations
 
 import argparse
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
-from ..cli import progress_bar
+from ..cli import progress_bar, setting_argument
 from ..errors import UsageError
 from .detections import read_detections, write_detections
 from .evaluate import score
@@ -37,23 +36,17 @@ __all__ = ["add_track_command", "run_track"]
 #: Runs longer than this many pings show a progress bar.
 
 
-def _setting(text: str) -> tuple[str, object]:
-    """``NAME=VALUE`` of ``--set``, VALUE read as a TOML value (``0.8``, ``6``)."""
-    name, sep, value = text.partition("=")
-    if not sep or not name.strip():
-        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
-    try:
-        return name.strip(), tomllib.loads(f"value = {value}")["value"]
-    except tomllib.TOMLDecodeError:
-        raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a number or TOML value") from None
-
-
 def _parameters(base: dict, overrides: dict, where: str) -> TrackerParameters:
     known = set(TrackerParameters.__dataclass_fields__)
     unknown = sorted(set(overrides) - known)
     if unknown:
         raise UsageError(f"{where} names no tracker parameter: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-    return TrackerParameters(**{**base, **overrides})
+    from ..config import ConfigError, build
+
+    try:
+        return build(TrackerParameters, {**base, **overrides}, "tracker")
+    except ConfigError as error:
+        raise UsageError(f"{where}: {error}") from None
 
 
 def _load(source: str, args: argparse.Namespace):
@@ -157,7 +150,7 @@ def add_track_command(commands: argparse._SubParsersAction) -> None:
     sub.add_argument("--seed", type=int, default=0, help="the tracker's random seed (default 0)")
     sub.add_argument("--pd", type=float, default=None, help="detection probability the tracker assumes (default the scenario's, or 0.9)")
     sub.add_argument("--clutter", type=float, default=None, help="false alarms per ping the tracker assumes (default the scenario's, or 5)")
-    sub.add_argument("--set", dest="settings", type=_setting, action="append", metavar="NAME=VALUE",
+    sub.add_argument("--set", dest="settings", type=setting_argument, action="append", metavar="NAME=VALUE",
                      help="a tracker parameter (TrackerParameters, e.g. --set confirm_m=5 --set bearing_sigma_deg=1.0); repeatable")
     sub.add_argument("--max-range", type=float, default=500.0, help="with a CSV: the sonar's range, m (default 500)")
     sub.add_argument("--half-fov", type=float, default=45.0, help="with a CSV: half the field of view, degrees (default 45)")

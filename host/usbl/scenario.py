@@ -19,14 +19,13 @@ Layout (every table and key optional except ``name``; the defaults are the datac
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..config import ConfigError, build
+from ..config import ConfigError, build, read_toml
 from ..shipped import shipped_names, shipped_path
 from .filter import ImuNoise
 from .fix import UsblArray
@@ -153,12 +152,7 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
     path = Path(path)
     if not path.exists() and path.suffix == "":
         path = shipped_path("lost.host.usbl", path.name, what="usbl scenario, nor a scenario file,")
-    if not path.exists():
-        raise FileNotFoundError(f"scenario file {path} does not exist")
-    try:
-        table = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"scenario file {path}: {error}") from error
+    table = read_toml(path, "usbl scenario file")
     parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": FaultSpec}
     built = {key: _build(cls, table.pop(key), path, key) for key, cls in parts.items() if key in table}
     return replace(_build(UsblScenario, table, path), folder=path.parent, **built)
@@ -169,12 +163,7 @@ def load_processing_config(path: str | Path) -> dict[str, Any]:
     (:class:`ImuSpec`), keys ``gate_probability``, ``align_window_s`` and ``earth_rotation``; returned as keyword arguments of
     :class:`lost.host.usbl.pipeline.UsblConfig`."""
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"config file {path} does not exist")
-    try:
-        table = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"config file {path}: {error}") from error
+    table = read_toml(path, "usbl processing config")
     unknown = sorted(set(table) - {"usbl", "imu", "gate_probability", "align_window_s", "earth_rotation"})
     if unknown:
         raise ValueError(f"config file {path}: unknown key(s) {unknown}; known: align_window_s, earth_rotation, gate_probability, imu, usbl")

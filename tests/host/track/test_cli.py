@@ -87,6 +87,12 @@ def test_set_reaches_the_tracker_and_unknown_names_are_refused(scenario_run, tmp
     assert (summary["tracker"]["confirm_m"], summary["tracker"]["confirm_n"]) == (5, 5)
     assert main(["track", detections, "--out", str(out), "--set", "confirm=3"]) == 2
     assert "--set names no tracker parameter: confirm" in capsys.readouterr().err
+    # Types are the strict schema's, as for lost run's --set: no string, None or fraction where a number or count goes.
+    for value, message in (("pd=abc", "tracker.pd: Input should be a valid number, got 'abc' (str)"),
+                           ("pd=none", "tracker.pd: Input should be a valid number, got None (NoneType)"),
+                           ("confirm_m=4.5", "Input should be a valid integer, got 4.5")):
+        assert main(["track", detections, "--out", str(out), "--set", value]) == 2
+        assert message in capsys.readouterr().err
 
 
 def test_a_recorded_log_with_its_truth_scores_as_the_simulation_did(scenario_run, tmp_path):
