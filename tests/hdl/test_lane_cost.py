@@ -1,14 +1,24 @@
 # amaranth: UnusedElaboratable=no
 """What a window lane costs after packing: the flow's netlist passes and the lane's reciprocal quotient."""
 
+import itertools
 import json
 
 import pytest
-from amaranth import Module, Signal
+from amaranth import Const, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
+from amaranth.sim import Simulator
 
 from lost.hdl.flow.synth import drop_unused_carry_outs, pack, synthesize
+from lost.hdl.window_lane import SerialReciprocal, reciprocal_product_stages, reciprocal_quotient, reciprocal_shift
+
+
+def simulate(dut, bench):
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
 
 
 def carry_cell(cin, cout):
@@ -57,3 +67,107 @@ def test_a_chain_packs_with_its_feed_in_only(tmp_path):
     # Each chain's carry in is a constant, which nextpnr feeds in through one more CCU2C; nothing feeds out
     # (a feed-out would be one more per chain). The packer adds a driver for each of 0 and 1.
     assert pack(netlist, "adders")["TRELLIS_COMB"]["used"] == 2 * (carries + count) + luts + 2
+
+
+# ---- the quotient by a reciprocal -----------------------------------------------------------------------
+
+QUOTIENT_BITS = 17  # 16-bit depths
+
+
+def edge_dividends(f, quotient_bits=QUOTIENT_BITS):
+    """Every dividend where a quotient changes near 0, the middle and the top of the range, and the ends."""
+    top = f << quotient_bits
+    quotients = {0, 1, 2, 3, (1 << (quotient_bits - 1)) - 1, 1 << (quotient_bits - 1), (1 << quotient_bits) - 2,
+                 (1 << quotient_bits) - 1}
+    values = {0, top - 1}
+    for q in quotients:
+        values.update({q * f - 1, q * f, q * f + 1, q * f + f - 1})
+    return sorted(v for v in values if 0 <= v < top)
+
+
+@pytest.mark.parametrize("max_divisor", [1, 2, 12, 100, 256])
+def test_the_reciprocal_quotient_is_exact_for_every_divisor(max_divisor):
+    shift = reciprocal_shift(max_divisor, QUOTIENT_BITS)
+    assert shift == QUOTIENT_BITS + (max_divisor * (max_divisor - 1)).bit_length()
+    for f in range(1, max_divisor + 1):
+        reciprocal = -(-(1 << shift) // f)
+        assert reciprocal < 1 << (shift + 1)
+        for n in edge_dividends(f):
+            assert (n * reciprocal) >> shift == n // f, (f, n)
+
+
+def test_two_bits_less_shift_is_not_exact():
+    # The bound is needed: with s - 2 some divisor and dividend of the 10 x 10 range go wrong.
+    shift = reciprocal_shift(100, QUOTIENT_BITS) - 2
+    wrong = [(f, n) for f in range(1, 101) for n in edge_dividends(f)
+             if (n * -(-(1 << shift) // f)) >> shift != n // f]
+    assert wrong
+
+
+def test_serial_reciprocal_takes_each_divisor_in_its_latency():
+    shift = reciprocal_shift(100, QUOTIENT_BITS)
+    dut = SerialReciprocal(divisor_bits=7, shift=shift, per_clock=2)
+    assert dut.latency == 1 + 16
+    order = [100, 1, 2, 3, 64, 99, 7, *range(4, 100, 5)]
+
+    async def bench(ctx):
+        for f in order:
+            ctx.set(dut.divisor, f)
+            await ctx.tick()  # the new divisor is seen on this edge
+            for _ in range(dut.latency - 1):
+                await ctx.tick()
+            expected = -(-(1 << shift) // f)
+            for _ in range(3):  # and it holds
+                await ctx.tick()
+                assert ctx.get(dut.reciprocal) == expected, f
+
+    simulate(dut, bench)
+
+
+class Quotient(wiring.Component):
+    """:func:`reciprocal_quotient` alone, with two copies (one held at zero)."""
+
+    def __init__(self, dividend_bits, shift):
+        self.shift = shift
+        self.stages = reciprocal_product_stages(dividend_bits, shift + 1)
+        super().__init__({"en": In(1), "dividend": In(dividend_bits), "reciprocal": In(shift + 1),
+                          "hold": In(1), "q": Out(QUOTIENT_BITS), "held": Out(QUOTIENT_BITS)})
+
+    def elaborate(self, platform):
+        m = Module()
+        copies = reciprocal_quotient(m, self.en, self.dividend, self.reciprocal, self.shift, QUOTIENT_BITS,
+                                     [Const(0), self.hold], "quotient")
+        m.d.comb += [self.q.eq(copies[0]), self.held.eq(copies[1])]
+        return m
+
+
+@pytest.mark.parametrize("max_divisor", [100, 12, 1])
+def test_reciprocal_quotient_gateware_matches_floor_division_at_its_latency(max_divisor):
+    shift = reciprocal_shift(max_divisor, QUOTIENT_BITS)
+    dividend_bits = (max_divisor * ((1 << QUOTIENT_BITS) - 1)).bit_length()
+    dut = Quotient(dividend_bits, shift)
+    cases = [(f, n) for f in range(1, max_divisor + 1) for n in edge_dividends(f) if n < 1 << dividend_bits]
+    enables = itertools.cycle([1, 1, 0, 1, 0, 0, 1])
+    seen = []
+
+    async def bench(ctx):
+        ctx.set(dut.hold, 1)
+        loaded = []  # the case each load took, newest last
+        pending = list(cases) + [(1, 0)] * (dut.stages - 1)
+        while pending:
+            enable = next(enables)
+            f, n = pending[0]
+            ctx.set(dut.dividend, n)
+            ctx.set(dut.reciprocal, -(-(1 << shift) // f))
+            ctx.set(dut.en, enable)
+            await ctx.tick()
+            if enable:
+                loaded.append(pending.pop(0))
+                if len(loaded) >= dut.stages:  # the copies show the case loaded `stages` loads ago
+                    f_out, n_out = loaded[-dut.stages]
+                    assert ctx.get(dut.q) == n_out // f_out, (f_out, n_out)
+                    assert ctx.get(dut.held) == 0
+                    seen.append((f_out, n_out))
+
+    simulate(dut, bench)
+    assert seen == cases
