@@ -142,7 +142,7 @@ def reciprocal_shift(max_divisor: int, quotient_bits: int) -> int:
     """The shift ``s`` that makes ``floor(N * ceil(2**s / f) / 2**s)`` equal ``floor(N / f)``.
 
     For every divisor ``f`` in ``[1, max_divisor]`` and every dividend ``N`` in ``[0, f * 2**Q)``
-    (``Q = quotient_bits``: the quotient fits ``Q`` bits, the restoring divider's precondition too),
+    (``Q = quotient_bits``: the quotient fits ``Q`` bits, as a restoring divider of ``Q`` stages also needs),
     ``s = Q + bit_length(F * (F - 1))`` with ``F = max_divisor``.
 
     Proof: write ``N = q * f + r`` with ``0 <= r < f``, and ``m = ceil(2**s / f) = (2**s + e) / f``
@@ -389,7 +389,7 @@ class WindowLane(wiring.Component):
         advance, patch_valid = self.advance, self.patch_valid
         # The quotient meets every node's comparator: one register would drive h * w of them, so the lane
         # keeps a copy per COPY_NODES consecutive nodes, loaded from one of ``sources`` copies of the
-        # divider's last stage, each serving ``per_source`` of them: a fan-out of a few at each level.
+        # quotient's last stage (:func:`reciprocal_quotient`), each serving ``per_source`` of them: a fan-out of a few at each level.
         # A copy is held at zero while none of its nodes is valid (it is then unused): distinct resets
         # keep synthesis from merging the copies.
         copies = -(-nodes // COPY_NODES)
