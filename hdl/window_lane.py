@@ -458,11 +458,15 @@ class WindowLane(wiring.Component):
             for l in range(w):
                 x = k * w + l
                 # d' > q as the sign of q - d': a sum bit of the carry chain, where a comparison's
-                # carry out would be rebuilt in LUTs.
-                chosen = patch_valid[x] & (quotient_copy[x // COPY_NODES] - difference[x])[-1]
+                # carry out would be rebuilt in LUTs. An invalid node's d' is held at 0 by its register's
+                # synchronous reset, and q - 0 is never negative: no node is chosen there, with no LUT.
+                chosen = (quotient_copy[x // COPY_NODES] - difference[x])[-1]
+                with m.If(~patch_valid[x]):
+                    m.d.sync += difference[x].eq(0)
+                with m.Else():
+                    m.d.sync += difference[x].eq(self.term_window[l][k] + self.lifted_patch[x])
                 m.d.sync += [
-                    difference[x].eq(self.term_window[l][k] + self.lifted_patch[x]),
-                    # A register's synchronous reset: one LUT per node, none per bit.
+                    # A register's synchronous reset, driven by the sign itself: no LUT.
                     above[x].eq(Mux(chosen, difference[x], 0)),
                     selected[x].eq(chosen),
                 ]

@@ -4,6 +4,7 @@
 import itertools
 import json
 
+import numpy as np
 import pytest
 from amaranth import Const, Module, Signal, signed
 from amaranth.back import rtlil
@@ -12,7 +13,15 @@ from amaranth.lib.wiring import In, Out
 from amaranth.sim import Simulator
 
 from lost.hdl.flow.synth import _run, _tool, drop_unused_carry_outs, pack, synthesize
-from lost.hdl.window_lane import SerialReciprocal, reciprocal_product_stages, reciprocal_quotient, reciprocal_shift
+from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.window_lane import (
+    SerialReciprocal,
+    WindowLane,
+    reciprocal_product_stages,
+    reciprocal_quotient,
+    reciprocal_shift,
+)
+from lost.model import correlate
 
 
 def simulate(dut, bench):
@@ -233,3 +242,54 @@ def test_the_flows_adders_are_equivalent_whatever_their_freed_carry_inputs(tmp_p
           "flatten; opt_clean; rename top gate; design -copy-from gold -as gold gold; equiv_make gold gate equiv; "
           "hierarchy -top equiv; opt_clean; equiv_simple -short; equiv_induct; equiv_status -assert"], log)
     assert "Equivalence successfully proven" in log.read_text()
+
+
+# ---- the lane with masks the random ones rarely make -----------------------------------------------------
+
+B = 16
+
+
+@pytest.mark.parametrize("mask_kind, mode", [("one", True), ("one", False), ("checker", True), ("full", True)])
+def test_a_lane_with_few_valid_nodes_is_the_model(mask_kind, mode):
+    """Invalid nodes' d' are held at 0 (never chosen); with one valid node, f = 1 and q = d'."""
+    h, w = 3, 4
+    rng = np.random.default_rng(len(mask_kind))
+    lane = WindowLane(parameters=CorrelatorParameters(map_shape=(h, w), patch_shape=(h, w), depth_bits=B, lanes=1))
+    D, T = lane.stages.window_to_quotient, lane.stages.value
+    mask = {"one": np.arange(h * w).reshape(h, w) == 5, "checker": (np.indices((h, w)).sum(0) % 2) == 0,
+            "full": np.ones((h, w), bool)}[mask_kind]
+    patch = rng.integers(-(2**15), 2**15, size=(h, w)).astype(np.int16)
+    placements = [rng.integers(-(2**15), 2**15, size=(h, w)).astype(np.int16) for _ in range(6)]
+    placements[2] = np.full((h, w), 2**15 - 1, np.int16)
+    placements[3] = np.full((h, w), -(2**15), np.int16)
+    expected = [int(correlate(window, patch, mask=mask, mean_compensation=mode)[0, 0]) for window in placements]
+    n = int(mask.sum())
+    f = n if mode else 1
+    bias = (f << B if mode else 0) - int(patch[mask].astype(np.int64).sum())
+    checked = []
+
+    def window_of(index):
+        return placements[index % len(placements)] if index >= 0 else np.zeros((h, w), np.int16)
+
+    async def bench(ctx):
+        ctx.set(lane.patch_valid, int(sum(1 << x for x, valid in enumerate(mask.flat) if valid)))
+        for x, depth in enumerate(patch.flat):
+            ctx.set(lane.lifted_patch[x], (1 << B) - int(depth))
+        ctx.set(lane.mean_compensation, mode)
+        ctx.set(lane.factor, f)
+        ctx.set(lane.dividend_bias, bias)
+        await ctx.tick().repeat(2)
+        for c in range(D + T + 3 * len(placements)):
+            for l in range(w):
+                for k in range(h):
+                    ctx.set(lane.sum_window[l][k], int(window_of(c)[k, l]))
+                    ctx.set(lane.term_window[l][k], int(window_of(c - D)[k, l]))
+            ctx.set(lane.advance, 1)
+            await ctx.tick()
+            index = c + 1 - T - D
+            if index >= 0:
+                assert ctx.get(lane.value) == expected[index % len(placements)], (c, index)
+                checked.append(index)
+
+    simulate(lane, bench)
+    assert len(checked) >= 2 * len(placements)
