@@ -358,6 +358,8 @@ class WindowLane(wiring.Component):
         product = reciprocal_product_stages(a.dividend_bits, a.reciprocal_shift + 1)
         #: Quotient stages the dividend waits in before the product takes it (the product fills the last).
         self.quotient_wait = QUOTIENT_STAGES - product
+        if self.quotient_wait < 1:
+            raise ValueError(f"the quotient's product takes {product} stages, more than the {QUOTIENT_STAGES - 1} it may")
         # The first placement's product takes the reciprocal `lead` steps (at least as many clocks) after the
         # first step; f is final two clocks before that step, the lane's copy of it one clock later.
         lead = self.stages.window_to_quotient - 1 - (product - 1)
@@ -432,10 +434,16 @@ class WindowLane(wiring.Component):
             m.d.sync += carried_in.eq(window_sum.sum + self.dividend_bias)
         m.submodules.quotient_carried = carried_line = DelayLine(a.carried, QUOTIENT_STAGES, enable=True, reset_less=True)
         m.d.comb += [carried_line.i.eq(carried_in), carried_line.en.eq(advance)]
+        # The product's dividend waits in a register of its own in the last waiting stage, beside the
+        # carried value: the multipliers take both operands from registers, and the mode's multiplexer
+        # is that register's synchronous reset (to 2**b, held while the mode is off), no LUT.
         waiting = self.quotient_wait
-        at_product = carried_line.taps[waiting - 1] if waiting else carried_in
-        dividend_in = Signal(a.dividend_bits, name="dividend_in")
-        m.d.comb += dividend_in.eq(Mux(mode, at_product, a.lift))
+        before = carried_line.taps[waiting - 2] if waiting >= 2 else carried_in
+        dividend_in = Signal(a.dividend_bits, name="dividend_in", reset_less=True)
+        with m.If(~mode):
+            m.d.sync += dividend_in.eq(a.lift)
+        with m.Elif(advance):
+            m.d.sync += dividend_in.eq(before)
         quotients = reciprocal_quotient(m, advance, dividend_in, reciprocal.reciprocal, a.reciprocal_shift, b + 1,
                                         [~valid for valid in source_valid], "quotient")
         carried_out = carried_line.o
