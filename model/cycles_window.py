@@ -41,9 +41,10 @@ from .widths import placement_widths
 
 __all__ = ["QUOTIENT_STAGES", "WindowTiming", "completing_steps", "schedule", "window_timing"]
 
-# The window core divides each placement's dividend by n in this many step-synchronous stages, as many
-# quotient bits in each as it takes (one for depths of up to 16 bits, whose quotients have 17), so that
-# the schedule does not depend on the depth width.
+# The window core divides each placement's dividend by n in this many step-synchronous stages (the
+# count of a one-bit-a-stage divider for depths of up to 16 bits, whose quotients have 17; the gateware
+# now forms the quotient as a reciprocal product in the last stages and the dividend waits in the
+# others), so that the schedule does not depend on the depth width nor on how the quotient is made.
 QUOTIENT_STAGES = 17
 
 
