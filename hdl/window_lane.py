@@ -385,10 +385,8 @@ class WindowLane(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        p, a, stages = self._parameters, self.arithmetic, self.stages
-        (h, w), b, widths = p.patch_shape, p.depth_bits, p.widths
-        nodes = h * w
-        advance, patch_valid = self.advance, self.patch_valid
+        nodes = self._parameters.patch_shape[0] * self._parameters.patch_shape[1]
+        a, patch_valid = self.arithmetic, self.patch_valid
         # The quotient meets every node's comparator: one register would drive h * w of them, so the lane
         # keeps a copy per COPY_NODES consecutive nodes, loaded from one of ``sources`` copies of the
         # quotient's last stage (:func:`reciprocal_quotient`), each serving ``per_source`` of them: a fan-out of a few at each level.
@@ -413,6 +411,17 @@ class WindowLane(wiring.Component):
             divisor_bits=a.count.width, shift=a.reciprocal_shift, per_clock=self.reciprocal_bits_per_clock)
         m.d.comb += reciprocal.divisor.eq(factors.o[0])
 
+        quotients, carried_out = self._quotient(m, mode, reciprocal, source_valid)
+        above_sum, above_count, carried_at = self._terms(m, quotients, carried_out, group_valid, per_source)
+        self._value(m, term_mode, lane_factor, above_sum, above_count, carried_at)
+        return m
+
+    def _quotient(self, m: Module, mode: Any, reciprocal: SerialReciprocal, source_valid: list) -> tuple[list, Any]:
+        """The step-synchronous half: the masked depths, their sum, the dividend and the quotient's copies."""
+        p, a = self._parameters, self.arithmetic
+        (h, w), b, widths = p.patch_shape, p.depth_bits, p.widths
+        nodes = h * w
+        advance, patch_valid = self.advance, self.patch_valid
         # ---- step-synchronous: the window sum of the valid nodes, the dividend, the quotient ----------
         # An invalid node's depth register is held at zero by its synchronous reset: no LUT per bit.
         masked = Signal(data.ArrayLayout(a.depth, nodes), name="masked", reset_less=True)
@@ -446,7 +455,18 @@ class WindowLane(wiring.Component):
             m.d.sync += dividend_in.eq(before)
         quotients = reciprocal_quotient(m, advance, dividend_in, reciprocal.reciprocal, a.reciprocal_shift, b + 1,
                                         [~valid for valid in source_valid], "quotient")
-        carried_out = carried_line.o
+        return quotients, carried_line.o
+
+    def _terms(self, m: Module, quotients: list, carried_out: Any, group_valid: list, per_source: int) -> tuple[Any, Any, list]:
+        """The term half, every clock: the lifted differences above the quotient, their sum and count.
+
+        Returns the two sums and the carried value of each term stage (``[stage - 1]``).
+        """
+        p, a, stages = self._parameters, self.arithmetic, self.stages
+        (h, w) = p.patch_shape
+        nodes = h * w
+        copies = len(group_valid)
+        patch_valid = self.patch_valid
 
         # ---- every clock: the lifted differences, those above the quotient and their count, sums ------
         quotient_copy = [Signal(a.lifted, name=f"quotient{c}", reset_less=True) for c in range(copies)]
@@ -482,8 +502,11 @@ class WindowLane(wiring.Component):
         m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes))
         m.d.comb += [above_tree.leaves[x].eq(above[x]) for x in range(nodes)]
         m.d.comb += [count_tree.leaves[x].eq(selected[x]) for x in range(nodes)]
-        above_sum, above_count = above_tree.sum, count_tree.sum
+        return above_tree.sum, count_tree.sum, carried_at
 
+    def _value(self, m: Module, term_mode: Any, lane_factor: Any, above_sum: Any, above_count: Any, carried_at: list) -> None:
+        """V from the sums: the products as partial products of a multiplier's width, then their sums."""
+        a, stages = self.arithmetic, self.stages
         # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact): the
         # dividend beside the sums' last level, then each product as two partial products of a
         # multiplier's width, then their sums (with the correction), then V.
@@ -508,4 +531,3 @@ class WindowLane(wiring.Component):
         value = Signal(unsigned(value_bits), name="value", reset_less=True)
         m.d.sync += value.eq(doubled_sum - (count_product << 1))
         m.d.comb += self.value.eq(value)
-        return m
