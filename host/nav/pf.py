@@ -81,10 +81,9 @@ class ParticleFilter(BayesFilter):
         return 4.0 * math.sqrt(max(math.sqrt(max(np.linalg.det(cov), 0.0)), 0.0) / self._n)
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
-        """Mean and covariance of the cloud (with the floor variance it is owed), cached until it changes."""
+        """Mean and covariance of the cloud, cached until it changes (the floor it is owed belongs to the next prediction)."""
         if self._cached is None:
-            mean, cov = moments(self._w, self._x, self._y)
-            self._cached = mean, cov + self._pending_var * np.eye(2)
+            self._cached = moments(self._w, self._x, self._y)
         return self._cached
 
     @property
@@ -110,7 +109,10 @@ class ParticleFilter(BayesFilter):
         self._moved(dt, float(np.hypot(*v)) * dt)
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
-        """Owe the cloud the variance an update took below the floor's width; the next prediction spreads it."""
+        """Owe the cloud the variance an update took below the floor's width; the next prediction spreads it.
+
+        The estimate reports the cloud's own covariance (see ``PointMassFilter._keep_floor``).
+        """
         missing = self._floor_var - float(np.linalg.eigvalsh(covariance)[0])
         if missing > self._pending_var:
             self._pending_var, self._cached = missing, None
@@ -136,8 +138,7 @@ class ParticleFilter(BayesFilter):
         log_w = np.log(np.maximum(self._w, 1e-300)) + log_likelihood
         w = np.exp(log_w - log_w.max())
         w /= w.sum()
-        mean, cov = moments(w, self._x, self._y)
-        return w, mean, cov + self._pending_var * np.eye(2)
+        return w, *moments(w, self._x, self._y)
 
     def _accept(self, posterior: np.ndarray, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool) -> None:
         self._w, self._cached = posterior, None

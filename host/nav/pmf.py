@@ -6,7 +6,8 @@ The grid
 ``pmf_sigmas`` standard deviations each way (at least two map nodes and four floor widths), with cells no smaller than
 ``pmf_min_cell_m`` (default a tenth of a map node or half the floor width, the coarser: a posterior that collapsed into one node-sized
 cell would leave an error floor of a node over sqrt 6). The density is kept at least
-``position_floor_nodes`` wide (see NavParameters): narrower, it is widened by a Gaussian blur. The grid follows the density: it is laid anew
+``position_floor_nodes`` wide (see NavParameters): narrower after an update, the next prediction widens it by a Gaussian blur.
+The grid follows the density: it is laid anew
 (the density interpolated onto it) when the estimate drifts a quarter of the way to its edge or the
 covariance outgrows or shrinks well inside it. So it widens by itself while no update arrives.
 
@@ -204,11 +205,16 @@ class PointMassFilter(BayesFilter):
         self._pending_var = 0.0
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
-        """Blur the density back to the floor's width where an update made it narrower."""
+        """Owe the density the variance an update took below the floor's width; the next prediction blurs it in.
+
+        The floor is process noise (it stands for the matches' correlated error), so it belongs to the
+        prediction, P(k+1|k), and the estimate reports the update's own posterior, P(k|k), as a Kalman
+        filter does. Blurred in at once, it was reported too: NEES in band 0.84 on ``coarse_map``
+        and 0.86 on ``offset``, all of it below the band (0.91 and 0.88 without).
+        """
         missing = self._floor_var - float(np.linalg.eigvalsh(covariance)[0])
         if missing > 0:
             self._pending_var += missing
-            self._diffuse()
 
     def _reinitialize(self) -> None:
         self._lay_prior(*self._search_prior())

@@ -22,7 +22,10 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   MB-System: under a threshold for 200 updates). A
   multimodal posterior has a wide covariance, so look-alike terrain lowers the flag by itself. A
   refused terrain update lowers it, and so do three refused slant ranges among the last ten (one
-  is an outlier, several say the estimate has moved away from the range). Look-alike terrain: a
+  is an outlier, several say the estimate has moved away from the range). Settled: the filter has
+  been usable since its last (re)start and no terrain update has been refused since, so its misfit
+  level and velocity bias are learned; a look-alike or a covariance grown on smooth ground lowers the
+  usable flag, not this (it chooses the density's floor, see ``BayesFilter._floor_var``). Look-alike terrain: a
   density can collapse onto one of several equally good modes (particles by resampling, cells by
   their offsets), so once the covariance is small enough to be usable, each patch is also matched
   over ``lookalike_radius_m`` around the estimate; if a placement beyond three sigma fits within
@@ -120,6 +123,7 @@ class Trust:
         self._ranges_refused_in_row = 0
         self._misfits: deque[float] = deque(maxlen=MISFIT_MEMORY)
         self.misfit_level = 1.0
+        self.settled = False
 
     def misfit_refused(self, misfit: float) -> bool:
         """Whether a patch's misfit is too large for the running residual level."""
@@ -167,6 +171,7 @@ class Trust:
             self.good_in_row = 0
         needed = self._p.usable_updates if self._p.matching == "patch" else self._p.usable_updates_point
         self.usable = self.good_in_row >= needed
+        self.settled = self.settled or self.usable
 
     def watch(self, covariance: np.ndarray) -> None:
         """Between updates the flag drops as soon as the covariance outgrows the threshold."""
@@ -209,6 +214,7 @@ class Trust:
         if self._ranges_refused_in_row >= 2 * self._p.reinit_after:
             self._ranges_refused_in_row = 0
             self._ranges.clear()
+            self.settled = False
             self.counts["reinitializations"] += 1
             self.counts["reinitialized_by_ranges"] += 1
             return True
@@ -217,6 +223,7 @@ class Trust:
     def rejected(self, reason: str) -> bool:
         """A terrain update was refused; True when the filter should re-initialize now."""
         self.counts[f"rejected_{reason}"] += 1
+        self.settled = False
         self.outcomes.append(True)
         self.good_in_row = 0
         self.usable = False

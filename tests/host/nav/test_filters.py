@@ -406,3 +406,36 @@ def test_a_reinitialized_search_is_the_starts_gaussian_around_the_layback_or_fla
     mean, cov = f._moments()
     assert np.hypot(*(mean - layback)) < 5.0
     np.testing.assert_allclose(np.sqrt(np.diag(cov)), params.initial_sigma_m, rtol=0.05)
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_an_update_reports_its_own_posterior_and_the_next_prediction_restores_the_floor(kind):
+    """The floor is process noise: P(k|k) is reported as the update made it, P(k+1|k) is at least the floor."""
+    grid = _map()
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=0.3)
+    params = _quiet(initial_sigma_m=6.0, position_floor_nodes=0.0, position_floor_m=3.0, position_floor_tracking_m=3.0)
+    f = PointMassFilter(likelihood, params, grid=grid) if kind == "pmf" else ParticleFilter(likelihood, params, grid=grid, seed=5)
+    truth = np.array([400.0, 400.0])
+    f.start(0.0, truth, _observation())
+    f.update(_observation(_patch_at(grid, *truth)))
+    narrowest = math.sqrt(np.linalg.eigvalsh(f.estimate().covariance)[0])
+    assert narrowest < 0.8 * 3.0  # the match placed it better than the floor, and the estimate says so
+    f.predict(Motion(dt_s=1.0, velocity_mps=np.zeros(2)))
+    assert math.sqrt(np.linalg.eigvalsh(f.estimate().covariance)[0]) == pytest.approx(3.0, rel=0.1)
+
+
+def test_a_lookalike_lowers_the_usable_flag_but_only_a_refusal_brings_the_acquisition_floor_back():
+    from lost.host.nav.trust import Trust
+
+    params = _quiet(usable_updates=2)
+    trust = Trust(params, node_m=NODE)
+    narrow = np.eye(2)
+    trust.accepted(narrow)
+    assert not trust.usable and not trust.settled
+    trust.accepted(narrow)
+    assert trust.usable and trust.settled
+    trust.usable, trust.good_in_row = False, 0  # what a look-alike check does
+    trust.watch(400.0 * np.eye(2))  # and a covariance grown on smooth ground
+    assert not trust.usable and trust.settled
+    trust.rejected("misfit")
+    assert not trust.settled
