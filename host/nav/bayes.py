@@ -48,7 +48,7 @@ class BayesFilter:
         self.counts = self._trust.counts
         node_part = (params.position_floor_nodes * grid.node_m) ** 2
         self._floor_var_acquisition = node_part + params.position_floor_m**2
-        self._floor_var_tracking = node_part + params.position_floor_tracking_m**2
+        self._floor_var_tracking = node_part + self._tracking_floor_m(params) ** 2
         # The point form's depth bias: a mean per candidate (the subclass keeps it aligned) and a shared variance.
         self._depth_bias: np.ndarray = np.zeros(1)
         self._depth_bias_var = params.depth_bias_sigma_m**2
@@ -82,6 +82,11 @@ class BayesFilter:
         return self._floor_var_tracking if self._trust.settled else self._floor_var_acquisition
 
     # -- what a subclass provides ---------------------------------------------------------------------
+
+    @staticmethod
+    def _tracking_floor_m(params) -> float:
+        """The metres part of the settled filter's floor (see NavParameters)."""
+        return params.position_floor_tracking_m
 
     def _candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions (x, y) of the density's candidates and their probabilities, all one shape."""

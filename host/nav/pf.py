@@ -75,6 +75,10 @@ class ParticleFilter(BayesFilter):
         self._w = np.full(n, 1.0 / n)
         self._pending_var, self._cached = 0.0, None
 
+    @staticmethod
+    def _tracking_floor_m(params) -> float:
+        return params.pf_floor_tracking_m
+
     def _spacing(self) -> float:
         """The particles' typical spacing, metres: a square of four sigma a side shared among them."""
         _, cov = self._moments()

@@ -413,7 +413,7 @@ def test_an_update_reports_its_own_posterior_and_the_next_prediction_restores_th
     """The floor is process noise: P(k|k) is reported as the update made it, P(k+1|k) is at least the floor."""
     grid = _map()
     likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=0.3)
-    params = _quiet(initial_sigma_m=6.0, position_floor_nodes=0.0, position_floor_m=3.0, position_floor_tracking_m=3.0)
+    params = _quiet(initial_sigma_m=6.0, position_floor_nodes=0.0, position_floor_m=3.0, position_floor_tracking_m=3.0, pf_floor_tracking_m=3.0)
     f = PointMassFilter(likelihood, params, grid=grid) if kind == "pmf" else ParticleFilter(likelihood, params, grid=grid, seed=5)
     truth = np.array([400.0, 400.0])
     f.start(0.0, truth, _observation())
@@ -439,3 +439,12 @@ def test_a_lookalike_lowers_the_usable_flag_but_only_a_refusal_brings_the_acquis
     assert not trust.usable and trust.settled
     trust.rejected("misfit")
     assert not trust.settled
+
+
+def test_each_filter_settles_on_its_own_tracking_floor():
+    """The particle filter's matches carry more correlated error (its bias is learned slowly): a wider floor."""
+    grid = _map()
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(position_floor_nodes=0.0, position_floor_tracking_m=0.5, pf_floor_tracking_m=2.0)
+    assert PointMassFilter(likelihood, params, grid=grid)._floor_var_tracking == pytest.approx(0.25)
+    assert ParticleFilter(likelihood, params, grid=grid, seed=1)._floor_var_tracking == pytest.approx(4.0)
