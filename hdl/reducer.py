@@ -25,7 +25,7 @@ Every beat passes a fixed pipeline, so that no path is longer than one compariso
 whatever the lanes: a register for the incoming beat, a compare tree for its minimum (a register per
 level), the row minimum, the best fit (and the row minimum's store), the slot choice, the row-store
 write. The slot choice compares no row numbers: each slot keeps whether it is needed as a flag, updated
-from two counters that saturate at ``r + 1`` (see ``elaborate``).
+from two counters that saturate at ``r + 1`` (see ``_choose_slot``).
 
 After the last beat is stored the reducer scans the row minima (rows outside the band), then every
 slot (columns outside ``[bj - r, bj + r]`` of held rows inside the band), one memory word per cycle,
@@ -36,9 +36,10 @@ whatever the data, so the cycle models stay exact (:func:`lost.model.cycles.redu
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Signal, unsigned
+from amaranth.hdl import Module, Mux, Signal, Value, unsigned
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -49,6 +50,26 @@ from .interface import CorrelatorParameters
 from .reducer_scan import RunnerUpScan, row_minimum_layout
 
 __all__ = ["BestFitReducer"]
+
+
+def _delayed(m: Module, value, shape, cycles: int, name: str) -> Value:
+    """``value`` through ``cycles`` registers."""
+    m.submodules[name] = line = DelayLine(shape, cycles)
+    m.d.comb += line.i.eq(value)
+    return line.o
+
+
+@dataclass(frozen=True)
+class _Collected:
+    """What the collecting stages hand on: the beat's words and tree depth, the slot stage's inputs, the best fit."""
+
+    in_values: Signal
+    tree_levels: int
+    slot_meta: Value
+    slot_becomes_best: Value
+    best_value: Signal
+    best_i: Signal
+    best_j: Signal
 
 
 class BestFitReducer(wiring.Component):
@@ -91,26 +112,32 @@ class BestFitReducer(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         p = self._parameters
-        rows, cols = p.surface_shape
-        lanes, r = p.lanes, p.exclusion_radius
-        slots, beats_per_row = reducer_geometry(p.surface_shape, lanes, r)
-        value_shape = unsigned(p.value_bits)
-        row_shape, col_shape = unsigned(p.row_bits), unsigned(p.col_bits)
-        values_layout = data.ArrayLayout(value_shape, lanes)
-
+        rows = p.surface_shape[0]
+        slots, beats_per_row = reducer_geometry(p.surface_shape, p.lanes, p.exclusion_radius)
         m.submodules.row_minima = row_minima = memory.Memory(shape=row_minimum_layout(p), depth=rows, init=[])
         m.submodules.row_slots = row_slots = memory.Memory(
-            shape=values_layout, depth=slots * beats_per_row, init=[])
+            shape=self._values_layout, depth=slots * beats_per_row, init=[])
         minima_write, minima_read = row_minima.write_port(), row_minima.read_port()
         slots_write, slots_read = row_slots.write_port(), row_slots.read_port()
 
-        def delayed(value, shape, cycles, name):
-            """``value`` through ``cycles`` registers."""
-            m.submodules[name] = line = DelayLine(shape, cycles)
-            m.d.comb += line.i.eq(value)
-            return line.o
+        collected = self._collect(m, minima_write)
+        slot, rows_held, in_band = self._choose_slot(m, collected)
+        write_last = self._write(m, slots_write, slot, collected)
+        self._answer(m, minima_read, slots_read, write_last, collected, rows_held, in_band)
+        return m
 
-        # --- collecting: one beat per cycle, through a fixed pipeline --------------------------------
+    @property
+    def _values_layout(self) -> data.ArrayLayout:
+        return data.ArrayLayout(unsigned(self._parameters.value_bits), self._parameters.lanes)
+
+    def _collect(self, m: Module, minima_write) -> _Collected:
+        """The stages "in" to "best": a beat's minimum, its row's minimum (stored at the row's end), the best so far."""
+        p = self._parameters
+        cols, lanes = p.surface_shape[1], p.lanes
+        value_shape = unsigned(p.value_bits)
+        row_shape, col_shape = unsigned(p.row_bits), unsigned(p.col_bits)
+        values_layout = self._values_layout
+
         # Stage "in": the transferred beat, registered before any logic.
         beat = self.surface.payload
         in_valid, in_last = Signal(), Signal()
@@ -147,7 +174,7 @@ class BestFitReducer(wiring.Component):
             in_meta.first_in_row.eq(in_j == 0),
             in_meta.row_end.eq(in_j + in_count >= cols),
         ]
-        tree_meta = delayed(in_meta, meta_layout, levels, "tree_meta")
+        tree_meta = _delayed(m, in_meta, meta_layout, levels, "tree_meta")
 
         # Stage "row": this row's minimum so far (an earlier column wins ties).
         row_value, row_col = Signal(value_shape), Signal(col_shape)
@@ -156,7 +183,7 @@ class BestFitReducer(wiring.Component):
         row_col_new = Mux(take_beat, beat_col, row_col)
         with m.If(tree_meta.valid):
             m.d.sync += [row_value.eq(row_value_new), row_col.eq(row_col_new)]
-        row_meta = delayed(tree_meta, meta_layout, 1, "row_meta")
+        row_meta = _delayed(m, tree_meta, meta_layout, 1, "row_meta")
 
         # Stage "best": at a row's end, store its minimum and compare it with the best so far.
         best_value, best_i, best_j = Signal(value_shape), Signal(row_shape), Signal(col_shape)
@@ -170,13 +197,24 @@ class BestFitReducer(wiring.Component):
         ]
         with m.If(becomes_best):
             m.d.sync += [best_value.eq(row_value), best_i.eq(row_meta.i), best_j.eq(row_col)]
-        slot_meta = delayed(row_meta, meta_layout, 1, "slot_meta")
-        slot_becomes_best = delayed(becomes_best, 1, 1, "slot_becomes_best")
+        slot_meta = _delayed(m, row_meta, meta_layout, 1, "slot_meta")
+        slot_becomes_best = _delayed(m, becomes_best, 1, 1, "slot_becomes_best")
+        return _Collected(in_values=in_values, tree_levels=levels, slot_meta=slot_meta, slot_becomes_best=slot_becomes_best,
+                          best_value=best_value, best_i=best_i, best_j=best_j)
 
-        # Stage "slot": choose the slot of a row that begins. A slot is needed while its row lies within
-        # r rows of the best row so far; rather than comparing row numbers on every choice, each slot
-        # keeps that as a flag (``in_band``), kept exact from two small counters: the age of the slot's
-        # row (rows begun since, saturating at r + 1) and the rows begun since the best row.
+    def _choose_slot(self, m: Module, collected: _Collected) -> tuple[Value, list[Signal], list[Signal]]:
+        """Stage "slot": the slot of a row that begins; each slot's row and whether it is in the band.
+
+        A slot is needed while its row lies within r rows of the best row so far; rather than comparing
+        row numbers on every choice, each slot keeps that as a flag (``in_band``), kept exact from two
+        small counters: the age of the slot's row (rows begun since, saturating at r + 1) and the rows
+        begun since the best row.
+        """
+        p = self._parameters
+        r = p.exclusion_radius
+        slots, _ = reducer_geometry(p.surface_shape, p.lanes, r)
+        row_shape = unsigned(p.row_bits)
+        slot_meta, slot_becomes_best = collected.slot_meta, collected.slot_becomes_best
         tag = [Signal(row_shape, name=f"slot{s}_row") for s in range(slots)]
         held = [Signal(name=f"slot{s}_held") for s in range(slots)]
         age = [Signal(range(r + 2), name=f"slot{s}_age") for s in range(slots)]
@@ -210,8 +248,13 @@ class BestFitReducer(wiring.Component):
             m.d.sync += since_best.eq(0)
         with m.Elif(begins & (since_best <= r)):
             m.d.sync += since_best.eq(since_best + 1)
+        return slot, tag, in_band
 
-        # Stage "write": the beat's words into its row's slot.
+    def _write(self, m: Module, slots_write, slot: Value, collected: _Collected) -> Signal:
+        """Stage "write": the beat's words into its row's slot. Returns the last beat's write strobe."""
+        p = self._parameters
+        slots, beats_per_row = reducer_geometry(p.surface_shape, p.lanes, p.exclusion_radius)
+        slot_meta = collected.slot_meta
         write_valid, write_first, write_last = Signal(), Signal(), Signal()
         write_base = Signal(range(slots * beats_per_row))
         with m.Switch(slot):
@@ -223,7 +266,7 @@ class BestFitReducer(wiring.Component):
             write_first.eq(slot_meta.first_in_row),
             write_last.eq(slot_meta.valid & slot_meta.last),
         ]
-        write_values = delayed(in_values, values_layout, levels + 3, "write_values")
+        write_values = _delayed(m, collected.in_values, self._values_layout, collected.tree_levels + 3, "write_values")
         next_address = Signal(range(slots * beats_per_row + 1))  # the next word of the current row
         address = Mux(write_first, write_base, next_address)
         m.d.comb += [
@@ -233,39 +276,39 @@ class BestFitReducer(wiring.Component):
         ]
         with m.If(write_valid):
             m.d.sync += next_address.eq(address + 1)
+        return write_last
 
-        # --- scanning: one memory word per cycle after the last beat is stored (``RunnerUpScan``) ----
-        m.submodules.scan = scan = RunnerUpScan(parameters=p)
+    def _answer(self, m: Module, minima_read, slots_read, write_last: Signal, collected: _Collected,
+                rows_held: list[Signal], in_band: list[Signal]) -> None:
+        """Scanning (``RunnerUpScan``, one memory word per cycle after the last beat is stored) and the ``best`` beat."""
+        m.submodules.scan = scan = RunnerUpScan(parameters=self._parameters)
         wiring.connect(m, scan.minima_read, minima_read)
         wiring.connect(m, scan.slots_read, slots_read)
         best_taken = self.best.valid & self.best.ready
         m.d.comb += [
             scan.start.eq(write_last),
-            scan.best_i.eq(best_i),
-            scan.best_j.eq(best_j),
-            *(scan.slot_rows[s].eq(tag[s]) for s in range(slots)),
-            *(scan.slot_in_band[s].eq(in_band[s]) for s in range(slots)),
+            scan.best_i.eq(collected.best_i),
+            scan.best_j.eq(collected.best_j),
+            *(scan.slot_rows[s].eq(row) for s, row in enumerate(rows_held)),
+            *(scan.slot_in_band[s].eq(flag) for s, flag in enumerate(in_band)),
             scan.taken.eq(best_taken),
         ]
 
         # One register from the last beat's arrival to the best beat's transfer: the core's start and load
         # handshakes depend on it.
         busy = Signal()
-        with m.If(self.surface.valid & beat.last):
+        with m.If(self.surface.valid & self.surface.payload.last):
             m.d.sync += busy.eq(1)
         with m.If(best_taken):
             m.d.sync += busy.eq(0)
         m.d.comb += [
             self.best.valid.eq(scan.done),
-            self.best.payload.value.eq(best_value),
-            self.best.payload.i.eq(best_i),
-            self.best.payload.j.eq(best_j),
+            self.best.payload.value.eq(collected.best_value),
+            self.best.payload.i.eq(collected.best_i),
+            self.best.payload.j.eq(collected.best_j),
             self.best.payload.runner_up_value.eq(scan.runner.value),
             self.best.payload.runner_up_i.eq(scan.runner.i),
             self.best.payload.runner_up_j.eq(scan.runner.j),
             self.best.payload.runner_up_valid.eq(scan.runner.valid),
             self.busy.eq(busy),
         ]
-
-        return m
-
