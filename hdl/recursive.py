@@ -34,9 +34,10 @@ clock per placement) rather than hang.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Signal, signed, unsigned
+from amaranth.hdl import Module, Mux, Signal, Value, signed, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
@@ -48,6 +49,20 @@ from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
 
 __all__ = ["RecursiveCore", "RecursiveCorrelator"]
+
+
+@dataclass(frozen=True)
+class _Generator:
+    """The address generator's sequencer and the state the control resets at each correlation."""
+
+    sequencer: MapSequencer
+    generating: Signal
+    flushing: Signal
+    has_previous: Signal
+    node_index: Signal
+    base: Signal
+    i: Signal
+    j: Signal
 
 
 def _parameters(map_shape, patch_shape, depth_bits, exclusion_radius) -> CorrelatorParameters:
@@ -90,38 +105,57 @@ class RecursiveCore(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         p = self._parameters
-        (H, W), (h, w) = p.map_shape, p.patch_shape
-        rows, cols = p.surface_shape
-        widths = p.widths
-        nodes_total = h * w
-
-        # --- the patch: loaded while idle, compacted to its valid nodes at start (``NodeCompaction``) ---
         busy = Signal()
         running = Signal()
         m.submodules.reducer = reducer = BestFitReducer(parameters=p)
         m.d.comb += [busy.eq(running | reducer.busy), self.busy.eq(busy)]
         start = self.start.valid & self.start.ready
 
+        compaction, nodes_read = self._patch(m, busy, start)
+        generator = self._generator(m, compaction, nodes_read)
+        terms = self._step_and_term(m, generator.sequencer, compaction)
+        out_i, out_j, surface_taken = self._surface(m, terms, running)
+
+        # The reducer watches the surface's transfers and answers on ``best``.
+        m.d.comb += [
+            reducer.surface.valid.eq(surface_taken),
+            reducer.surface.payload.eq(self.surface.payload),
+        ]
+        wiring.connect(m, reducer.best, wiring.flipped(self.best))
+
+        self._control(m, start, busy, running, compaction, generator, (out_i, out_j))
+        return m
+
+    def _patch(self, m: Module, busy: Signal, start: Value) -> tuple[NodeCompaction, memory.ReadPort]:
+        """The patch: loaded while idle, compacted to its valid nodes at start (``NodeCompaction``)."""
+        p = self._parameters
         m.submodules.compaction = compaction = NodeCompaction(parameters=p)
         wiring.connect(m, wiring.flipped(self.patch_in), compaction.patch_in)
         m.d.comb += [compaction.accept.eq(~busy), compaction.start.eq(start),
                      compaction.start_mode.eq(self.start.payload.mean_compensation)]
-        mean, factor, empty, count_last = compaction.mean, compaction.factor, compaction.empty, compaction.count_last
-        centred_shape = RecursiveShapes.of(p).centred
-        node_layout = compaction.node_layout
-        m.submodules.nodes = nodes = memory.Memory(shape=node_layout, depth=nodes_total, init=[])
+        m.submodules.nodes = nodes = memory.Memory(shape=compaction.node_layout, depth=p.patch_shape[0] * p.patch_shape[1], init=[])
         nodes_write = nodes.write_port()
         wiring.connect(m, compaction.nodes_write, nodes_write)
         # Transparent: the first node may be written on the very edge the generator first reads it.
         nodes_read = nodes.read_port(transparent_for=(nodes_write,))
+        return compaction, nodes_read
 
-        # --- the address generator: one map read per valid node and placement -------------------
-        # After the last placement, one more round of n reads (``flush``) pushes its terms out.
+    def _generator(self, m: Module, compaction: NodeCompaction, nodes_read: memory.ReadPort) -> _Generator:
+        """The address generator: one map read per valid node and placement, through the ``MapSequencer``.
+
+        After the last placement, one more round of n reads (``flush``) pushes its terms out.
+        """
+        p = self._parameters
+        (H, W), (h, w) = p.map_shape, p.patch_shape
+        rows, cols = p.surface_shape
+        nodes_total = h * w
+        empty, count_last = compaction.empty, compaction.count_last
+        node_layout = compaction.node_layout
         tag_layout = data.StructLayout({
             "index": unsigned(max((nodes_total - 1).bit_length(), 1)),
             "first": 1,
             "last": 1,
-            "centred": centred_shape,
+            "centred": RecursiveShapes.of(p).centred,
             "current": 1,   # the word belongs to a placement (not the flush round)
             "previous": 1,  # a previous placement's terms are due on this step
         })
@@ -179,9 +213,15 @@ class RecursiveCore(wiring.Component):
                     m.d.sync += [gen_j.eq(0), gen_i.eq(gen_i + 1), base.eq(base + w)]
                 with m.Else():
                     m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
+        return _Generator(sequencer=sequencer, generating=generating, flushing=flushing, has_previous=has_previous,
+                          node_index=node_index, base=base, i=gen_i, j=gen_j)
 
-        # --- step: sum the window of placement q, keep its words, fetch placement q-1's ------------
-        m.submodules.window = window = memory.Memory(shape=signed(p.depth_bits), depth=nodes_total, init=[])
+    def _step_and_term(self, m: Module, sequencer: MapSequencer, compaction: NodeCompaction) -> TermUnit:
+        """Each step sums the window of placement q and keeps its words; the term unit takes placement q-1's."""
+        p = self._parameters
+        h, w = p.patch_shape
+        widths = p.widths
+        m.submodules.window = window = memory.Memory(shape=signed(p.depth_bits), depth=h * w, init=[])
         window_write = window.write_port()
         window_read = window.read_port()  # not transparent: it reads the word being overwritten
         response = sequencer.response
@@ -207,9 +247,9 @@ class RecursiveCore(wiring.Component):
         with m.If(step & tag.previous & tag.first):
             m.d.sync += previous_window_sum.eq(next_window_sum)
 
-        # --- term: one absolute difference and one accumulator (``TermUnit``) -----------------------
-        # What the term subtracts besides the window word, C + Msum of placement q-1, is summed on the
-        # step itself; the window word follows from the memory read on the same edge.
+        # The term: one absolute difference and one accumulator. What it subtracts besides the window
+        # word, C + Msum of placement q-1, is summed on the step itself; the window word follows from
+        # the memory read on the same edge.
         m.submodules.terms = terms = TermUnit(parameters=p)
         # On the step of a placement's first node, Msum of the previous placement moves from
         # ``next_window_sum`` to ``previous_window_sum`` on this very edge.
@@ -219,13 +259,16 @@ class RecursiveCore(wiring.Component):
             terms.term.valid.eq(step & tag.previous),
             terms.term.first.eq(tag.first),
             terms.term.last.eq(tag.last),
-            terms.term.offset.eq(tag.centred + Mux(mean, previous_sum, 0)),
+            terms.term.offset.eq(tag.centred + Mux(compaction.mean, previous_sum, 0)),
             terms.word.eq(window_read.data),
-            terms.factor.eq(factor),
-            terms.empty.eq(empty),
+            terms.factor.eq(compaction.factor),
+            terms.empty.eq(compaction.empty),
         ]
+        return terms
 
-        # --- the surface: the term unit's values, placed in raster order ----------------------------
+    def _surface(self, m: Module, terms: TermUnit, running: Signal) -> tuple[Signal, Signal, Value]:
+        """The surface: the term unit's values placed in raster order; the last one ends the run."""
+        rows, cols = self._parameters.surface_shape
         out_i, out_j = Signal(range(rows)), Signal(range(cols))
         surface_taken = self.surface.valid & self.surface.ready
         surface_last = (out_i == rows - 1) & (out_j == cols - 1)
@@ -245,38 +288,34 @@ class RecursiveCore(wiring.Component):
                 m.d.sync += [out_j.eq(0), out_i.eq(out_i + 1)]
             with m.Else():
                 m.d.sync += out_j.eq(out_j + 1)
+        return out_i, out_j, surface_taken
 
-        # The reducer watches the surface's transfers and answers on ``best``.
-        m.d.comb += [
-            reducer.surface.valid.eq(surface_taken),
-            reducer.surface.payload.eq(self.surface.payload),
-        ]
-        wiring.connect(m, reducer.best, wiring.flipped(self.best))
-
-        # --- control -------------------------------------------------------------------------------
+    def _control(self, m: Module, start: Value, busy: Signal, running: Signal, compaction: NodeCompaction,
+                 generator: _Generator, out: tuple[Signal, Signal]) -> None:
+        """IDLE -> PREPARE (the compaction) -> RUN until the last surface beat."""
+        g = generator
         m.d.comb += self.start.ready.eq(~busy)
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(start):
-                    m.d.sync += [running.eq(1), out_i.eq(0), out_j.eq(0)]
+                    m.d.sync += [running.eq(1), out[0].eq(0), out[1].eq(0)]
                     m.next = "PREPARE"
             with m.State("PREPARE"):
                 with m.If(compaction.done):
                     # The last valid node is appended on this cycle's edge.
                     m.d.sync += [
-                        generating.eq(1),
-                        flushing.eq(0),
-                        has_previous.eq(0),
-                        node_index.eq(0),
-                        base.eq(0),
-                        gen_i.eq(0),
-                        gen_j.eq(0),
+                        g.generating.eq(1),
+                        g.flushing.eq(0),
+                        g.has_previous.eq(0),
+                        g.node_index.eq(0),
+                        g.base.eq(0),
+                        g.i.eq(0),
+                        g.j.eq(0),
                     ]
                     m.next = "RUN"
             with m.State("RUN"):
                 with m.If(~running):
                     m.next = "IDLE"
-        return m
 
 
 class RecursiveCorrelator(wiring.Component):
