@@ -59,8 +59,10 @@ class ConfigError(ValueError):
     """A setting of the wrong type, out of range or unknown; the message names its path (and unit)."""
 
 
-def unit_of(name: str) -> str | None:
-    """The unit a field's name declares (``out_m`` -> metres), or None."""
+def unit_of(name: str, annotation: Any = float) -> str | None:
+    """The unit a field's name declares (``out_m`` -> metres), or None; a count has none (the tracker's M of M-of-N, ``confirm_m``)."""
+    if annotation is int:
+        return None
     return next((unit for suffix, unit in _UNITS if name.endswith(suffix)), None)
 
 
@@ -126,15 +128,16 @@ def validate_fields(cls: type, table: Any, where: str, constraints: Mapping[str,
     try:
         validated = schema.model_validate(data)
     except ValidationError as error:
-        raise ConfigError("; ".join(_describe(problem, where) for problem in error.errors())) from None
+        hints = typing.get_type_hints(cls)
+        raise ConfigError("; ".join(_describe(problem, where, hints) for problem in error.errors())) from None
     return {key: getattr(validated, key) for key in data}
 
 
-def _describe(problem: Mapping[str, Any], where: str) -> str:
+def _describe(problem: Mapping[str, Any], where: str, hints: Mapping[str, Any]) -> str:
     loc = [str(part) for part in problem["loc"]]
     field = loc[0] if loc else ""
     path = ".".join([where, *loc] if where else loc)
-    unit = unit_of(field)
+    unit = unit_of(field, hints.get(field, float))
     message = problem["msg"]
     got = problem.get("input")
     shown = f"{got!r} ({type(got).__name__})" if isinstance(got, str | bool) or got is None else repr(got)

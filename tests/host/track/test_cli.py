@@ -90,7 +90,7 @@ def test_set_reaches_the_tracker_and_unknown_names_are_refused(scenario_run, tmp
     # Types are the strict schema's, as for lost run's --set: no string, None or fraction where a number or count goes.
     for value, message in (("pd=abc", "tracker.pd: Input should be a valid number, got 'abc' (str)"),
                            ("pd=none", "tracker.pd: Input should be a valid number, got None (NoneType)"),
-                           ("confirm_m=4.5", "Input should be a valid integer, got 4.5")):
+                           ("confirm_m=4.5", "tracker.confirm_m: Input should be a valid integer, got 4.5")):  # a count: no unit
         assert main(["track", detections, "--out", str(out), "--set", value]) == 2
         assert message in capsys.readouterr().err
 
