@@ -58,11 +58,17 @@ class ParticleFilter(BayesFilter):
         self._rng = np.random.default_rng(seed)
         self._n = int(params.pf_particles)
         self._pending_var = 0.0  # floor variance owed to the cloud, spread in the next prediction
+        self._acquiring = True
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
         self._search: tuple[np.ndarray, float, float | None] | None = None  # after a re-initialization: the square to search, the prior
 
-    def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None, depth_bias_m: float = 0.0) -> None:
-        """Particles around ``centre``: Gaussian of ``sigma_m``, or flat over a square of ``half_width_m``."""
+    def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None, depth_bias_m: float = 0.0,
+               velocity_bias: np.ndarray | None = None) -> None:
+        """Particles around ``centre``: Gaussian of ``sigma_m``, or flat over a square of ``half_width_m``.
+
+        Their velocity biases are ``velocity_bias`` (a learned one, kept), or drawn from the prior until the
+        cloud has found its place (see ``_resample``).
+        """
         n = self._n
         self._depth_bias = np.full(n, depth_bias_m)
         if sigma_m is not None:
@@ -70,8 +76,8 @@ class ParticleFilter(BayesFilter):
         else:
             xy = centre + self._rng.uniform(-half_width_m, half_width_m, (n, 2))
         self._x, self._y = xy[:, 0].copy(), xy[:, 1].copy()
-        bias_sigma = self._p.velocity_bias_sigma_mps
-        self._b = self._rng.normal(0.0, bias_sigma, (2, n)) if bias_sigma > 0 else np.zeros((2, n))  # rows east, north
+        self._acquiring = velocity_bias is None
+        self._b = self._prior_bias() if velocity_bias is None else velocity_bias
         self._w = np.full(n, 1.0 / n)
         self._pending_var, self._cached = 0.0, None
 
@@ -121,6 +127,11 @@ class ParticleFilter(BayesFilter):
         if missing > self._pending_var:
             self._pending_var, self._cached = missing, None
 
+    def _prior_bias(self) -> np.ndarray:
+        """Velocity biases drawn from their prior, rows east and north."""
+        sigma = self._p.velocity_bias_sigma_mps
+        return self._rng.normal(0.0, sigma, (2, self._n)) if sigma > 0 else np.zeros((2, self._n))
+
     def _resample(self) -> None:
         index = systematic_resample(self._w, self._rng)
         # Positions are roughened; the bias only walks: jitter on a weakly observed state adds up to a drift.
@@ -128,6 +139,12 @@ class ParticleFilter(BayesFilter):
         jitter = ROUGHENING_K * (xy.max(axis=0) - xy.min(axis=0)) * self._n ** (-1.0 / 2)
         xy += self._rng.standard_normal(xy.shape) * jitter
         self._x, self._y, self._b = xy[:, 0].copy(), xy[:, 1].copy(), self._b[:, index]
+        self._acquiring = self._acquiring and not self._trust.usable
+        if self._acquiring:
+            # Until the cloud has found its place, resampling selects on position, which says nothing of
+            # the bias: the few survivors' biases would fix it by chance (two_hour: 8 cm/s off with a spread
+            # of 1.4 mm/s after 30 s, walked back over an hour). So the bias keeps its prior until then.
+            self._b = self._prior_bias()
         self._depth_bias = self._depth_bias[index]
         self._w, self._cached = np.full(self._n, 1.0 / self._n), None
         self.counts["resamples"] += 1
@@ -153,8 +170,10 @@ class ParticleFilter(BayesFilter):
     def _reinitialize(self) -> None:
         centre, sigma = self._search_prior()
         half = self._p.pmf_sigmas * self._p.initial_sigma_m
-        # The depth bias was learned where the cloud was: its mean stays, its confidence goes.
-        self._spawn(centre, half, sigma, depth_bias_m=self.depth_bias_m[0])
+        # The depth bias was learned where the cloud was: its mean stays, its confidence goes. The velocity
+        # bias is the sensor's, not the place's: the particles keep the cloud's (drawn by weight) if it was learned.
+        learned = None if self._acquiring else self._b[:, systematic_resample(self._w, self._rng)]
+        self._spawn(centre, half, sigma, depth_bias_m=self.depth_bias_m[0], velocity_bias=learned)
         self._depth_bias_var = max(self._depth_bias_var, self._p.depth_bias_sigma_m**2)
         self._search = (centre, half, sigma)
 

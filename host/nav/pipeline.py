@@ -151,12 +151,11 @@ class NavParameters:
         ``position_floor_tracking_m`` takes the place of ``position_floor_m``.
     position_floor_tracking_m, pf_floor_tracking_m : float
         The metres part of the floor once the filter is settled, for the point-mass and the particle
-        filter. Defaults 0.8 and 1.0 (1.3 and 1.4 m at 10 m nodes). The floor stands for the matches'
-        correlated error, and the particle filter's is larger: its bias is a state that walks and is
-        learned slowly (on ``two_hour`` its error is 2.3 m against the point-mass filter's 1.3 m); at 0.8
-        it made 9 false fixes there and 4 on ``demo``, at 1.0 it makes 4 and none. The point-mass
-        filter at 1.0 was wider than its error: NEES in band 0.90 on ``two_hour``, 0.88 on ``offset``
-        (0.91 and 0.89 at 0.8).
+        filter. Defaults 0.8 and 0.9 (1.3 and 1.35 m at 10 m nodes). The point-mass filter at 1.0 was
+        wider than its error: NEES in band 0.90 on ``two_hour``, 0.88 on ``offset`` (0.91 and 0.89 at
+        0.8). The particle filter at 0.8 lost accuracy on five shipped scenarios of seven (``map_short``
+        1.35 -> 2.45 m: a narrower cloud keeps fewer distinct particles), at 1.0 it was wider than its
+        error on ``usbl_nav`` (NEES in band 0.88; 0.91 at 0.9).
     pmf_cells : int
         Most cells a side of the point-mass grid. Default 96.
     pmf_sigmas : float
@@ -235,7 +234,7 @@ class NavParameters:
     position_floor_nodes: float = 0.1
     position_floor_m: float = 2.3
     position_floor_tracking_m: float = 0.8
-    pf_floor_tracking_m: float = 1.0
+    pf_floor_tracking_m: float = 0.9
     pmf_cells: int = 96
     pmf_sigmas: float = 4.0
     pmf_min_cell_m: float | None = None

@@ -448,3 +448,24 @@ def test_each_filter_settles_on_its_own_tracking_floor():
     params = _quiet(position_floor_nodes=0.0, position_floor_tracking_m=0.5, pf_floor_tracking_m=2.0)
     assert PointMassFilter(likelihood, params, grid=grid)._floor_var_tracking == pytest.approx(0.25)
     assert ParticleFilter(likelihood, params, grid=grid, seed=1)._floor_var_tracking == pytest.approx(4.0)
+
+
+def test_the_particles_keep_their_bias_prior_until_usable_and_a_reinitialization_keeps_what_they_learned():
+    """Selection on position alone says nothing of the bias: before the cloud is usable its resampling
+    would otherwise fix the bias at the few survivors' values (on two_hour 8 cm/s off, spread 1.4 mm/s)."""
+    grid = _map()
+    params = _quiet(usable_updates=3, velocity_bias_sigma_mps=0.05)
+    pf = ParticleFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid, seed=2)
+    pf.start(0.0, np.array([400.0, 400.0]), _observation())
+    pf._w[:] = 0.0
+    pf._w[:5] = 0.2  # five survivors
+    pf._resample()
+    assert np.std(pf._b, axis=1) == pytest.approx([0.05, 0.05], rel=0.05)  # drawn afresh, not five values
+    pf._trust.usable = True
+    pf._w[:] = 0.0
+    pf._w[:5] = 0.2
+    pf._resample()
+    assert len(np.unique(pf._b[0])) == 5  # usable: the survivors' biases are kept
+    learned = np.unique(pf._b[0])
+    pf._reinitialize()
+    assert set(np.unique(pf._b[0])) <= set(learned)  # the sensor's bias, not the place's: kept
