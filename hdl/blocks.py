@@ -1,4 +1,4 @@
-"""Pipeline blocks every core shares: a delay line, an adder tree, a minimum tree, replicated registers.
+"""Pipeline blocks every core shares: delay lines (in registers or block RAM), an adder tree, a minimum tree, replicas.
 
 Each block is a :class:`~amaranth.lib.wiring.Component` with a fixed latency, stated in its docstring
 and checked against a NumPy model in ``tests/hdl/test_blocks.py`` (as maia-hdl does for every block).
@@ -12,13 +12,13 @@ from __future__ import annotations
 from typing import Any
 
 from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, signed, unsigned
-from amaranth.lib import data, wiring
+from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
 from lost.model.widths import bits_for
 
-__all__ = ["AdderTree", "DelayLine", "MinimumTree", "Replicas", "index_range", "minimum_item", "shape_for", "tree_levels"]
+__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "index_range", "minimum_item", "shape_for", "tree_levels"]
 
 
 def shape_for(lo: int, hi: int) -> Shape:
@@ -96,6 +96,66 @@ class DelayLine(wiring.Component):
             m.d.comb += self.taps[stage].eq(register)
             value = register
         m.d.comb += self.o.eq(value)
+        return m
+
+
+class MemoryDelayLine(wiring.Component):
+    """A delay of ``depth`` loads, as :class:`DelayLine` with ``enable`` and only ``o``, in block RAM.
+
+    A long, wide delay that moves only when ``en`` is high costs a flip-flop per bit and stage as
+    registers; here it is a memory written on each load (at a pointer that moves with the loads) and
+    read one load ahead into ``o``, a register: the entry ``o`` takes on a load was read on the load
+    before, so a load on every clock is as exact as a load now and then, and no path runs from the
+    block RAM to anything but ``o``. The entry read was written at least one load before it is read
+    and the memory holds ``depth - 1`` or more entries, so the read port needs no transparency and
+    never reads an entry being written. The memory asks synthesis for block RAM (``ram_style``), where
+    a short memory would otherwise be made of LUTs.
+
+    Latency: ``depth`` loads from ``i`` to ``o``, as :class:`DelayLine`: after load ``n``, ``o`` is
+    ``i`` as it was on load ``n - depth + 1``. Before ``depth`` loads it is zero (the memory's and the
+    register's initial value), as a :class:`DelayLine`'s registers after a reset; a later reset
+    restarts nothing (there is none), so the delay holds across one.
+
+    Parameters
+    ----------
+    shape : ShapeLike
+        Of the value delayed (a layout too).
+    depth : int
+        Loads, at least 3 (a shorter delay is a register or two: :class:`DelayLine`).
+
+    Members
+    -------
+    i : ``In(shape)``
+    en : ``In(1)``
+    o : ``Out(shape)``
+    """
+
+    def __init__(self, shape: ShapeLike, depth: int):
+        if isinstance(depth, bool) or not isinstance(depth, int) or depth < 3:
+            raise ValueError(f"depth must be an integer of at least 3, got {depth!r}")
+        self._shape, self._depth = shape, depth
+        #: Entries in the memory: a power of two of at least ``depth - 1``, so the pointers wrap by themselves.
+        self.entries = 1 << ceil_log2(depth - 1)
+        super().__init__({"i": In(shape), "en": In(1), "o": Out(shape)})
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        m.submodules.entries = entries = memory.Memory(shape=self._shape, depth=self.entries, init=[],
+                                                       attrs={"ram_style": "block"})
+        write, read = entries.write_port(), entries.read_port()
+        pointer = Signal(range(self.entries), name="pointer", reset_less=True)
+        # On load n the entry of load n - depth + 2 is read, for ``o`` to take on load n + 1.
+        m.d.comb += [
+            write.addr.eq(pointer),
+            write.en.eq(self.en),
+            write.data.eq(self.i),
+            read.addr.eq((pointer - (self._depth - 2))[:len(pointer)]),
+            read.en.eq(self.en),
+        ]
+        output = Signal(self._shape, name="o_register", reset_less=True)
+        with m.If(self.en):
+            m.d.sync += [pointer.eq(pointer + 1), output.eq(read.data)]
+        m.d.comb += self.o.eq(output)
         return m
 
 

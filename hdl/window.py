@@ -253,9 +253,14 @@ class WindowCore(wiring.Component):
         # ---- the step register, the line buffers and the window register -------------------------------
         # The columns the lanes' sums start on sit ``window_to_quotient`` steps of L columns above those
         # their terms take (by then the same columns have moved down the register).
+        # Between them the steps no lane reads (``lead + 1`` steps hold a lane's terms' columns) are only a
+        # delay: block RAM, not registers (``stored``).
         top = stages.window_to_quotient * L
+        bottom = t.lead + 1
+        stored = range(bottom, stages.window_to_quotient) if stages.window_to_quotient - bottom >= 2 else range(0)
         m.submodules.window = window = StepWindow(lanes=L, rows=h, groups=G, span=top + (t.lead + 1) * L,
-                                                  depth_bits=p.depth_bits)
+                                                  depth_bits=p.depth_bits, stored=stored)
+        sums_port = top - len(stored) * L  # the sums' first column among the window's ports
         m.d.comb += [
             window.advance.eq(advance),
             window.word.eq(sequencer.response.payload.data),
@@ -269,7 +274,7 @@ class WindowCore(wiring.Component):
             m.submodules[f"lane{q}"] = lane = WindowLane(parameters=p)
             m.d.comb += [
                 lane.advance.eq(advance),
-                *(lane.sum_window[l].eq(window.columns[top + q + l]) for l in range(w)),
+                *(lane.sum_window[l].eq(window.columns[sums_port + q + l]) for l in range(w)),
                 *(lane.term_window[l].eq(window.columns[q + l]) for l in range(w)),
                 lane.patch_valid.eq(patch.patch_valid),
                 lane.lifted_patch.eq(patch.lifted_patch),
