@@ -140,21 +140,25 @@ class MemoryDelayLine(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
+        # ``no_rw_check``: the entry read is never the one being written, so Yosys need not emulate a
+        # read-before-write across the block RAM's two ports (a register and a multiplexer per bit). It
+        # applies when Yosys merges a register into a read port, so the read is asynchronous here and
+        # ``fetched`` is the register it merges (the block RAM's own output register).
         m.submodules.entries = entries = memory.Memory(shape=self._shape, depth=self.entries, init=[],
-                                                       attrs={"ram_style": "block"})
-        write, read = entries.write_port(), entries.read_port()
+                                                       attrs={"ram_style": "block", "no_rw_check": 1})
+        write, read = entries.write_port(), entries.read_port(domain="comb")
         pointer = Signal(range(self.entries), name="pointer", reset_less=True)
-        # On load n the entry of load n - depth + 2 is read, for ``o`` to take on load n + 1.
+        fetched = Signal(self._shape, name="fetched", reset_less=True)
+        output = Signal(self._shape, name="o_register", reset_less=True)
+        # On load n the entry of load n - depth + 2 is fetched, for ``o`` to take on load n + 1.
         m.d.comb += [
             write.addr.eq(pointer),
             write.en.eq(self.en),
             write.data.eq(self.i),
             read.addr.eq((pointer - (self._depth - 2))[:len(pointer)]),
-            read.en.eq(self.en),
         ]
-        output = Signal(self._shape, name="o_register", reset_less=True)
         with m.If(self.en):
-            m.d.sync += [pointer.eq(pointer + 1), output.eq(read.data)]
+            m.d.sync += [pointer.eq(pointer + 1), fetched.eq(read.data), output.eq(fetched)]
         m.d.comb += self.o.eq(output)
         return m
 
@@ -164,6 +168,10 @@ class AdderTree(wiring.Component):
 
     Latency: :func:`tree_levels` ``(count)`` loads (``ceil(log2(count))``); one leaf passes through.
     Pairs are summed in order (leaves 0 + 1, 2 + 3, ...; an odd last one is carried up alone).
+
+    With ``adders_per_register = k > 1`` only every ``k``-th level and the last are registers (``k``
+    adders in series between them, the widest levels, near the leaves, not registered): the latency
+    is the same, the levels' missing registers added after the root, where the sum is narrowest.
 
     Each level's registers are as wide as the sums they can hold: ``k`` leaves in ``[leaf_lo,
     leaf_hi]`` give ``[k * leaf_lo, k * leaf_hi]``, never more than ``total`` (the bounds of the whole
@@ -179,6 +187,8 @@ class AdderTree(wiring.Component):
         ``(lo, hi)`` of the sum.
     enable : bool
         Load only on clocks when ``en`` is high.
+    adders_per_register : int
+        Adder levels between two register levels (1: a register on every level).
 
     Members
     -------
@@ -189,8 +199,10 @@ class AdderTree(wiring.Component):
         As wide as the last level (the leaf's shape for one leaf).
     """
 
-    def __init__(self, *, count: int, leaf: tuple[int, int], total: tuple[int, int], enable: bool = False):
+    def __init__(self, *, count: int, leaf: tuple[int, int], total: tuple[int, int], enable: bool = False,
+                 adders_per_register: int = 1):
         self._count = _check_count("count", count)
+        self._adders_per_register = _check_count("adders_per_register", adders_per_register)
         self._leaf, self._total, self._enable = tuple(leaf), tuple(total), bool(enable)
         self.leaf_shape = shape_for(*self._leaf)
         self.level_shapes = []
@@ -212,21 +224,40 @@ class AdderTree(wiring.Component):
     def latency(self) -> int:
         return len(self.level_shapes)
 
+    @property
+    def registered_levels(self) -> list[bool]:
+        """For each level, the first (leaves' sums) first: whether it is a register."""
+        levels, every = len(self.level_shapes), self._adders_per_register
+        return [(level + 1) % every == 0 or level + 1 == levels for level in range(levels)]
+
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        values = [self.leaves[k] for k in range(self._count)]
-        for level, shape in enumerate(self.level_shapes):
-            # One array register per level (fewer, wider signals keep the generated Verilog small).
-            sums = Signal(data.ArrayLayout(shape, (len(values) + 1) // 2), name=f"l{level}", reset_less=True)
-            loads = [sums[k // 2].eq(values[k] + values[k + 1] if k + 1 < len(values) else values[k])
-                     for k in range(0, len(values), 2)]
+
+        def load(assignments: list) -> None:
             if self._enable:
                 with m.If(self.en):
-                    m.d.sync += loads
+                    m.d.sync += assignments
             else:
-                m.d.sync += loads
+                m.d.sync += assignments
+
+        values = [self.leaves[k] for k in range(self._count)]
+        for level, (shape, registered) in enumerate(zip(self.level_shapes, self.registered_levels)):
+            # One array signal per level (fewer, wider signals keep the generated Verilog small).
+            sums = Signal(data.ArrayLayout(shape, (len(values) + 1) // 2), name=f"l{level}", reset_less=True)
+            pairs = [values[k] + values[k + 1] if k + 1 < len(values) else values[k] for k in range(0, len(values), 2)]
+            assignments = [sums[k].eq(pair) for k, pair in enumerate(pairs)]
+            if registered:
+                load(assignments)
+            else:
+                m.d.comb += assignments
             values = [sums[k] for k in range((len(values) + 1) // 2)]
-        m.d.comb += self.sum.eq(values[0])
+        root = values[0]
+        # The levels without a register, made up after the root.
+        for extra in range(self.registered_levels.count(False)):
+            register = Signal(root.shape(), name=f"root{extra + 1}", reset_less=True)
+            load([register.eq(root)])
+            root = register
+        m.d.comb += self.sum.eq(root)
         return m
 
 

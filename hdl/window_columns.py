@@ -117,18 +117,23 @@ class StepWindow(wiring.Component):
                 with m.If(advance):
                     m.d.sync += [delayed[y].eq(delayed[y - 1] if y else entering) for y in range(G)]
             else:
-                m.submodules[f"line_buffer_{x}"] = line = memory.Memory(shape=row_layout, depth=G, init=[])
+                # The entry read (the next step's group) is never the one written (the last step's), so
+                # Yosys need not emulate a read-before-write between the ports (``no_rw_check``, which it
+                # applies to a register it merges into an asynchronous read: ``fetched``, as
+                # :class:`~lost.hdl.blocks.MemoryDelayLine` does).
+                m.submodules[f"line_buffer_{x}"] = line = memory.Memory(shape=row_layout, depth=G, init=[],
+                                                                        attrs={"no_rw_check": 1})
                 write = line.write_port()
-                read = line.read_port()
+                read = line.read_port(domain="comb")
+                fetched = Signal(row_layout, name=f"line_buffer_{x}_fetched", reset_less=True)
                 m.d.comb += [
                     read.addr.eq(read_ahead),
-                    read.en.eq(advance),
                     write.addr.eq(step_group),
                     write.en.eq(advance & step_was_word),
                     write.data.eq(entering),
                 ]
                 with m.If(advance):
-                    m.d.sync += delayed[0].eq(read.data)
+                    m.d.sync += [fetched.eq(read.data), delayed[0].eq(fetched)]
             buffer_rows.append(delayed[-1])
 
         # The window register: one signal per column (fewer signals than one per node, while the Python

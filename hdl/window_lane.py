@@ -38,6 +38,7 @@ __all__ = [
     "LaneArithmetic",
     "PipelineStages",
     "SerialReciprocal",
+    "TREE_ADDERS_PER_REGISTER",
     "WindowLane",
     "reciprocal_product_stages",
     "reciprocal_quotient",
@@ -47,6 +48,12 @@ __all__ = [
 #: The operand width of the device's multipliers (the ECP5's MULT18X18D): a product's wide operand is
 #: split there, so that each partial product is one multiplier with registers on both sides.
 MULTIPLIER_BITS = 18
+
+#: Adder levels between two registers in the lane's three 100-leaf trees (the window sum, the selected
+#: differences' sum and their count): two adders of up to 24 bits in series still meet the core's own
+#: paths, and each tree keeps its latency (the registers it leaves out are added at its narrow root), so
+#: a lane holds about 1,250 fewer flip-flops a tree. :class:`~lost.hdl.blocks.AdderTree`.
+TREE_ADDERS_PER_REGISTER = 1
 
 #: Consecutive nodes that share a copy of the quotient (a patch row of Nygren's 10 x 10, whose
 #: comparators sit together).
@@ -434,7 +441,7 @@ class WindowLane(wiring.Component):
                     m.d.sync += masked[x].eq(self.sum_window[l][k])
         m.submodules.window_sum = window_sum = AdderTree(
             count=nodes, leaf=(widths.depth.lo, widths.depth.hi), total=(widths.window_sum.lo, widths.window_sum.hi),
-            enable=True)
+            enable=True, adders_per_register=TREE_ADDERS_PER_REGISTER)
         m.d.comb += [window_sum.en.eq(advance), *(window_sum.leaves[x].eq(masked[x]) for x in range(nodes))]
         # The dividend (or the correction), then t + 2**b = floor(N / f) = floor(N * m / 2**s) over the
         # quotient stages: the dividend waits in the first ones, the product fills the last.
@@ -498,8 +505,10 @@ class WindowLane(wiring.Component):
                     above[x].eq(Mux(chosen, difference[x], 0)),
                     selected[x].eq(chosen),
                 ]
-        m.submodules.above_sum = above_tree = AdderTree(count=nodes, leaf=(0, 2 * a.lift - 1), total=(0, a.lifted_sum_hi))
-        m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes))
+        m.submodules.above_sum = above_tree = AdderTree(count=nodes, leaf=(0, 2 * a.lift - 1), total=(0, a.lifted_sum_hi),
+                                                   adders_per_register=TREE_ADDERS_PER_REGISTER)
+        m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes),
+                                                   adders_per_register=TREE_ADDERS_PER_REGISTER)
         m.d.comb += [above_tree.leaves[x].eq(above[x]) for x in range(nodes)]
         m.d.comb += [count_tree.leaves[x].eq(selected[x]) for x in range(nodes)]
         return above_tree.sum, count_tree.sum, carried_at

@@ -89,3 +89,38 @@ def test_step_window_refuses_stored_steps_it_cannot_hold():
     for stored in (range(0, 3), range(1, 2), range(2, 6), range(1, 5, 2)):
         with pytest.raises(ValueError, match="stored must be a range of at least two steps"):
             StepWindow(lanes=2, rows=3, groups=2, span=12, depth_bits=16, stored=stored)
+
+
+@pytest.mark.parametrize("count, leaf, enable, every", [
+    (100, (-(2**15), 2**15 - 1), True, 2), (100, (0, 2**17 - 1), False, 2), (100, (0, 1), False, 2),
+    (5, (-100, 100), True, 2), (17, (0, 7), False, 3), (2, (0, 1), False, 2), (1, (-8, 7), True, 2),
+])
+def test_adder_tree_with_adders_between_registers_keeps_its_latency(count, leaf, enable, every):
+    from lost.hdl.blocks import AdderTree, tree_levels
+
+    rng = np.random.default_rng([count, every])
+    cycles = 40
+    leaves = rng.integers(leaf[0], leaf[1] + 1, size=(cycles, count))
+    enables = (rng.random(cycles) < 0.5).tolist() if enable else [True] * cycles
+    dut = AdderTree(count=count, leaf=leaf, total=(count * leaf[0], count * leaf[1]), enable=enable,
+                    adders_per_register=every)
+    assert dut.latency == tree_levels(count)
+    registered = dut.registered_levels
+    if registered:
+        # The root and every ``every``-th level are registers: ``every`` adders at most between two.
+        assert registered[-1] and sum(registered) == -(-len(registered) // every)
+        assert all(any(registered[level:level + every]) for level in range(len(registered)))
+
+    def drive(ctx, t):
+        for k in range(count):
+            ctx.set(dut.leaves[k], int(leaves[t, k]))
+        if enable:
+            ctx.set(dut.en, enables[t])
+
+    seen = run(dut, cycles, drive, lambda ctx, t: ctx.get(dut.sum))
+    sums = leaves.sum(axis=1).tolist()
+    if dut.latency == 0:
+        assert seen == sums
+    else:
+        expected = loads_model(sums, enables, dut.latency)
+        assert seen[dut.latency:] == expected[dut.latency:]
