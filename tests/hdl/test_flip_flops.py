@@ -124,3 +124,36 @@ def test_adder_tree_with_adders_between_registers_keeps_its_latency(count, leaf,
     else:
         expected = loads_model(sums, enables, dut.latency)
         assert seen[dut.latency:] == expected[dut.latency:]
+
+
+def synthesized_cells(design, name, out_dir):
+    """Cells by type of the flow's ``synth_ecp5`` netlist of ``design`` (a few seconds)."""
+    import json
+    from collections import Counter
+
+    from lost.hdl.flow.synth import synthesize
+
+    netlist = json.loads(synthesize(design, name, out_dir).read_text())
+    return Counter(cell["type"] for cell in netlist["modules"]["top"]["cells"].values())
+
+
+def test_a_tree_with_two_adders_between_registers_keeps_one_carry_chain_per_adder(tmp_path):
+    from lost.hdl.blocks import AdderTree
+
+    leaf, count = (0, 2**17 - 1), 100
+    every = {k: synthesized_cells(AdderTree(count=count, leaf=leaf, total=(0, count * leaf[1]), adders_per_register=k),
+                                  f"tree{k}", tmp_path) for k in (1, 2)}
+    # The same carry chains (no adders merged into LUT compressor trees), far fewer flip-flops.
+    assert every[2]["CCU2C"] == every[1]["CCU2C"] and every[2]["LUT4"] <= every[1]["LUT4"]
+    assert every[2]["TRELLIS_FF"] < 0.45 * every[1]["TRELLIS_FF"]
+
+
+def test_a_memory_delay_line_is_block_ram_and_its_two_registers(tmp_path):
+    from amaranth.hdl import signed
+    from amaranth.lib import data
+
+    cells = synthesized_cells(MemoryDelayLine(data.ArrayLayout(signed(16), 10), 17), "delay", tmp_path)
+    # 160 bits of 36 a block: 5; the fetched word (inside the block RAM), the output register and a
+    # 4-bit pointer; no read-before-write emulation (a register and a multiplexer per bit).
+    assert cells["DP16KD"] == 5
+    assert cells["TRELLIS_FF"] <= 160 + 4 and cells["LUT4"] <= 8
