@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, signed, unsigned
+from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, Value, signed, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
@@ -99,6 +99,10 @@ class DelayLine(wiring.Component):
         return m
 
 
+#: Data bits of one block RAM port (the ECP5's DP16KD: 18; two ports joined give 36).
+BLOCK_RAM_PORT_BITS = 18
+
+
 class MemoryDelayLine(wiring.Component):
     """A delay of ``depth`` loads, as :class:`DelayLine` with ``enable`` and only ``o``, in block RAM.
 
@@ -140,25 +144,35 @@ class MemoryDelayLine(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        # ``no_rw_check``: the entry read is never the one being written, so Yosys need not emulate a
-        # read-before-write across the block RAM's two ports (a register and a multiplexer per bit). It
-        # applies when Yosys merges a register into a read port, so the read is asynchronous here and
-        # ``fetched`` is the register it merges (the block RAM's own output register).
-        m.submodules.entries = entries = memory.Memory(shape=self._shape, depth=self.entries, init=[],
-                                                       attrs={"ram_style": "block", "no_rw_check": 1})
-        write, read = entries.write_port(), entries.read_port(domain="comb")
+        value = Value.cast(self.i)
+        width = len(value)
         pointer = Signal(range(self.entries), name="pointer", reset_less=True)
-        fetched = Signal(self._shape, name="fetched", reset_less=True)
+        fetched = Signal(width, name="fetched", reset_less=True)
         output = Signal(self._shape, name="o_register", reset_less=True)
-        # On load n the entry of load n - depth + 2 is fetched, for ``o`` to take on load n + 1.
-        m.d.comb += [
-            write.addr.eq(pointer),
-            write.en.eq(self.en),
-            write.data.eq(self.i),
-            read.addr.eq((pointer - (self._depth - 2))[:len(pointer)]),
-        ]
+        # One memory per BLOCK_RAM_PORT_BITS bits: a block RAM's port of that width rather than both ports
+        # joined into one of twice it (twice the blocks, half the data pins at each, which the 4-lane build's
+        # router needs). ``no_rw_check``: the entry read is never the one being written, so Yosys need not
+        # emulate a read-before-write across the two ports (a register and a multiplexer per bit); it
+        # applies when Yosys merges a register into a read port, so the read is asynchronous here and
+        # ``fetched`` is the register it merges (the block RAM's own output register). The entry at the
+        # pointer is written on every clock, so its last write is the load's (nothing reads it before the
+        # pointer moves on) and the step enable reaches no write-enable pin, only the read's clock enable.
+        for low in range(0, width, BLOCK_RAM_PORT_BITS):
+            piece = value[low:low + BLOCK_RAM_PORT_BITS]
+            m.submodules[f"entries{low // BLOCK_RAM_PORT_BITS}"] = entries = memory.Memory(
+                shape=len(piece), depth=self.entries, init=[], attrs={"ram_style": "block", "no_rw_check": 1})
+            write, read = entries.write_port(), entries.read_port(domain="comb")
+            # On load n the entry of load n - depth + 2 is fetched, for ``o`` to take on load n + 1.
+            m.d.comb += [
+                write.addr.eq(pointer),
+                write.en.eq(1),
+                write.data.eq(piece),
+                read.addr.eq((pointer - (self._depth - 2))[:len(pointer)]),
+            ]
+            with m.If(self.en):
+                m.d.sync += fetched[low:low + len(piece)].eq(read.data)
         with m.If(self.en):
-            m.d.sync += [pointer.eq(pointer + 1), fetched.eq(read.data), output.eq(fetched)]
+            m.d.sync += [pointer.eq(pointer + 1), output.eq(fetched)]
         m.d.comb += self.o.eq(output)
         return m
 

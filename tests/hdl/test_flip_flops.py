@@ -153,7 +153,7 @@ def test_a_memory_delay_line_is_block_ram_and_its_two_registers(tmp_path):
     from amaranth.lib import data
 
     cells = synthesized_cells(MemoryDelayLine(data.ArrayLayout(signed(16), 10), 17), "delay", tmp_path)
-    # 160 bits of 36 a block: 5; the fetched word (inside the block RAM), the output register and a
-    # 4-bit pointer; no read-before-write emulation (a register and a multiplexer per bit).
-    assert cells["DP16KD"] == 5
+    # 160 bits of 18 a block (one port's width): 9; the fetched word (inside the block RAM), the output
+    # register and a 4-bit pointer; no read-before-write emulation (a register and a multiplexer per bit).
+    assert cells["DP16KD"] == 9
     assert cells["TRELLIS_FF"] <= 160 + 4 and cells["LUT4"] <= 8
