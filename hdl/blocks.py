@@ -107,13 +107,14 @@ class MemoryDelayLine(wiring.Component):
     """A delay of ``depth`` loads, as :class:`DelayLine` with ``enable`` and only ``o``, in block RAM.
 
     A long, wide delay that moves only when ``en`` is high costs a flip-flop per bit and stage as
-    registers; here it is a memory written on each load (at a pointer that moves with the loads) and
-    read one load ahead into ``o``, a register: the entry ``o`` takes on a load was read on the load
+    registers; here it is a memory written at a pointer that moves with the loads (on every clock: the
+    entry's last write before the pointer moves is the load's) and read one load ahead into ``o``, a
+    register: the entry ``o`` takes on a load was read on the load
     before, so a load on every clock is as exact as a load now and then, and no path runs from the
     block RAM to anything but ``o``. The entry read was written at least one load before it is read
     and the memory holds ``depth - 1`` or more entries, so the read port needs no transparency and
     never reads an entry being written. The memory asks synthesis for block RAM (``ram_style``), where
-    a short memory would otherwise be made of LUTs.
+    a short memory would otherwise be made of LUTs, one of :data:`BLOCK_RAM_PORT_BITS` bits at a time.
 
     Latency: ``depth`` loads from ``i`` to ``o``, as :class:`DelayLine`: after load ``n``, ``o`` is
     ``i`` as it was on load ``n - depth + 1``. Before ``depth`` loads it is zero (the memory's and the
