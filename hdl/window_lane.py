@@ -50,9 +50,9 @@ __all__ = [
 MULTIPLIER_BITS = 18
 
 #: Adder levels between two registers in the lane's three 100-leaf trees (the window sum, the selected
-#: differences' sum and their count): two adders of up to 24 bits in series still meet the core's own
-#: paths, and each tree keeps its latency (the registers it leaves out are added at its narrow root), so
-#: a lane holds about 1,250 fewer flip-flops a tree. :class:`~lost.hdl.blocks.AdderTree`.
+#: differences' sum and their count): two adders of up to 24 bits in series stayed off the 1-lane build's
+#: worst paths, and each tree keeps its latency (the registers it leaves out are added at its narrow
+#: root); a lane holds about 1,100 fewer flip-flops in each sum tree. :class:`~lost.hdl.blocks.AdderTree`.
 TREE_ADDERS_PER_REGISTER = 2
 
 #: Consecutive nodes that share a copy of the quotient (a patch row of Nygren's 10 x 10, whose
