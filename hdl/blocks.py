@@ -1,4 +1,4 @@
-"""Pipeline blocks every core shares: a delay line, an adder tree, a minimum tree, replicated registers.
+"""Pipeline blocks every core shares: delay lines (in registers or block RAM), an adder tree, a minimum tree, replicas.
 
 Each block is a :class:`~amaranth.lib.wiring.Component` with a fixed latency, stated in its docstring
 and checked against a NumPy model in ``tests/hdl/test_blocks.py`` (as maia-hdl does for every block).
@@ -11,14 +11,14 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, signed, unsigned
-from amaranth.lib import data, wiring
+from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, Value, signed, unsigned
+from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
 from lost.model.widths import bits_for
 
-__all__ = ["AdderTree", "DelayLine", "MinimumTree", "Replicas", "index_range", "minimum_item", "shape_for", "tree_levels"]
+__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "enabled_delay", "index_range", "minimum_item", "shape_for", "tree_levels"]
 
 
 def shape_for(lo: int, hi: int) -> Shape:
@@ -99,11 +99,110 @@ class DelayLine(wiring.Component):
         return m
 
 
+#: Data bits of one block RAM port (the ECP5's DP16KD: 18; two ports joined give 36).
+BLOCK_RAM_PORT_BITS = 18
+
+
+class MemoryDelayLine(wiring.Component):
+    """A delay of ``depth`` loads, as :class:`DelayLine` with ``enable`` and only ``o``, in block RAM.
+
+    A long, wide delay that moves only when ``en`` is high costs a flip-flop per bit and stage as
+    registers; here it is a memory written at a pointer that moves with the loads (on every clock: the
+    entry's last write before the pointer moves is the load's) and read one load ahead into ``o``, a
+    register: the entry ``o`` takes on a load was read on the load
+    before, so a load on every clock is as exact as a load now and then, and no path runs from the
+    block RAM to anything but ``o``. The entry read was written at least one load before it is read
+    and the memory holds ``depth - 1`` or more entries, so the read port needs no transparency and
+    never reads an entry being written. The memory asks synthesis for block RAM (``ram_style``), where
+    a short memory would otherwise be made of LUTs, one of :data:`BLOCK_RAM_PORT_BITS` bits at a time.
+
+    Latency: ``depth`` loads from ``i`` to ``o``, as :class:`DelayLine`: after load ``n``, ``o`` is
+    ``i`` as it was on load ``n - depth + 1``. Before ``depth`` loads it is zero (the memory's and the
+    register's initial value), as a :class:`DelayLine`'s registers after a reset; a later reset
+    restarts nothing (there is none), so the delay holds across one.
+
+    Parameters
+    ----------
+    shape : ShapeLike
+        Of the value delayed (a layout too).
+    depth : int
+        Loads, at least 3 (a shorter delay is a register or two: :class:`DelayLine`).
+
+    Members
+    -------
+    i : ``In(shape)``
+    en : ``In(1)``
+    o : ``Out(shape)``
+    """
+
+    def __init__(self, shape: ShapeLike, depth: int):
+        if isinstance(depth, bool) or not isinstance(depth, int) or depth < 3:
+            raise ValueError(f"depth must be an integer of at least 3, got {depth!r}")
+        self._shape, self._depth = shape, depth
+        #: Entries in the memory: a power of two of at least ``depth - 1``, so the pointers wrap by themselves.
+        self.entries = 1 << ceil_log2(depth - 1)
+        super().__init__({"i": In(shape), "en": In(1), "o": Out(shape)})
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        value = Value.cast(self.i)
+        width = len(value)
+        pointer = Signal(range(self.entries), name="pointer", reset_less=True)
+        fetched = Signal(width, name="fetched", reset_less=True)
+        output = Signal(self._shape, name="o_register", reset_less=True)
+        # One memory per BLOCK_RAM_PORT_BITS bits: a block RAM's port of that width rather than both ports
+        # joined into one of twice it (twice the blocks, half the data pins at each, which the 4-lane build's
+        # router needs). ``no_rw_check``: the entry read is never the one being written, so Yosys need not
+        # emulate a read-before-write across the two ports (a register and a multiplexer per bit); it
+        # applies when Yosys merges a register into a read port, so the read is asynchronous here and
+        # ``fetched`` is the register it merges (the block RAM's own output register). The entry at the
+        # pointer is written on every clock, so its last write is the load's (nothing reads it before the
+        # pointer moves on) and the step enable reaches no write-enable pin, only the read's clock enable.
+        for low in range(0, width, BLOCK_RAM_PORT_BITS):
+            piece = value[low:low + BLOCK_RAM_PORT_BITS]
+            m.submodules[f"entries{low // BLOCK_RAM_PORT_BITS}"] = entries = memory.Memory(
+                shape=len(piece), depth=self.entries, init=[], attrs={"ram_style": "block", "no_rw_check": 1})
+            write, read = entries.write_port(), entries.read_port(domain="comb")
+            # On load n the entry of load n - depth + 2 is fetched, for ``o`` to take on load n + 1.
+            m.d.comb += [
+                write.addr.eq(pointer),
+                write.en.eq(1),
+                write.data.eq(piece),
+                read.addr.eq((pointer - (self._depth - 2))[:len(pointer)]),
+            ]
+            with m.If(self.en):
+                m.d.sync += fetched[low:low + len(piece)].eq(read.data)
+        with m.If(self.en):
+            m.d.sync += [pointer.eq(pointer + 1), output.eq(fetched)]
+        m.d.comb += self.o.eq(output)
+        return m
+
+
+#: The shortest delay :func:`enabled_delay` puts in block RAM: below it, the memory's two registers
+#: and its pointer are not worth a block RAM.
+MEMORY_DELAY_DEPTH = 8
+
+
+def enabled_delay(shape: ShapeLike, depth: int) -> DelayLine | MemoryDelayLine:
+    """A delay of ``depth`` loads (ports ``i``, ``en``, ``o``): in block RAM from :data:`MEMORY_DELAY_DEPTH` loads on.
+
+    Either is exact (:class:`MemoryDelayLine`, :class:`DelayLine` with ``enable``, reset-less); the
+    choice is only what it costs.
+    """
+    if depth >= MEMORY_DELAY_DEPTH:
+        return MemoryDelayLine(shape, depth)
+    return DelayLine(shape, depth, enable=True, reset_less=True)
+
+
 class AdderTree(wiring.Component):
     """The sum of ``count`` leaves by a balanced adder tree, one register level per adder level.
 
     Latency: :func:`tree_levels` ``(count)`` loads (``ceil(log2(count))``); one leaf passes through.
     Pairs are summed in order (leaves 0 + 1, 2 + 3, ...; an odd last one is carried up alone).
+
+    With ``adders_per_register = k > 1`` only every ``k``-th level and the last are registers (``k``
+    adders in series between them, the widest levels, near the leaves, not registered): the latency
+    is the same, the levels' missing registers added after the root, where the sum is narrowest.
 
     Each level's registers are as wide as the sums they can hold: ``k`` leaves in ``[leaf_lo,
     leaf_hi]`` give ``[k * leaf_lo, k * leaf_hi]``, never more than ``total`` (the bounds of the whole
@@ -119,6 +218,8 @@ class AdderTree(wiring.Component):
         ``(lo, hi)`` of the sum.
     enable : bool
         Load only on clocks when ``en`` is high.
+    adders_per_register : int
+        Adder levels between two register levels (1: a register on every level).
 
     Members
     -------
@@ -129,8 +230,10 @@ class AdderTree(wiring.Component):
         As wide as the last level (the leaf's shape for one leaf).
     """
 
-    def __init__(self, *, count: int, leaf: tuple[int, int], total: tuple[int, int], enable: bool = False):
+    def __init__(self, *, count: int, leaf: tuple[int, int], total: tuple[int, int], enable: bool = False,
+                 adders_per_register: int = 1):
         self._count = _check_count("count", count)
+        self._adders_per_register = _check_count("adders_per_register", adders_per_register)
         self._leaf, self._total, self._enable = tuple(leaf), tuple(total), bool(enable)
         self.leaf_shape = shape_for(*self._leaf)
         self.level_shapes = []
@@ -152,21 +255,44 @@ class AdderTree(wiring.Component):
     def latency(self) -> int:
         return len(self.level_shapes)
 
+    @property
+    def registered_levels(self) -> list[bool]:
+        """For each level, the first (leaves' sums) first: whether it is a register."""
+        levels, every = len(self.level_shapes), self._adders_per_register
+        return [(level + 1) % every == 0 or level + 1 == levels for level in range(levels)]
+
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        values = [self.leaves[k] for k in range(self._count)]
-        for level, shape in enumerate(self.level_shapes):
-            # One array register per level (fewer, wider signals keep the generated Verilog small).
-            sums = Signal(data.ArrayLayout(shape, (len(values) + 1) // 2), name=f"l{level}", reset_less=True)
-            loads = [sums[k // 2].eq(values[k] + values[k + 1] if k + 1 < len(values) else values[k])
-                     for k in range(0, len(values), 2)]
+
+        def load(assignments: list) -> None:
             if self._enable:
                 with m.If(self.en):
-                    m.d.sync += loads
+                    m.d.sync += assignments
             else:
-                m.d.sync += loads
+                m.d.sync += assignments
+
+        values = [self.leaves[k] for k in range(self._count)]
+        for level, (shape, registered) in enumerate(zip(self.level_shapes, self.registered_levels)):
+            # One array signal per level (fewer, wider signals keep the generated Verilog small).
+            # An unregistered level is ``keep``: else Yosys (``alumacc``) merges the adders on each side of
+            # it into multi-operand sums, carry-save trees of LUTs (a 100-leaf tree of 17 bits: 2,619 LUT4
+            # and 352 carry cells, against 66 and 955), where each adder should be a carry chain of its own.
+            sums = Signal(data.ArrayLayout(shape, (len(values) + 1) // 2), name=f"l{level}", reset_less=True,
+                          attrs={} if registered else {"keep": 1})
+            pairs = [values[k] + values[k + 1] if k + 1 < len(values) else values[k] for k in range(0, len(values), 2)]
+            assignments = [sums[k].eq(pair) for k, pair in enumerate(pairs)]
+            if registered:
+                load(assignments)
+            else:
+                m.d.comb += assignments
             values = [sums[k] for k in range((len(values) + 1) // 2)]
-        m.d.comb += self.sum.eq(values[0])
+        root = values[0]
+        # The levels without a register, made up after the root.
+        for extra in range(self.registered_levels.count(False)):
+            register = Signal(root.shape(), name=f"root{extra + 1}", reset_less=True)
+            load([register.eq(root)])
+            root = register
+        m.d.comb += self.sum.eq(root)
         return m
 
 

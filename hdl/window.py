@@ -152,8 +152,7 @@ class WindowCore(wiring.Component):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         p, t = self._parameters, self._timing
-        (H, _), (h, w), L = p.map_shape, p.patch_shape, p.lanes
-        Ho, Wo = p.surface_shape
+        (h, w), L = p.patch_shape, p.lanes
         G = t.groups
         stages = PipelineStages.of(t)
 
@@ -210,32 +209,12 @@ class WindowCore(wiring.Component):
         m.d.sync += [advance_register.eq(issue), step_is_word.eq(issue & issuing_words)]
         advance = advance_register if self._enable_buffer is None else self._enable_buffer(m, advance_register)
 
-        step_row = Signal(range(H + t.flush_steps + 2))
-        step_group = Signal(index_range(G))
-        with m.If(advance):
-            with m.If(step_group == G - 1):
-                m.d.sync += [step_group.eq(0), step_row.eq(step_row + 1)]
-            with m.Else():
-                m.d.sync += step_group.eq(step_group + 1)
+        # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
+        # own, so that the start beat's condition reaches only the pass's few registers.
+        clearing = Signal(init=1)
+        m.d.sync += clearing.eq(idle)
+        step_group, step_meta, meta_layout = self._step_beats(m, advance, clearing)
 
-        # ---- the beat a step completes (known when the step is taken), through every stage ------------
-        meta_layout = data.StructLayout({
-            "live": 1, "emit": 1, "i": unsigned(p.row_bits), "j": unsigned(p.col_bits),
-            "count": p.surface_beat["count"].shape, "last": 1,
-        })
-        normal = (step_row >= h - 1) & (step_row <= H - 1) & (step_group >= t.lead)
-        wrapped = Const(t.wraps) & (step_group == 0) & (step_row >= h) & (step_row <= H)
-        beat_row = Mux(normal, step_row - (h - 1), step_row - h)
-        beat_group = Mux(normal, step_group - t.lead, t.out_groups - 1)
-        step_meta = Signal(meta_layout)
-        m.d.comb += [
-            step_meta.live.eq(1),
-            step_meta.emit.eq(normal | wrapped),
-            step_meta.i.eq(beat_row),
-            step_meta.j.eq(beat_group * L),
-            step_meta.count.eq(Mux(beat_group == t.out_groups - 1, Wo - (t.out_groups - 1) * L, L)),
-            step_meta.last.eq((beat_row == Ho - 1) & (beat_group == t.out_groups - 1)),
-        ]
         # The beat of each step-synchronous stage (cleared between correlations: see ``clearing``).
         sync_meta = Signal(data.ArrayLayout(meta_layout, stages.quotient), reset_less=True)
         with m.If(advance):
@@ -253,9 +232,14 @@ class WindowCore(wiring.Component):
         # ---- the step register, the line buffers and the window register -------------------------------
         # The columns the lanes' sums start on sit ``window_to_quotient`` steps of L columns above those
         # their terms take (by then the same columns have moved down the register).
+        # Between them the steps no lane reads (``lead + 1`` steps hold a lane's terms' columns) are only a
+        # delay: block RAM, not registers (``stored``).
         top = stages.window_to_quotient * L
+        bottom = t.lead + 1
+        stored = range(bottom, stages.window_to_quotient) if stages.window_to_quotient - bottom >= 2 else range(0)
         m.submodules.window = window = StepWindow(lanes=L, rows=h, groups=G, span=top + (t.lead + 1) * L,
-                                                  depth_bits=p.depth_bits)
+                                                  depth_bits=p.depth_bits, stored=stored)
+        sums_port = top - len(stored) * L  # the sums' first column among the window's ports
         m.d.comb += [
             window.advance.eq(advance),
             window.word.eq(sequencer.response.payload.data),
@@ -269,7 +253,7 @@ class WindowCore(wiring.Component):
             m.submodules[f"lane{q}"] = lane = WindowLane(parameters=p)
             m.d.comb += [
                 lane.advance.eq(advance),
-                *(lane.sum_window[l].eq(window.columns[top + q + l]) for l in range(w)),
+                *(lane.sum_window[l].eq(window.columns[sums_port + q + l]) for l in range(w)),
                 *(lane.term_window[l].eq(window.columns[q + l]) for l in range(w)),
                 lane.patch_valid.eq(patch.patch_valid),
                 lane.lifted_patch.eq(patch.lifted_patch),
@@ -302,17 +286,11 @@ class WindowCore(wiring.Component):
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
         # ---- control ----------------------------------------------------------------------------------
-        # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
-        # own, so that the start beat's condition reaches only the pass's few registers.
-        clearing = Signal(init=1)
-        m.d.sync += clearing.eq(idle)
         m.d.comb += output_queue.clear.eq(clearing)
         with m.If(clearing):
             m.d.sync += [
                 request_addr.eq(0),
                 flush_left.eq(t.flush_steps),
-                step_row.eq(0),
-                step_group.eq(0),
             ]
             # The step-synchronous stages may still hold the last correlation's flush steps.
             m.d.sync += [sync_meta[x].live.eq(0) for x in range(stages.quotient)]
@@ -330,6 +308,70 @@ class WindowCore(wiring.Component):
                     m.next = "IDLE"
 
         return m
+
+
+    def _step_beats(self, m: Module, advance: Value, clearing: Value) -> tuple[Signal, Signal, data.StructLayout]:
+        """The group of the step being taken and the beat it completes (its metadata), for ``sync_meta``.
+
+        The beat is known from the step's row and group; formed from them in one clock it was the
+        3-lane build's critical path (14 logic cells). So it is formed in two step-synchronous stages
+        from counters one step ahead: ``parts`` (whether the step completes a beat in its row or wraps,
+        the beat's row and group, whether each is the last) is loaded on the step before, the metadata
+        from ``parts`` on the step itself. ``clearing`` sets the counters to the first step (and ``parts``
+        to its beat).
+
+        Returns the step's group (the line buffers' address), its metadata and the metadata's layout.
+        """
+        p, t = self._parameters, self._timing
+        (H, _), (h, _), L = p.map_shape, p.patch_shape, p.lanes
+        Ho, Wo = p.surface_shape
+        G = t.groups
+        meta_layout = data.StructLayout({
+            "live": 1, "emit": 1, "i": unsigned(p.row_bits), "j": unsigned(p.col_bits),
+            "count": p.surface_beat["count"].shape, "last": 1,
+        })
+        parts_layout = data.StructLayout({
+            "normal": 1, "wrapped": 1, "row": unsigned(p.row_bits), "group": index_range(t.out_groups),
+            "last_row": 1, "last_group": 1,
+        })
+
+        def parts_of(row: Value, group: Value) -> list:
+            """The beat of the step at ``row``, ``group``, as assignments to a ``parts`` value's fields."""
+            normal = (row >= h - 1) & (row <= H - 1) & (group >= t.lead)
+            return [
+                ("normal", normal),
+                ("wrapped", Const(t.wraps) & (group == 0) & (row >= h) & (row <= H)),
+                ("row", Mux(normal, row - (h - 1), row - h)),
+                ("group", Mux(normal, group - t.lead, t.out_groups - 1)),
+                # The beat's row is Ho - 1 (its group out_groups - 1) without forming it first.
+                ("last_row", Mux(normal, row == H - 1, row == H)),
+                ("last_group", ~normal | (group == t.out_groups - 1 + t.lead)),
+            ]
+
+        step_group = Signal(index_range(G))
+        ahead_row = Signal(range(H + t.flush_steps + 3))
+        ahead_group = Signal(index_range(G))
+        parts = Signal(parts_layout)
+        with m.If(advance):
+            m.d.sync += [step_group.eq(ahead_group), *(parts[name].eq(value) for name, value in parts_of(ahead_row, ahead_group))]
+            with m.If(ahead_group == G - 1):
+                m.d.sync += [ahead_group.eq(0), ahead_row.eq(ahead_row + 1)]
+            with m.Else():
+                m.d.sync += ahead_group.eq(ahead_group + 1)
+        with m.If(clearing):
+            second_group, second_row = (1, 0) if G > 1 else (0, 1)  # the second step's group and row
+            m.d.sync += [step_group.eq(0), ahead_group.eq(second_group), ahead_row.eq(second_row),
+                         *(parts[name].eq(value) for name, value in parts_of(Const(0, 1), Const(0, 1)))]
+        step_meta = Signal(meta_layout)
+        m.d.comb += [
+            step_meta.live.eq(1),
+            step_meta.emit.eq(parts.normal | parts.wrapped),
+            step_meta.i.eq(parts.row),
+            step_meta.j.eq(parts.group * L),
+            step_meta.count.eq(Mux(parts.last_group, Wo - (t.out_groups - 1) * L, L)),
+            step_meta.last.eq(parts.last_row & parts.last_group),
+        ]
+        return step_group, step_meta, meta_layout
 
 
 class WindowCorrelator(wiring.Component):

@@ -29,7 +29,7 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import AdderTree, DelayLine, Replicas, shape_for, tree_levels
+from lost.hdl.blocks import AdderTree, Replicas, enabled_delay, shape_for, tree_levels
 from lost.hdl.interface import CorrelatorParameters
 from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
 
@@ -38,6 +38,7 @@ __all__ = [
     "LaneArithmetic",
     "PipelineStages",
     "SerialReciprocal",
+    "TREE_ADDERS_PER_REGISTER",
     "WindowLane",
     "reciprocal_product_stages",
     "reciprocal_quotient",
@@ -47,6 +48,12 @@ __all__ = [
 #: The operand width of the device's multipliers (the ECP5's MULT18X18D): a product's wide operand is
 #: split there, so that each partial product is one multiplier with registers on both sides.
 MULTIPLIER_BITS = 18
+
+#: Adder levels between two registers in the lane's three 100-leaf trees (the window sum, the selected
+#: differences' sum and their count): two adders of up to 24 bits in series stayed off the 1-lane build's
+#: worst paths, and each tree keeps its latency (the registers it leaves out are added at its narrow
+#: root); a lane holds about 1,100 fewer flip-flops in each sum tree. :class:`~lost.hdl.blocks.AdderTree`.
+TREE_ADDERS_PER_REGISTER = 2
 
 #: Consecutive nodes that share a copy of the quotient (a patch row of Nygren's 10 x 10, whose
 #: comparators sit together).
@@ -434,20 +441,24 @@ class WindowLane(wiring.Component):
                     m.d.sync += masked[x].eq(self.sum_window[l][k])
         m.submodules.window_sum = window_sum = AdderTree(
             count=nodes, leaf=(widths.depth.lo, widths.depth.hi), total=(widths.window_sum.lo, widths.window_sum.hi),
-            enable=True)
+            enable=True, adders_per_register=TREE_ADDERS_PER_REGISTER)
         m.d.comb += [window_sum.en.eq(advance), *(window_sum.leaves[x].eq(masked[x]) for x in range(nodes))]
         # The dividend (or the correction), then t + 2**b = floor(N / f) = floor(N * m / 2**s) over the
         # quotient stages: the dividend waits in the first ones, the product fills the last.
         carried_in = Signal(a.carried, name="carried_in", reset_less=True)
         with m.If(advance):
             m.d.sync += carried_in.eq(window_sum.sum + self.dividend_bias)
-        m.submodules.quotient_carried = carried_line = DelayLine(a.carried, QUOTIENT_STAGES, enable=True, reset_less=True)
-        m.d.comb += [carried_line.i.eq(carried_in), carried_line.en.eq(advance)]
+        # The carried value waits through the quotient stages in two delays (in block RAM where they are
+        # long: :func:`enabled_delay`), the first up to the last waiting stage, where the product takes it.
+        waiting = self.quotient_wait
+        m.submodules.quotient_carried = waiting_line = enabled_delay(a.carried, waiting - 1)
+        m.submodules.quotient_carried_rest = rest_line = enabled_delay(a.carried, QUOTIENT_STAGES - (waiting - 1))
+        before = waiting_line.o
+        m.d.comb += [waiting_line.i.eq(carried_in), waiting_line.en.eq(advance), rest_line.i.eq(before),
+                     rest_line.en.eq(advance)]
         # The product's dividend waits in a register of its own in the last waiting stage, beside the
         # carried value: the multipliers take both operands from registers, and the mode's multiplexer
         # is that register's synchronous reset (to 2**b, held while the mode is off), no LUT.
-        waiting = self.quotient_wait
-        before = carried_line.taps[waiting - 2] if waiting >= 2 else carried_in
         dividend_in = Signal(a.dividend_bits, name="dividend_in", reset_less=True)
         with m.If(~mode):
             m.d.sync += dividend_in.eq(a.lift)
@@ -455,12 +466,12 @@ class WindowLane(wiring.Component):
             m.d.sync += dividend_in.eq(before)
         quotients = reciprocal_quotient(m, advance, dividend_in, reciprocal.reciprocal, a.reciprocal_shift, b + 1,
                                         [~valid for valid in source_valid], "quotient")
-        return quotients, carried_line.o
+        return quotients, rest_line.o
 
-    def _terms(self, m: Module, quotients: list, carried_out: Any, group_valid: list, per_source: int) -> tuple[Any, Any, list]:
+    def _terms(self, m: Module, quotients: list, carried_out: Any, group_valid: list, per_source: int) -> tuple[Any, Any, dict]:
         """The term half, every clock: the lifted differences above the quotient, their sum and count.
 
-        Returns the two sums and the carried value of each term stage (``[stage - 1]``).
+        Returns the two sums and the carried value at the two term stages that read it (by stage).
         """
         p, a, stages = self._parameters, self.arithmetic, self.stages
         (h, w) = p.patch_shape
@@ -476,9 +487,12 @@ class WindowLane(wiring.Component):
             with m.Else():
                 m.d.sync += quotient_copy[c].eq(quotients[c // per_source])
         # The dividend (or the correction) beside the term stages, up to the one before the partials.
-        m.submodules.carried = carried_line = DelayLine(a.carried, stages.sums, reset_less=True)
-        m.d.comb += carried_line.i.eq(carried_out)
-        carried_at = list(carried_line.taps)  # carried_at[stage - 1]: the carried value of that stage
+        # (in block RAM where that is long: :func:`enabled_delay`, loading on every clock), then a register.
+        m.submodules.carried = carried_line = enabled_delay(a.carried, stages.sums - 1)
+        m.d.comb += [carried_line.i.eq(carried_out), carried_line.en.eq(1)]
+        carried_last = Signal(a.carried, name="carried_last", reset_less=True)
+        m.d.sync += carried_last.eq(carried_line.o)
+        carried_at = {stages.sums - 1: carried_line.o, stages.sums: carried_last}  # by term stage
         difference = Signal(data.ArrayLayout(a.lifted, nodes), name="difference", reset_less=True)
         above = Signal(data.ArrayLayout(a.lifted, nodes), name="above", reset_less=True)
         selected = Signal(nodes, name="selected", reset_less=True)
@@ -498,13 +512,15 @@ class WindowLane(wiring.Component):
                     above[x].eq(Mux(chosen, difference[x], 0)),
                     selected[x].eq(chosen),
                 ]
-        m.submodules.above_sum = above_tree = AdderTree(count=nodes, leaf=(0, 2 * a.lift - 1), total=(0, a.lifted_sum_hi))
-        m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes))
+        m.submodules.above_sum = above_tree = AdderTree(count=nodes, leaf=(0, 2 * a.lift - 1), total=(0, a.lifted_sum_hi),
+                                                   adders_per_register=TREE_ADDERS_PER_REGISTER)
+        m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes),
+                                                   adders_per_register=TREE_ADDERS_PER_REGISTER)
         m.d.comb += [above_tree.leaves[x].eq(above[x]) for x in range(nodes)]
         m.d.comb += [count_tree.leaves[x].eq(selected[x]) for x in range(nodes)]
         return above_tree.sum, count_tree.sum, carried_at
 
-    def _value(self, m: Module, term_mode: Any, lane_factor: Any, above_sum: Any, above_count: Any, carried_at: list) -> None:
+    def _value(self, m: Module, term_mode: Any, lane_factor: Any, above_sum: Any, above_count: Any, carried_at: dict) -> None:
         """V from the sums: the products as partial products of a multiplier's width, then their sums."""
         a, stages = self.arithmetic, self.stages
         # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact): the
@@ -512,9 +528,9 @@ class WindowLane(wiring.Component):
         # multiplier's width, then their sums (with the correction), then V.
         value_bits = a.value_bits
         dividend = Signal(a.lifted_sum_hi.bit_length(), name="dividend", reset_less=True)
-        m.d.sync += dividend.eq(Mux(term_mode, carried_at[stages.sums - 2], a.lift))
+        m.d.sync += dividend.eq(Mux(term_mode, carried_at[stages.sums - 1], a.lift))
         correction = Signal(a.carried, name="correction", reset_less=True)
-        m.d.sync += correction.eq(Mux(term_mode, 0, carried_at[stages.partials - 2]))
+        m.d.sync += correction.eq(Mux(term_mode, 0, carried_at[stages.partials - 1]))
         partials = Signal(data.ArrayLayout(unsigned(value_bits), 4), name="partials", reset_less=True)
         m.d.sync += [
             partials[0].eq(lane_factor * above_sum[:MULTIPLIER_BITS]),
