@@ -80,6 +80,12 @@ def test_adder_tree_sums_after_its_levels(count, leaf, enable):
     enables = (rng.random(cycles) < 0.5).tolist() if enable else [True] * cycles
     dut = AdderTree(count=count, leaf=leaf, total=(count * leaf[0], count * leaf[1]), enable=enable)
     assert dut.latency == tree_levels(count) == int(np.ceil(np.log2(count)))
+    check_adder_tree(dut, leaves, enables, enable)
+
+
+def check_adder_tree(dut: AdderTree, leaves: np.ndarray, enables: list[bool], enable: bool) -> None:
+    """The tree's sum, clock by clock, against the leaves' sums through its latency's enabled registers."""
+    count = leaves.shape[1]
 
     def drive(ctx, t):
         for k in range(count):
@@ -87,7 +93,7 @@ def test_adder_tree_sums_after_its_levels(count, leaf, enable):
         if enable:
             ctx.set(dut.en, enables[t])
 
-    seen = run(dut, cycles, drive, lambda ctx, t: ctx.get(dut.sum))
+    seen = run(dut, len(leaves), drive, lambda ctx, t: ctx.get(dut.sum))
     sums = leaves.sum(axis=1).tolist()
     if dut.latency == 0:
         # A single leaf passes through: sampled after the edge, it is the value driven before it.

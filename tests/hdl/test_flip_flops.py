@@ -7,7 +7,7 @@ import pytest
 
 from lost.hdl.blocks import MemoryDelayLine, shape_for
 
-from .test_blocks import loads_model, run
+from .test_blocks import check_adder_tree, loads_model, run
 
 
 @pytest.mark.parametrize("depth, load_rate", [(3, 1.0), (3, 0.6), (4, 0.5), (17, 0.9), (17, 1.0), (6, 0.3)])
@@ -110,20 +110,7 @@ def test_adder_tree_with_adders_between_registers_keeps_its_latency(count, leaf,
         # The root and every ``every``-th level are registers: ``every`` adders at most between two.
         assert registered[-1] and sum(registered) == -(-len(registered) // every)
         assert all(any(registered[level:level + every]) for level in range(len(registered)))
-
-    def drive(ctx, t):
-        for k in range(count):
-            ctx.set(dut.leaves[k], int(leaves[t, k]))
-        if enable:
-            ctx.set(dut.en, enables[t])
-
-    seen = run(dut, cycles, drive, lambda ctx, t: ctx.get(dut.sum))
-    sums = leaves.sum(axis=1).tolist()
-    if dut.latency == 0:
-        assert seen == sums
-    else:
-        expected = loads_model(sums, enables, dut.latency)
-        assert seen[dut.latency:] == expected[dut.latency:]
+    check_adder_tree(dut, leaves, enables, enable)
 
 
 def synthesized_cells(design, name, out_dir):
