@@ -124,6 +124,7 @@ def synthesized_cells(design, name, out_dir):
     return Counter(cell["type"] for cell in netlist["modules"]["top"]["cells"].values())
 
 
+@pytest.mark.fpga  # Yosys comes with the fpga extra (`make synth`), not with `make test`
 def test_a_tree_with_two_adders_between_registers_keeps_one_carry_chain_per_adder(tmp_path):
     from lost.hdl.blocks import AdderTree
 
@@ -135,6 +136,7 @@ def test_a_tree_with_two_adders_between_registers_keeps_one_carry_chain_per_adde
     assert every[2]["TRELLIS_FF"] < 0.45 * every[1]["TRELLIS_FF"]
 
 
+@pytest.mark.fpga
 def test_a_memory_delay_line_is_block_ram_and_its_two_registers(tmp_path):
     from amaranth.hdl import signed
     from amaranth.lib import data
