@@ -13,9 +13,12 @@ from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from lost.hdl.blocks import index_range
+from lost.hdl.blocks import Replicas, index_range
 from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.window_lane import LaneArithmetic
+
+#: Lifted-patch registers enabled by one copy of the pass's enable (a patch row of Nygren's 10 x 10).
+LIFTING_COPY_NODES = 10
 
 __all__ = ["PatchPreparation"]
 
@@ -117,6 +120,15 @@ class PatchPreparation(wiring.Component):
         # The pass reads the patch in place: the memory's read register and one after it keep its paths short.
         prepare_step = Signal(range(nodes + 2))
         lifting = Signal()  # the pass takes a node: n, Ssum and lifted_patch (cycles 3 .. hw + 2)
+        lifting_next = Signal()  # the value ``lifting`` takes on the next edge (set by the state machine)
+        m.d.comb += lifting_next.eq(lifting)
+        m.d.sync += lifting.eq(lifting_next)
+        # The lifted patch's registers take a copy of ``lifting`` per row of the patch, loaded from the same next
+        # value so that every copy equals ``lifting``: one register enabling all of them was the 4-lane build's
+        # critical path (17.3 ns of routing to 1,700 clock enables).
+        copies = -(-nodes // LIFTING_COPY_NODES)
+        m.submodules.lifting_copies = lifting_copies = Replicas(1, copies)
+        m.d.comb += lifting_copies.i.eq(lifting_next)
         node = Signal(index_range(nodes))
         with m.If(idle | (node == nodes - 1)):
             m.d.sync += node.eq(0)
@@ -133,10 +145,11 @@ class PatchPreparation(wiring.Component):
             head_valid.eq(head_valid_read),
         ]
         # Outside the state machine, so that a register alone enables the pass's registers.
+        for x in range(nodes):
+            with m.If(lifting_copies.o[x // LIFTING_COPY_NODES]):
+                m.d.sync += lifted_patch[x].eq(lifted_patch[x + 1] if x < nodes - 1 else a.lift - head_depth)
         with m.If(lifting):
-            m.d.sync += [lifted_patch[x].eq(lifted_patch[x + 1]) for x in range(nodes - 1)]
             m.d.sync += [
-                lifted_patch[nodes - 1].eq(a.lift - head_depth),
                 valid_count.eq(valid_count + head_valid),
                 patch_sum.eq(patch_sum + Mux(head_valid, head_depth, 0)),
             ]
@@ -152,12 +165,10 @@ class PatchPreparation(wiring.Component):
                 # n, sum_valid S and the lifted depths, from node k - 2 on cycle k = 2 .. hw + 1.
                 m.d.sync += prepare_step.eq(prepare_step + 1)
                 with m.If(prepare_step == 1):
-                    m.d.sync += lifting.eq(1)
+                    m.d.comb += lifting_next.eq(1)
                 with m.If(prepare_step == nodes + 1):
-                    m.d.sync += [
-                        lifting.eq(0),
-                        factor.eq(Mux(mean_compensation, valid_count + head_valid, 1)),
-                    ]
+                    m.d.comb += lifting_next.eq(0)
+                    m.d.sync += factor.eq(Mux(mean_compensation, valid_count + head_valid, 1))
                     m.next = "BIAS"
             with m.State("BIAS"):
                 m.d.comb += self.done.eq(1)
