@@ -185,6 +185,12 @@ class NavParameters:
         over sigma per node, for the estimate to stay usable (default 0.15; measured at the true
         position on the shipped floors: at least 0.39 better than anywhere else, about 0 on
         ``lookalike``).
+    elsewhere_margin : float
+        The wrong-place check, on the look-alike check's patches: a placement beyond three sigma that fits
+        better than the best near the estimate by more than this (same units) says the density sits on
+        the wrong place; ``reinit_after`` such patches among the last ``2 reinit_after`` re-initialize the
+        filter (counted ``reinitialized_elsewhere``). Default 0.5 (measured on ``offset`` over six terrain
+        seeds: -1 to -3 on a wrong lock, never below 0 at the true place).
     reinit_after : int
         Terrain updates refused in a row before the filter re-initializes. Default 10.
     seed : int
@@ -246,6 +252,7 @@ class NavParameters:
     usable_updates_point: int = 200
     lookalike_radius_m: float = 600.0
     lookalike_margin: float = 0.15
+    elsewhere_margin: float = 0.5
     reinit_after: int = 10
     seed: int = 0
     use_usbl_fix: bool = True
@@ -264,7 +271,7 @@ class NavParameters:
         if self.likelihood not in LIKELIHOODS:
             raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}.")
         for name in ("depth_noise_m", "likelihood_weight", "initial_sigma_m", "slant_range_sigma_m", "pmf_sigmas", "gate_nis",
-                     "misfit_gate", "usable_sigma_nodes", "lookalike_radius_m"):
+                     "misfit_gate", "usable_sigma_nodes", "lookalike_radius_m", "elsewhere_margin"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}.")

@@ -228,6 +228,9 @@ class PointMassFilter(BayesFilter):
     def _spacing(self) -> float:
         return self._cell
 
+    def _cell_half_width(self) -> float:
+        return self._cell / 2.0
+
     def _reweigh(self, log_likelihood: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         posterior = self._p_grid * np.exp(log_likelihood - log_likelihood.max())
         total = posterior.sum()

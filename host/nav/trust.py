@@ -121,6 +121,7 @@ class Trust:
         self.usable = False
         self._ranges: deque[bool] = deque(maxlen=10)  # True: refused
         self._ranges_refused_in_row = 0
+        self._elsewhere: deque[bool] = deque(maxlen=2 * params.reinit_after)  # True: a better fit far off
         self._misfits: deque[float] = deque(maxlen=MISFIT_MEMORY)
         self.misfit_level = 1.0
         self.settled = False
@@ -183,16 +184,29 @@ class Trust:
     def sigma_max(self, covariance: np.ndarray) -> float:
         return math.sqrt(max(float(np.linalg.eigvalsh(covariance)[-1]), 0.0))
 
-    def look_alike(self, likelihood, mean: np.ndarray, covariance: np.ndarray, patch) -> None:
-        """The look-alike check of an accepted patch update (see the module docstring)."""
+    def look_alike(self, likelihood, mean: np.ndarray, covariance: np.ndarray, patch) -> bool:
+        """The look-alike and wrong-place checks of an accepted patch update (see the module docstring).
+
+        True when the filter should re-initialize: ``reinit_after`` of the last ``2 reinit_after`` checked
+        patches fit better far from the estimate than near it.
+        """
         sigma = self.sigma_max(covariance)
         if sigma > self._p.usable_sigma_nodes * self._node_m:
-            return
+            return False
         margin = likelihood.margin(mean, patch, radius_m=self._p.lookalike_radius_m, exclusion_m=max(3.0 * sigma, 2.0 * self._node_m))
+        if not math.isfinite(margin):
+            return False
         if margin < self._p.lookalike_margin:
             self.counts["lookalike"] += 1
             self.good_in_row = 0
             self.usable = False
+        self._elsewhere.append(margin < -self._p.elsewhere_margin)
+        if margin < -self._p.elsewhere_margin:
+            self.counts["fits_better_elsewhere"] += 1
+        if sum(self._elsewhere) >= self._p.reinit_after:
+            self._restart("reinitialized_elsewhere")
+            return True
+        return False
 
     def at_edge(self, on_map_mass: float, covariance: np.ndarray) -> bool:
         """Whether a narrow density straddles the map's edge, where a patch is left out (see the module docstring)."""
@@ -212,13 +226,20 @@ class Trust:
             self.good_in_row = 0
             self.usable = False
         if self._ranges_refused_in_row >= 2 * self._p.reinit_after:
-            self._ranges_refused_in_row = 0
-            self._ranges.clear()
-            self.settled = False
-            self.counts["reinitializations"] += 1
-            self.counts["reinitialized_by_ranges"] += 1
+            self._restart("reinitialized_by_ranges")
             return True
         return False
+
+    def _restart(self, reason: str | None) -> None:
+        """A re-initialization: the evidence windows start afresh and the filter is no longer settled."""
+        self.outcomes.clear()
+        self._ranges.clear()
+        self._ranges_refused_in_row = 0
+        self._elsewhere.clear()
+        self.settled = False
+        self.counts["reinitializations"] += 1
+        if reason:
+            self.counts[reason] += 1
 
     def rejected(self, reason: str) -> bool:
         """A terrain update was refused; True when the filter should re-initialize now."""
@@ -228,7 +249,6 @@ class Trust:
         self.good_in_row = 0
         self.usable = False
         if sum(self.outcomes) >= self._p.reinit_after:
-            self.outcomes.clear()
-            self.counts["reinitializations"] += 1
+            self._restart(None)
             return True
         return False

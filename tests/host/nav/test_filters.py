@@ -469,3 +469,84 @@ def test_the_particles_keep_their_bias_prior_until_usable_and_a_reinitialization
     learned = np.unique(pf._b[0])
     pf._reinitialize()
     assert set(np.unique(pf._b[0])) <= set(learned)  # the sensor's bias, not the place's: kept
+
+
+def test_patches_that_fit_better_elsewhere_re_initialize_a_wrong_lock():
+    """150 m east of the truth lies a noisy copy of its terrain: a lock there is accepted, but every patch fits the truth better."""
+    rng = np.random.default_rng(3)
+    depth = synthetic_terrain((140, 100), seed=4, roughness_m=10.0, hurst=0.5)
+    depth[:, 39:52] = depth[:, 24:37] + rng.normal(0.0, 1.0, (140, 13))
+    grid = Grid(depth, 0.0, 0.0, NODE)
+    params = _quiet(initial_sigma_m=15.0, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+    truth = np.array([300.0, 300.0])
+    pmf.start(0.0, truth + (150.0, 0.0), _observation())
+    for k in range(params.reinit_after - 1):
+        truth = _track(pmf, grid, truth, 1)
+        assert pmf.counts["reinitializations"] == 0, k
+    assert np.hypot(*(pmf.estimate().position - truth - (150.0, 0.0))) < 5.0  # locked on the copy
+    assert pmf.counts["fits_better_elsewhere"] == params.reinit_after - 1 and pmf.counts["rejected_misfit"] == 0
+    truth = _track(pmf, grid, truth, 1)
+    after = pmf.estimate()
+    assert pmf.counts["reinitialized_elsewhere"] == 1 and after.stage == "reinitialized"
+    assert np.sqrt(np.linalg.eigvalsh(after.covariance)).min() > 0.9 * params.initial_sigma_m  # searching again
+
+
+def test_the_wrong_place_check_counts_a_window_of_patches_not_a_run():
+    from lost.host.nav.trust import Trust
+
+    class Margins:
+        def __init__(self, values):
+            self.values = iter(values)
+
+        def margin(self, *args, **kwargs):
+            return next(self.values)
+
+    params = _quiet()
+    trust = Trust(params, node_m=NODE)
+    n = params.reinit_after
+    # Alternating: n better-elsewhere patches take 2n - 1 checks; the n-th re-initializes.
+    margins = Margins([-1.0, 0.8] * n)
+    outcomes = [trust.look_alike(margins, np.zeros(2), np.eye(2), None) for _ in range(2 * n - 1)]
+    assert outcomes == [False] * (2 * n - 2) + [True] and trust.counts["reinitialized_elsewhere"] == 1
+    # A look-alike (about as good elsewhere) lowers the flag but is no evidence of a wrong place.
+    ties = Margins([0.0] * (3 * n))
+    assert not any(trust.look_alike(ties, np.zeros(2), np.eye(2), None) for _ in range(3 * n))
+    assert trust.counts["lookalike"] == n + 3 * n and trust.counts["reinitializations"] == 1
+    # A wide density is not checked at all.
+    assert not trust.look_alike(Margins([-5.0]), np.zeros(2), 1e6 * np.eye(2), None)
+
+
+def test_a_range_rules_out_only_the_cells_it_misses_when_they_are_wider_than_its_sigma():
+    from lost.host.nav.bayes import ring_log_likelihood
+
+    sigma = 3.0
+    r = np.array([-40.0, -12.0, -2.0, 0.0, 5.0, 12.0, 20.0])
+    assert np.allclose(ring_log_likelihood(r, sigma, 2.5), -0.5 * (r / sigma) ** 2)  # fine cells: the Gaussian
+    coarse = ring_log_likelihood(r, sigma, 12.5)
+    assert np.all(coarse[1:-1] == 0.0)  # every cell the ring crosses alike
+    assert np.allclose(coarse[[0, -1]], -0.5 * ((np.abs(r[[0, -1]]) - 12.5) / sigma) ** 2)
+
+
+def test_twenty_ranges_across_coarse_cells_keep_every_cell_the_ring_crosses():
+    """A 3 m ring across 25 m cells: read at the centres, the cells it crosses off-centre would empty."""
+    from lost.host.nav.stages import TrackFrame
+
+    grid = _map(shape=(300, 300))
+    params = _quiet(use_slant_range=True, initial_sigma_m=300.0, pmf_cells=96)
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+    centre = np.array([1500.0, 1500.0])
+    pmf.start(0.0, centre, _observation())
+    x, y, before = (a.copy() for a in pmf.density)
+    cell = x[0, 1] - x[0, 0]
+    assert cell > 4.0 * params.slant_range_sigma_m
+    ship = TrackFrame(centre[0] - 1000.0, centre[1], 90.0)
+    for _ in range(20):
+        pmf.update(_observation(slant=1000.0, frame=ship))
+    assert pmf.counts["range_updates"] == 20
+    _, _, after = pmf.density
+    off_ring = np.abs(np.hypot(x - ship.ship_x_m, y - ship.ship_y_m) - 1000.0)
+    crossed = (off_ring <= cell / 2.0) & (np.abs(y - centre[1]) < 150.0)
+    kept = after[crossed] / before[crossed]
+    assert crossed.sum() >= 12 and kept.max() / kept.min() < 1.0 + 1e-9
+    assert after[off_ring > cell / 2.0 + 3.0 * params.slant_range_sigma_m].sum() < 1e-6
