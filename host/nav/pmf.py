@@ -252,9 +252,10 @@ class PointMassFilter(BayesFilter):
         return float(self.velocity_bias_mps[0] * age_s), float(self.velocity_bias_mps[1] * age_s)
 
     def _learn_bias(self, correction_m: np.ndarray) -> None:
-        """Average the implied velocity error (see the module docstring); only once the estimate is usable."""
+        """Average the implied velocity error (see the module docstring); only once the density has been narrow a while."""
         tau = self._p.velocity_bias_time_s
-        if tau is None or not self._trust.usable or self._since_bias_update_s <= 0:
+        narrow = self._trust.good_in_row >= self._p.bias_learning_updates
+        if tau is None or not narrow or self._since_bias_update_s <= 0:
             self._since_bias_update_s = 0.0
             return
         implied = -correction_m / self._since_bias_update_s

@@ -373,7 +373,8 @@ def test_the_point_mass_filter_learns_its_bias_from_every_correction_and_moves_i
     """A range's correction and the terrain's that follows are one drift: learning from the terrain's alone
     read a range-versus-terrain tug of war as a bias of the opposite sign."""
     grid = _map()
-    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), _quiet(velocity_bias_time_s=20.0), grid=grid)
+    params = _quiet(velocity_bias_time_s=20.0, bias_learning_updates=1)
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
     truth = np.array([400.0, 400.0])
     pmf.start(0.0, truth, _observation())
     pmf.update(_observation(_patch_at(grid, *truth)))
@@ -550,3 +551,22 @@ def test_twenty_ranges_across_coarse_cells_keep_every_cell_the_ring_crosses():
     kept = after[crossed] / before[crossed]
     assert crossed.sum() >= 12 and kept.max() / kept.min() < 1.0 + 1e-9
     assert after[off_ring > cell / 2.0 + 3.0 * params.slant_range_sigma_m].sum() < 1e-6
+
+
+def test_the_point_mass_filter_learns_its_bias_only_once_its_density_has_been_narrow_for_a_few_updates():
+    """Before, its corrections are the acquisition's own moves, not a drift."""
+    grid = _map()
+    params = _quiet(velocity_bias_time_s=20.0, usable_updates=30, bias_learning_updates=3)
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+    truth = np.array([400.0, 400.0])
+    pmf.start(0.0, truth, _observation())
+    truth = _track(pmf, grid, truth, 2)
+    narrow_pull = (pmf._p_grid.copy(), 4.0 * np.eye(2), np.array([-5.0, 0.0]))
+    pmf._since_bias_update_s = 10.0
+    pmf._accept(*narrow_pull, terrain=True)  # narrow for 2 updates: not yet
+    np.testing.assert_array_equal(pmf.velocity_bias_mps, 0.0)
+    truth = _track(pmf, grid, truth, 1)
+    assert not pmf.estimate().usable  # 3 of the 30 a usable flag needs
+    pmf._since_bias_update_s = 10.0
+    pmf._accept(*narrow_pull, terrain=True)
+    np.testing.assert_allclose(pmf.velocity_bias_mps, [0.25, 0.0])  # 5 m in 10 s, half of it (10 s / 20 s)
