@@ -31,6 +31,11 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   over ``lookalike_radius_m`` around the estimate; if a placement beyond three sigma fits within
   ``lookalike_margin`` (mean absolute residual over sigma, per node) of the best near the estimate,
   the update is counted ``lookalike`` and the flag goes down.
+- Wrong place: the same check measures whether a placement beyond three sigma fits *better* than the
+  best near the estimate by more than ``elsewhere_margin`` (counted ``fits_better_elsewhere``). A density
+  that locked onto a wrong place learns that place's misfit as its running level, so the misfit gate no
+  longer refuses it; ``reinit_after`` such patches among the last ``2 reinit_after`` checked re-initialize
+  the filter (``reinitialized_elsewhere``).
 - The map's edge: a patch whose placements hang past the map carries no information, and the
   candidates beside it on the map all fit it a little worse than the truth would; so while the
   density is narrow (under twice the usable width) and less than ``EDGE_MASS`` of it lies where the
