@@ -64,6 +64,10 @@ BAD_SETTINGS = {
     "navigation_offset_of_three": ("navigation", "initial_offset_m = [1, 2, 3]", "navigation.initial_offset_m (metres): Tuple should have at most 2 items"),
     "navigation_unknown": ("navigation", "kay = 3", "[navigation] has unknown field(s) ['kay']"),
     "navigation_int_as_float": ("navigation", "pf_particles = 1000.5", "navigation.pf_particles: Input should be a valid integer, got 1000.5"),
+    "navigation_elsewhere_negative": ("navigation", "elsewhere_margin = -0.5",
+                                      "[navigation]: elsewhere_margin must be a positive finite number, got -0.5"),
+    "navigation_bias_learning_zero": ("navigation", "bias_learning_updates = 0",
+                                      "[navigation]: bias_learning_updates must be a whole number of at least 1, got 0"),
 }
 
 
