@@ -31,3 +31,21 @@ def test_opencv_matchtemplate_sqdiff_float32_501_10(benchmark, paper_case):
     terrain, patch = (a.astype(np.float32) for a in paper_case)
     surface = benchmark(cv2.matchTemplate, terrain, patch, cv2.TM_SQDIFF)
     assert np.unravel_index(np.argmin(surface), surface.shape) == (200, 300)
+
+
+@pytest.mark.parametrize("side", [501, 4000])
+def test_correlation_of_a_filters_search_area_on_a_map_with_holes(benchmark, side):
+    """A filter's update: 60 x 60 placements of a large survey grid with holes (real grids have them).
+
+    The hole policy once built a prefix sum of the whole map at every call: 380 ms at 4000 x 4000.
+    """
+    from lost.host.correlator import correlation
+
+    rng = np.random.default_rng(side)
+    terrain = rng.integers(-1000, 1000, (side, side)).astype(np.int16)
+    holes = np.zeros((side, side), bool)
+    holes[rng.integers(0, side, 50), rng.integers(0, side, 50)] = True
+    i0 = j0 = side // 2
+    patch = terrain[i0 + 20 : i0 + 30, j0 + 20 : j0 + 30].copy()
+    result = benchmark(correlation, terrain, patch, area=(i0, j0, 60, 60), holes=holes)
+    assert result.best.value == 0 or holes[i0 + 20 : i0 + 30, j0 + 20 : j0 + 30].any()

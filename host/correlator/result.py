@@ -112,11 +112,16 @@ def valid_placements(
     if not isinstance(holes, np.ndarray) or holes.dtype != np.bool_ or holes.shape != (H, W):
         raise ValueError(f"holes must be a boolean array of the map's shape {(H, W)}, got "
                          f"{getattr(holes, 'dtype', type(holes).__name__)} {getattr(holes, 'shape', '')}")
-    # Box sum of the hole mask over every window, by a 2-D prefix sum.
-    prefix = np.zeros((H + 1, W + 1), dtype=np.int64)
-    prefix[1:, 1:] = np.cumsum(np.cumsum(holes, axis=0), axis=1)
+    # Box sum of the hole mask over the windows of the area's placements (clipped to the map), by a 2-D
+    # prefix sum of the nodes they cover alone: over the whole map it cost 380 ms a call on a 4000 x 4000
+    # map with holes, where the correlation itself takes 0.2 ms.
+    r0, r1 = (int(np.clip(v, 0, H - h)) for v in (i0, i0 + rows - 1))
+    c0, c1 = (int(np.clip(v, 0, W - w)) for v in (j0, j0 + cols - 1))
+    covered = holes[r0 : r1 + h, c0 : c1 + w]
+    prefix = np.zeros((covered.shape[0] + 1, covered.shape[1] + 1), dtype=np.int64)
+    prefix[1:, 1:] = np.cumsum(np.cumsum(covered, axis=0), axis=1)
     touching = (prefix[h:, w:] - prefix[:-h, w:] - prefix[h:, :-w] + prefix[:-h, :-w]) > 0
-    inside = np.clip(i, 0, H - h), np.clip(j, 0, W - w)
+    inside = np.clip(i, 0, H - h) - r0, np.clip(j, 0, W - w) - c0
     return valid & ~touching[inside]
 
 

@@ -260,7 +260,7 @@ class TerrainLikelihood:
             result = prep.correlation(words, mask, (i0, j0, i1 - i0 + 1, j1 - j0 + 1), backend=self._backend)
             return result.surface.astype(np.float64) * prep.lsb_m / float(n) ** 2, result.valid
         h, w = words.shape
-        valid = ~prep.placements_touching_holes((h, w))[i0 : i1 + 1, j0 : j1 + 1]
+        valid = ~prep.placements_touching_holes((h, w), (i0, j0, i1 - i0 + 1, j1 - j0 + 1))
         sub = prep.words[i0 : i1 + h, j0 : j1 + w]
         m = sub.astype(np.float64) * prep.lsb_m
         s = np.where(mask, words.astype(np.float64) * prep.lsb_m, 0.0)

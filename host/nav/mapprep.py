@@ -10,15 +10,13 @@ whose h x w window touches a hole is excluded from the estimate afterwards
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 from scipy import ndimage
 
 from lost import model
 from lost.model.correlator import DEPTH_MAX, DEPTH_MIN
 
-from ..correlator import Correlation, correlation
+from ..correlator import Area, Correlation, correlation, valid_placements
 from ..grid import Grid
 
 __all__ = ["PreparedMap", "LSB_CANDIDATES_M"]
@@ -68,7 +66,8 @@ class PreparedMap:
         self._lsb_m = float(lsb_m)
         self._offset_m = float(offset_m)
         self._words = model.quantize(depth, self._lsb_m, offset_m=self._offset_m)
-        self._touching = lru_cache(maxsize=4)(self._compute_touching)
+        # Checked once: most maps have no hole, and then no placement needs the hole policy.
+        self._holes_or_none = holes if holes.any() else None
 
     @property
     def grid(self) -> Grid:
@@ -91,20 +90,18 @@ class PreparedMap:
     def offset_m(self) -> float:
         return self._offset_m
 
-    def placements_touching_holes(self, patch_shape: tuple[int, int]) -> np.ndarray:
-        """Bool array over the correlator's surface shape: True where the window covers a hole."""
-        return self._touching(tuple(int(s) for s in patch_shape))
+    def placements_touching_holes(self, patch_shape: tuple[int, int], area: Area | None = None) -> np.ndarray:
+        """Bool array over ``area`` of the correlator's placements (default: all): True where the window covers a hole.
 
-    def _compute_touching(self, patch_shape: tuple[int, int]) -> np.ndarray:
-        h, w = patch_shape
+        The correlator's own policy (:func:`~lost.host.correlator.valid_placements`), edges aside.
+        """
+        h, w = (int(s) for s in patch_shape)
         rows, cols = self._holes.shape
         if not (1 <= h <= rows and 1 <= w <= cols):
             raise ValueError(f"a {h} x {w} patch does not fit in the {rows} x {cols} map")
-        # Box sum of the hole mask over every window, by a 2-D prefix sum.
-        prefix = np.zeros((rows + 1, cols + 1), dtype=np.int64)
-        prefix[1:, 1:] = np.cumsum(np.cumsum(self._holes, axis=0), axis=1)
-        box = prefix[h:, w:] - prefix[:-h, w:] - prefix[h:, :-w] + prefix[:-h, :-w]
-        return box > 0
+        area = (0, 0, rows - h + 1, cols - w + 1) if area is None else area
+        on_map = valid_placements((rows, cols), (h, w), area)
+        return on_map & ~valid_placements((rows, cols), (h, w), area, self._holes_or_none)
 
     def correlation(self, words: np.ndarray, mask: np.ndarray, area: tuple[int, int, int, int], *, backend: str) -> Correlation:
         """The patch's correlation over ``area`` = (i0, j0, rows, cols) of the map's placements, the map's holes applied.
@@ -112,7 +109,7 @@ class PreparedMap:
         The whole map goes to the backend (a hardware backend keeps a tile of it resident), and the
         valid placements come back with the surface: the hole policy is the correlator's, in one place.
         """
-        return correlation(self._words, words, mask=mask, area=area, holes=self._holes if self._holes.any() else None, backend=backend)
+        return correlation(self._words, words, mask=mask, area=area, holes=self._holes_or_none, backend=backend)
 
     def quantize_patch(self, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """A sonar patch in the map's words, with its valid mask.

@@ -82,3 +82,16 @@ def test_an_area_without_placements_is_refused():
 
 def test_every_backend_is_listed():
     assert set(BACKENDS) == {"software", "model", "rtl", "fpga"}
+
+
+def test_valid_placements_matches_a_window_by_window_check_over_areas_reaching_off_the_map():
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        H, W = (int(v) for v in rng.integers(5, 30, 2))
+        h, w = (int(v) for v in rng.integers(1, min(H, W) + 1, 2))
+        holes = rng.random((H, W)) < rng.choice([0.01, 0.1, 0.3])
+        i0, j0 = int(rng.integers(-10, H + 5)), int(rng.integers(-10, W + 5))
+        rows, cols = (int(v) for v in rng.integers(1, 25, 2))
+        want = np.array([[0 <= i <= H - h and 0 <= j <= W - w and not holes[i : i + h, j : j + w].any()
+                          for j in range(j0, j0 + cols)] for i in range(i0, i0 + rows)])
+        assert np.array_equal(valid_placements((H, W), (h, w), (i0, j0, rows, cols), holes), want)
