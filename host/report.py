@@ -14,7 +14,9 @@ The Bayesian filters' trust figures (``methods.pmf``, ``methods.pf``):
   lies in its two-sided 95 % band [0.051, 7.38];
 - ``false_fixes``: records flagged usable whose error lies beyond 3 sigma (NEES above 11.83);
 - ``usable_fraction``: the share of records flagged usable;
-- ``ms_per_update``: the median wall time of the estimator's work at a record, milliseconds.
+- ``ms_per_update``: the median wall time of the estimator's work at a record, milliseconds;
+- ``depth_bias_m``: the single-depth form's last depth-bias estimate (measured minus map), metres;
+  None for the patch form, which needs none.
 """
 
 from __future__ import annotations
@@ -89,6 +91,11 @@ def nees(track: FilterTrack, truth: np.ndarray) -> np.ndarray:
     return out
 
 
+def _last_finite(values: np.ndarray) -> float | None:
+    finite = values[np.isfinite(values)]
+    return round(float(finite[-1]), 3) if finite.size else None
+
+
 def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | None) -> dict[str, Any]:
     """The trust figures of one Bayesian filter (see the module docstring); None where the truth is needed but unknown."""
     updates = np.isin(track.stage, UPDATE_STAGES)
@@ -100,6 +107,7 @@ def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | No
         "counts": dict(track.counts),
         "nees_in_band": None,
         "false_fixes": None,
+        "depth_bias_m": _last_finite(track.depth_bias_m),
     }
     if truth is None:
         return figures

@@ -6,8 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from lost.host.nav.pipeline import NavResult
-from lost.host.report import ConvergenceRule, convergence_index, error_stats, summarize, write_summary, write_track_csv
+from lost.host.nav.pipeline import FilterTrack, NavResult
+from lost.host.report import (ConvergenceRule, convergence_index, error_stats, filter_figures, summarize, write_summary,
+                              write_track_csv)
 
 
 def test_error_stats_by_hand():
@@ -59,3 +60,10 @@ def test_summary_without_truth_has_no_errors():
     result = NavResult(**{**result.__dict__, "truth": None})
     summary = summarize(result, name="log", parameters={})
     assert summary["truth_known"] is False and summary["methods"] == {}
+
+
+def test_a_filters_figures_carry_its_last_depth_bias_estimate_or_none():
+    track = FilterTrack.empty(4)
+    assert filter_figures(track, None, None)["depth_bias_m"] is None  # the patch form
+    track.depth_bias_m[:3] = [0.5, 1.25, 1.5]
+    assert filter_figures(track, None, None)["depth_bias_m"] == 1.5  # the last finite estimate
