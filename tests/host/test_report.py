@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from lost.host.nav.pipeline import FilterTrack, NavResult
-from lost.host.report import (ConvergenceRule, convergence_index, error_stats, filter_figures, summarize, write_summary,
-                              write_track_csv)
+from lost.host.report import ConvergenceRule, convergence_index, error_stats, filter_figures, summarize, write_summary, write_track_csv
 
 
 def test_error_stats_by_hand():
