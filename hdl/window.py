@@ -255,7 +255,7 @@ class WindowCore(wiring.Component):
                 lane.advance.eq(advance),
                 *(lane.sum_window[l].eq(window.columns[sums_port + q + l]) for l in range(w)),
                 *(lane.term_window[l].eq(window.columns[q + l]) for l in range(w)),
-                lane.patch_valid.eq(patch.patch_valid),
+                lane.patch_valid.eq(patch.lane_patch_valid[q]),
                 lane.lifted_patch.eq(patch.lifted_patch),
                 lane.mean_compensation.eq(patch.mean_compensation),
                 lane.factor.eq(patch.factor),

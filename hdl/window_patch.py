@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -35,7 +35,7 @@ class PatchPreparation(wiring.Component):
     on edge ``h * w + 3`` (the pass takes a node per clock, after the memory's read register and one
     after it: a block RAM's output is slow), when ``dividend_bias`` loads; every output holds from
     edge ``h * w + 3`` until the next ``start``. ``factor``, ``lifted_patch`` and ``patch_valid`` are
-    final an edge earlier.
+    final an edge earlier. Each of ``lane_patch_valid`` equals ``patch_valid`` on every cycle.
 
     Parameters
     ----------
@@ -56,6 +56,8 @@ class PatchPreparation(wiring.Component):
         The pass's last cycle.
     patch_valid, lifted_patch, mean_compensation, factor, dividend_bias : ``Out(...)``
         As the :class:`~lost.hdl.window_lane.WindowLane`'s ports of those names.
+    lane_patch_valid : ``Out(ArrayLayout(h * w, lanes))``
+        A copy of ``patch_valid`` for each lane, a register of its own (the same value on every cycle).
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
@@ -72,6 +74,7 @@ class PatchPreparation(wiring.Component):
             "start_mode": In(1),
             "done": Out(1),
             "patch_valid": Out(nodes),
+            "lane_patch_valid": Out(data.ArrayLayout(nodes, p.lanes)),
             "lifted_patch": Out(data.ArrayLayout(a.lifted, nodes)),
             "mean_compensation": Out(1),
             "factor": Out(a.count),
@@ -106,6 +109,14 @@ class PatchPreparation(wiring.Component):
         # Patch words since the last start (or reset) fill nodes 0, 1, ...; the valid bits shift in.
         patch_pointer = Signal(index_range(nodes))
         loading = self.patch_in.valid & self.patch_in.ready
+        # Each lane takes a copy of the valid bits, loaded from the same next value so that every copy equals
+        # them: a valid bit resets 33 of a lane's registers, and one register driving them in every lane was
+        # the 4-lane build's critical path (c984e45: 10.8 ns of routing to the last lane's quotient copy).
+        patch_valid_next = Signal(nodes)
+        m.d.comb += patch_valid_next.eq(patch_valid)
+        m.d.sync += patch_valid.eq(patch_valid_next)
+        m.submodules.lane_patch_valid = lane_copies = Replicas(nodes, p.lanes, reset_less=True)
+        m.d.comb += [lane_copies.i.eq(patch_valid_next), self.lane_patch_valid.eq(lane_copies.o)]
         m.d.comb += [
             self.patch_in.ready.eq(self.accept),
             patch_write.addr.eq(patch_pointer),
@@ -114,8 +125,7 @@ class PatchPreparation(wiring.Component):
         ]
         with m.If(loading):
             m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
-            m.d.sync += [patch_valid[x].eq(patch_valid[x + 1]) for x in range(nodes - 1)]
-            m.d.sync += patch_valid[nodes - 1].eq(self.patch_in.payload.valid)
+            m.d.comb += patch_valid_next.eq(Cat(patch_valid[1:], self.patch_in.payload.valid))
 
         # The pass reads the patch in place: the memory's read register and one after it keep its paths short.
         prepare_step = Signal(range(nodes + 2))
