@@ -377,7 +377,7 @@ class Replicas(wiring.Component):
     synthesis flow can keep them apart (Yosys would merge equal registers); the gateware itself marks
     nothing device-specific.
 
-    Latency: 1 clock. The registers have a reset (to ``init``) unless ``reset_less``.
+    Latency: 1 clock. The registers have a reset (to ``init``).
 
     Parameters
     ----------
@@ -385,8 +385,6 @@ class Replicas(wiring.Component):
     count : int
     init : int
         The registers' reset value.
-    reset_less : bool
-        Registers without a reset: copies of a value that itself persists through a reset.
 
     Members
     -------
@@ -394,15 +392,14 @@ class Replicas(wiring.Component):
     o : ``Out(ArrayLayout(shape, count))``
     """
 
-    def __init__(self, shape: ShapeLike, count: int, *, init: int = 0, reset_less: bool = False):
+    def __init__(self, shape: ShapeLike, count: int, *, init: int = 0):
         self._shape, self._count, self._init = shape, _check_count("count", count), init
-        self._reset_less = reset_less
         super().__init__({"i": In(shape), "o": Out(data.ArrayLayout(shape, count))})
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         for k in range(self._count):
-            register = Signal(self._shape, name=f"copy{k}_replica", init=self._init, reset_less=self._reset_less)
+            register = Signal(self._shape, name=f"copy{k}_replica", init=self._init)
             m.d.sync += register.eq(self.i)
             m.d.comb += self.o[k].eq(register)
         return m

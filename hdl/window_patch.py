@@ -109,14 +109,13 @@ class PatchPreparation(wiring.Component):
         # Patch words since the last start (or reset) fill nodes 0, 1, ...; the valid bits shift in.
         patch_pointer = Signal(index_range(nodes))
         loading = self.patch_in.valid & self.patch_in.ready
-        # Each lane takes a copy of the valid bits, loaded from the same next value so that every copy equals
-        # them: a valid bit resets 33 of a lane's registers, and one register driving them in every lane was
-        # the 4-lane build's critical path (c984e45: 10.8 ns of routing to the last lane's quotient copy).
-        patch_valid_next = Signal(nodes)
-        m.d.comb += patch_valid_next.eq(patch_valid)
-        m.d.sync += patch_valid.eq(patch_valid_next)
-        m.submodules.lane_patch_valid = lane_copies = Replicas(nodes, p.lanes, reset_less=True)
-        m.d.comb += [lane_copies.i.eq(patch_valid_next), self.lane_patch_valid.eq(lane_copies.o)]
+        # Each lane takes a copy of the valid bits, loaded with them from the same shifted value so that every
+        # copy equals them (reset-less, as they are): a valid bit resets 33 of a lane's registers, and one
+        # register driving them in every lane was the 4-lane build's critical path (c984e45: 10.8 ns of
+        # routing to the last lane's quotient copy). Loaded only on a patch word, the copies need no LUT.
+        # Named ``*_replica`` so that the synthesis flow keeps them apart.
+        lane_copies = [Signal(nodes, name=f"lane{q}_patch_valid_replica", reset_less=True) for q in range(p.lanes)]
+        m.d.comb += [self.lane_patch_valid[q].eq(copy) for q, copy in enumerate(lane_copies)]
         m.d.comb += [
             self.patch_in.ready.eq(self.accept),
             patch_write.addr.eq(patch_pointer),
@@ -125,7 +124,8 @@ class PatchPreparation(wiring.Component):
         ]
         with m.If(loading):
             m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
-            m.d.comb += patch_valid_next.eq(Cat(patch_valid[1:], self.patch_in.payload.valid))
+            shifted = Cat(patch_valid[1:], self.patch_in.payload.valid)
+            m.d.sync += [patch_valid.eq(shifted), *(copy.eq(shifted) for copy in lane_copies)]
 
         # The pass reads the patch in place: the memory's read register and one after it keep its paths short.
         prepare_step = Signal(range(nodes + 2))
