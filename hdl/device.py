@@ -99,29 +99,16 @@ class CorrelatorDevice(wiring.Component):
         m = Module()
         info = self._info
         (TH, TW), (AH, AW), (h, w) = info.tile_shape, info.area_shape, info.patch_shape
-        rows, cols = info.surface_shape
         vb, nodes = info.value_bytes, h * w
         mask_bytes = -(-nodes // 8)
 
-        m.submodules.uart_rx = uart_rx = AsyncSerialRX(divisor=self._divisor)
-        m.submodules.uart_tx = uart_tx = AsyncSerialTX(divisor=self._divisor)
-        m.submodules.receiver = receiver = FrameReceiver(timeout=self._frame_timeout)
-        m.submodules.sender = sender = FrameSender()
-        m.d.comb += [uart_rx.rx.eq(self.rx), self.tx.eq(uart_tx.tx)]
-        wiring.connect(m, uart_rx.data, receiver.bytes_in)
-        wiring.connect(m, sender.bytes_out, uart_tx.data)
+        receiver, sender = self._link(m)
 
         core_reset = Signal()
         core = self._variant.build(map_shape=(AH, AW), patch_shape=(h, w), exclusion_radius=info.exclusion_radius)
         m.submodules.core = ResetInserter({"sync": core_reset})(core)
 
-        m.submodules.buffer = buffer = memory.Memory(shape=8, depth=MAX_PAYLOAD, init=[])
-        wiring.connect(m, receiver.buffer, buffer.write_port())
-        payload = buffer.read_port()
-        m.submodules.tile = tile = memory.Memory(shape=16, depth=TH * TW, init=[])
-        tile_write, tile_read = tile.write_port(), tile.read_port()
-        m.submodules.surface = surface = memory.Memory(shape=8 * vb, depth=rows * cols, init=[])
-        surface_write, surface_read = surface.write_port(), surface.read_port()
+        payload, (tile_write, tile_read), (surface_write, surface_read) = self._memories(m, receiver)
 
         request = Signal.like(receiver.request.payload)
         args = Signal(64)  # the first 8 payload bytes
@@ -173,39 +160,8 @@ class CorrelatorDevice(wiring.Component):
                                     result_ready, refuse, answer, nodes, mask_bytes)
             self._start_states(m, core, tile_read, surface_write, address, row, col, mode, cycles, counting, k,
                                result_bits, result_ready, answer, info)
-            with m.State("REPLY"):
-                m.d.comb += [sender.header.valid.eq(1), sender.header.payload.seq.eq(request.seq),
-                             sender.header.payload.command.eq(reply_command), sender.header.payload.length.eq(reply_length)]
-                with m.If(sender.header.ready):
-                    m.d.sync += [k.eq(0), byte_index.eq(0)]
-                    m.next = "PAYLOAD"
-            with m.State("PAYLOAD"):
-                with m.If(from_surface):
-                    m.next = "SURFACE_READ"
-                with m.Elif(k == reply_length):
-                    m.next = "DRAIN"
-                with m.Else():
-                    m.d.comb += [sender.payload.valid.eq(1), sender.payload.payload.eq(reply_bits.word_select(k[:bits_for(len(reply_bits) // 8)], 8))]
-                    with m.If(sender.payload.ready):
-                        m.d.sync += k.eq(k + 1)
-            with m.State("SURFACE_READ"):  # surface values address .. last-1, vb bytes each
-                m.d.comb += surface_read.addr.eq(address)
-                m.next = "SURFACE_BYTES"
-            with m.State("SURFACE_BYTES"):
-                m.d.comb += [surface_read.addr.eq(address), sender.payload.valid.eq(1),
-                             sender.payload.payload.eq(surface_read.data.word_select(byte_index, 8))]
-                with m.If(sender.payload.ready):
-                    m.d.sync += byte_index.eq(byte_index + 1)
-                    with m.If(byte_index == vb - 1):
-                        m.d.sync += [byte_index.eq(0), address.eq(address + 1)]
-                        m.next = "SURFACE_NEXT"
-            with m.State("SURFACE_NEXT"):
-                m.next = "SURFACE_READ"
-                with m.If(address == last):
-                    m.next = "DRAIN"
-            with m.State("DRAIN"):
-                with m.If(sender.idle & ~sender.header.valid):
-                    m.next = "IDLE"
+            self._reply_states(m, sender, request, reply_command, reply_length, reply_bits, from_surface, surface_read,
+                               k, byte_index, address, last, vb)
         # The buffer is read from FETCH to the last patch node; a next frame may arrive during the rest.
         reading = ("FETCH", "DISPATCH", "TILE_LO", "TILE_HI", "TILE_WRITE", "MASK", "MASK_CHECK", "NODE_MASK",
                    "NODE_LO", "NODE_HI", "NODE_PUT")
@@ -214,6 +170,67 @@ class CorrelatorDevice(wiring.Component):
         with m.If(counting):
             m.d.sync += cycles.eq(cycles + 1)
         return m
+
+    def _link(self, m: Module) -> tuple[FrameReceiver, FrameSender]:
+        """The UART and the framing on it: the frame receiver and sender."""
+        m.submodules.uart_rx = uart_rx = AsyncSerialRX(divisor=self._divisor)
+        m.submodules.uart_tx = uart_tx = AsyncSerialTX(divisor=self._divisor)
+        m.submodules.receiver = receiver = FrameReceiver(timeout=self._frame_timeout)
+        m.submodules.sender = sender = FrameSender()
+        m.d.comb += [uart_rx.rx.eq(self.rx), self.tx.eq(uart_tx.tx)]
+        wiring.connect(m, uart_rx.data, receiver.bytes_in)
+        wiring.connect(m, sender.bytes_out, uart_tx.data)
+        return receiver, sender
+
+    def _memories(self, m: Module, receiver: FrameReceiver) -> tuple[Any, tuple[Any, Any], tuple[Any, Any]]:
+        """The frame buffer (its read port), the tile and the stored surface (their write and read ports)."""
+        info = self._info
+        (TH, TW), (rows, cols) = info.tile_shape, info.surface_shape
+        m.submodules.buffer = buffer = memory.Memory(shape=8, depth=MAX_PAYLOAD, init=[])
+        wiring.connect(m, receiver.buffer, buffer.write_port())
+        payload = buffer.read_port()
+        m.submodules.tile = tile = memory.Memory(shape=16, depth=TH * TW, init=[])
+        tile_write, tile_read = tile.write_port(), tile.read_port()
+        m.submodules.surface = surface = memory.Memory(shape=8 * info.value_bytes, depth=rows * cols, init=[])
+        surface_write, surface_read = surface.write_port(), surface.read_port()
+        return payload, (tile_write, tile_read), (surface_write, surface_read)
+
+    def _reply_states(self, m, sender, request, reply_command, reply_length, reply_bits, from_surface, surface_read, k,
+                      byte_index, address, last, vb):
+        """The reply: its header, then ``reply_bits`` or stored surface values (``from_surface``), then idle."""
+        with m.State("REPLY"):
+            m.d.comb += [sender.header.valid.eq(1), sender.header.payload.seq.eq(request.seq),
+                         sender.header.payload.command.eq(reply_command), sender.header.payload.length.eq(reply_length)]
+            with m.If(sender.header.ready):
+                m.d.sync += [k.eq(0), byte_index.eq(0)]
+                m.next = "PAYLOAD"
+        with m.State("PAYLOAD"):
+            with m.If(from_surface):
+                m.next = "SURFACE_READ"
+            with m.Elif(k == reply_length):
+                m.next = "DRAIN"
+            with m.Else():
+                m.d.comb += [sender.payload.valid.eq(1), sender.payload.payload.eq(reply_bits.word_select(k[:bits_for(len(reply_bits) // 8)], 8))]
+                with m.If(sender.payload.ready):
+                    m.d.sync += k.eq(k + 1)
+        with m.State("SURFACE_READ"):  # surface values address .. last-1, vb bytes each
+            m.d.comb += surface_read.addr.eq(address)
+            m.next = "SURFACE_BYTES"
+        with m.State("SURFACE_BYTES"):
+            m.d.comb += [surface_read.addr.eq(address), sender.payload.valid.eq(1),
+                         sender.payload.payload.eq(surface_read.data.word_select(byte_index, 8))]
+            with m.If(sender.payload.ready):
+                m.d.sync += byte_index.eq(byte_index + 1)
+                with m.If(byte_index == vb - 1):
+                    m.d.sync += [byte_index.eq(0), address.eq(address + 1)]
+                    m.next = "SURFACE_NEXT"
+        with m.State("SURFACE_NEXT"):
+            m.next = "SURFACE_READ"
+            with m.If(address == last):
+                m.next = "DRAIN"
+        with m.State("DRAIN"):
+            with m.If(sender.idle & ~sender.header.valid):
+                m.next = "IDLE"
 
     def _dispatch(self, m, request, args, refuse, answer, origin, patch_loaded, result_ready, result_bits, k, address,
                   last, row, col, cycles, core_reset, reply_command, reply_length, from_surface, info):

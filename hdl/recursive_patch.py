@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from amaranth.hdl import Module, Mux, Signal, signed, unsigned
@@ -22,6 +23,26 @@ def node_layout(p: CorrelatorParameters) -> data.StructLayout:
         "offset": unsigned(max(((h - 1) * W + w - 1).bit_length(), 1)),
         "centred": RecursiveShapes.of(p).centred,
     })
+
+
+@dataclass(frozen=True)
+class _PassState:
+    """The compaction passes' registers that the state machine sets: the results and the pass's position."""
+
+    mean: Signal
+    count: Signal
+    patch_sum: Signal
+    factor: Signal
+    empty: Signal
+    count_last: Signal
+    prepare_index: Signal
+    prepare_second: Signal
+    prepare_offset: Signal
+    prepare_col: Signal
+    seen: Signal
+    seen_second: Signal
+    seen_offset: Signal
+    append_index: Signal
 
 
 class NodeCompaction(wiring.Component):
@@ -83,12 +104,16 @@ class NodeCompaction(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        p = self._parameters
-        (_, W), (h, w) = p.map_shape, p.patch_shape
-        nodes_total = h * w
-        shapes = RecursiveShapes.of(p)
-        offset_shape = self.node_layout["offset"].shape
+        patch_read = self._patch_memory(m)
+        state = self._pass_state(m)
+        self._pass(m, patch_read, state)
+        self._control(m, state)
+        return m
 
+    def _patch_memory(self, m: Module) -> memory.ReadPort:
+        """The patch memory, written by the accepted patch words in raster order; returns its read port."""
+        p = self._parameters
+        nodes_total = p.patch_shape[0] * p.patch_shape[1]
         m.submodules.patch = patch = memory.Memory(shape=p.patch_word, depth=nodes_total, init=[])
         patch_write, patch_read = patch.write_port(), patch.read_port()
         load_index = Signal(range(nodes_total))
@@ -100,7 +125,14 @@ class NodeCompaction(wiring.Component):
         ]
         with m.If(patch_write.en):
             m.d.sync += load_index.eq(Mux(load_index == nodes_total - 1, 0, load_index + 1))
+        return patch_read
 
+    def _pass_state(self, m: Module) -> _PassState:
+        """The passes' results (the outputs' registers) and their position, which :meth:`_control` sets."""
+        p = self._parameters
+        (h, w) = p.patch_shape
+        nodes_total = h * w
+        offset_shape = self.node_layout["offset"].shape
         mean = Signal()                                   # latched from the start command
         count = Signal(range(nodes_total + 1))            # n, the valid nodes
         patch_sum = Signal(signed(p.widths.window_sum.bits))
@@ -113,9 +145,6 @@ class NodeCompaction(wiring.Component):
         count_last = Signal(range(nodes_total))  # n - 1
         m.d.comb += [self.mean.eq(mean), self.factor.eq(factor), self.empty.eq(empty), self.count_last.eq(count_last)]
 
-        # Two passes over the patch memory: read word k; one cycle later register it (``staged``); then
-        # count it and add it to Ssum (first pass), or register f * S (second pass, when n is known) and
-        # append the node with its centred depth f * S - Ssum a cycle after.
         prepare_index = Signal(range(nodes_total))
         prepare_second = Signal()
         prepare_offset = Signal(offset_shape)
@@ -123,16 +152,29 @@ class NodeCompaction(wiring.Component):
         seen, seen_second = Signal(), Signal()
         seen_offset = Signal(offset_shape)
         append_index = Signal(range(nodes_total))
-        m.d.comb += patch_read.addr.eq(prepare_index)
+        return _PassState(mean, count, patch_sum, factor, empty, count_last, prepare_index, prepare_second,
+                          prepare_offset, prepare_col, seen, seen_second, seen_offset, append_index)
+
+    def _pass(self, m: Module, patch_read: memory.ReadPort, state: _PassState) -> None:
+        """The passes' pipeline: read, stage, count or scale, append.
+
+        Two passes over the patch memory: read word k; one cycle later register it (``staged``); then
+        count it and add it to Ssum (first pass), or register f * S (second pass, when n is known) and
+        append the node with its centred depth f * S - Ssum a cycle after.
+        """
+        shapes = RecursiveShapes.of(self._parameters)
+        offset_shape = self.node_layout["offset"].shape
+        mean, count, patch_sum, factor = state.mean, state.count, state.patch_sum, state.factor
+        m.d.comb += patch_read.addr.eq(state.prepare_index)
         word = patch_read.data
         staged, staged_second = Signal(), Signal()
         staged_depth = Signal.like(word.depth)
         staged_offset = Signal(offset_shape)
         m.d.sync += [
-            staged.eq(seen & word.valid),
-            staged_second.eq(seen_second),
+            staged.eq(state.seen & word.valid),
+            staged_second.eq(state.seen_second),
             staged_depth.eq(word.depth),
-            staged_offset.eq(seen_offset),
+            staged_offset.eq(state.seen_offset),
         ]
         with m.If(staged & ~staged_second):
             m.d.sync += [
@@ -148,52 +190,55 @@ class NodeCompaction(wiring.Component):
             scaled_offset.eq(staged_offset),
         ]
         m.d.comb += [
-            self.nodes_write.addr.eq(append_index),
+            self.nodes_write.addr.eq(state.append_index),
             self.nodes_write.data.offset.eq(scaled_offset),
             self.nodes_write.data.centred.eq(scaled_depth - Mux(mean, patch_sum, 0)),
             self.nodes_write.en.eq(scaled),
         ]
         with m.If(scaled):
-            m.d.sync += append_index.eq(append_index + 1)
+            m.d.sync += state.append_index.eq(state.append_index + 1)
 
+    def _control(self, m: Module, s: _PassState) -> None:
+        """The state machine: idle, the two passes over the patch, the last word's stages."""
+        (_, W), (h, w) = self._parameters.map_shape, self._parameters.patch_shape
+        nodes_total = h * w
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
                     m.d.sync += [
-                        mean.eq(self.start_mode),
-                        count.eq(0),
-                        factor.eq(~self.start_mode),
-                        patch_sum.eq(0),
-                        append_index.eq(0),
-                        prepare_index.eq(0),
-                        prepare_second.eq(0),
-                        prepare_offset.eq(0),
-                        prepare_col.eq(0),
+                        s.mean.eq(self.start_mode),
+                        s.count.eq(0),
+                        s.factor.eq(~self.start_mode),
+                        s.patch_sum.eq(0),
+                        s.append_index.eq(0),
+                        s.prepare_index.eq(0),
+                        s.prepare_second.eq(0),
+                        s.prepare_offset.eq(0),
+                        s.prepare_col.eq(0),
                     ]
                     m.next = "PREPARE"
             with m.State("PREPARE"):
-                m.d.sync += [seen.eq(1), seen_second.eq(prepare_second), seen_offset.eq(prepare_offset)]
-                with m.If(prepare_index == nodes_total - 1):
-                    m.d.sync += [prepare_index.eq(0), prepare_col.eq(0), prepare_offset.eq(0),
-                                 prepare_second.eq(1)]
-                    with m.If(prepare_second):
+                m.d.sync += [s.seen.eq(1), s.seen_second.eq(s.prepare_second), s.seen_offset.eq(s.prepare_offset)]
+                with m.If(s.prepare_index == nodes_total - 1):
+                    m.d.sync += [s.prepare_index.eq(0), s.prepare_col.eq(0), s.prepare_offset.eq(0),
+                                 s.prepare_second.eq(1)]
+                    with m.If(s.prepare_second):
                         m.next = "PREPARE_LAST"
                 with m.Else():
-                    m.d.sync += prepare_index.eq(prepare_index + 1)
-                    with m.If(prepare_col == w - 1):
-                        m.d.sync += [prepare_col.eq(0), prepare_offset.eq(prepare_offset + W - w + 1)]
+                    m.d.sync += s.prepare_index.eq(s.prepare_index + 1)
+                    with m.If(s.prepare_col == w - 1):
+                        m.d.sync += [s.prepare_col.eq(0), s.prepare_offset.eq(s.prepare_offset + W - w + 1)]
                     with m.Else():
-                        m.d.sync += [prepare_col.eq(prepare_col + 1), prepare_offset.eq(prepare_offset + 1)]
+                        m.d.sync += [s.prepare_col.eq(s.prepare_col + 1), s.prepare_offset.eq(s.prepare_offset + 1)]
             with m.State("PREPARE_LAST"):
                 # The last patch word is seen on this cycle; staged on the next, scaled on the one after.
-                m.d.sync += seen.eq(0)
+                m.d.sync += s.seen.eq(0)
                 m.next = "PREPARE_STAGED"
             with m.State("PREPARE_STAGED"):
                 # n is final from this cycle on (the last first-pass word was counted on the edge before).
-                m.d.sync += [empty.eq(count == 0), count_last.eq(count - 1)]
+                m.d.sync += [s.empty.eq(s.count == 0), s.count_last.eq(s.count - 1)]
                 m.next = "PREPARE_SCALED"
             with m.State("PREPARE_SCALED"):
                 # The last patch word is appended on this cycle's edge.
                 m.d.comb += self.done.eq(1)
                 m.next = "IDLE"
-        return m

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
+from amaranth.hdl import Cat, Module, Mux, Signal, Value, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
@@ -19,6 +20,29 @@ __all__ = ["RunnerUpScan", "row_minimum_layout"]
 def row_minimum_layout(p: CorrelatorParameters) -> data.StructLayout:
     """A row's minimum: its value and its column (the first of equal values)."""
     return data.StructLayout({"value": unsigned(p.value_bits), "col": unsigned(p.col_bits)})
+
+
+def _delayed(m: Module, value: Value, shape: Any, cycles: int, name: str) -> Value:
+    """``value`` through a :class:`DelayLine` of ``cycles`` registers, added to ``m`` as ``name``."""
+    m.submodules[name] = line = DelayLine(shape, cycles)
+    m.d.comb += line.i.eq(value)
+    return line.o
+
+
+@dataclass(frozen=True)
+class _Scan:
+    """The scan's position (set by :meth:`RunnerUpScan._sequence`) and what the memories' data registers hold."""
+
+    scanning: Signal
+    step: Signal
+    slot_index: Signal
+    slot_col: Signal
+    seen: Signal
+    seen_final: Signal
+    seen_row_minimum: Signal
+    seen_slot: Signal
+    seen_cols: list
+    seen_row: Signal
 
 
 class RunnerUpScan(wiring.Component):
@@ -89,61 +113,75 @@ class RunnerUpScan(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
+        scan = self._reads(m)
+        band_rows, band_cols = self._band(m)
+        candidate_ok, candidate_key, candidate_final = self._candidates(m, scan, band_rows, band_cols)
+        runner_valid = self._runner(m, candidate_ok, candidate_key)
+        self._sequence(m, scan, runner_valid, candidate_final)
+        return m
+
+    def _reads(self, m: Module) -> _Scan:
+        """The scan's position, the memories' addresses, and what their data registers hold (``seen_*``)."""
         p = self._parameters
-        rows, cols = p.surface_shape
-        lanes, r = p.lanes, p.exclusion_radius
-        slots, beats_per_row = self.slots, self.beats_per_row
-        row_shape = unsigned(p.row_bits)
-
-        def delayed(value, shape, cycles, name):
-            m.submodules[name] = line = DelayLine(shape, cycles)
-            m.d.comb += line.i.eq(value)
-            return line.o
-
-        scan_rows_end = rows
-        scan_end = rows + slots * beats_per_row
+        rows, _ = p.surface_shape
+        scan_end = rows + self.slots * self.beats_per_row
         scanning = Signal()
         step = Signal(range(scan_end + 1))
-        slot_index = Signal(range(slots))
-        slot_col = Signal(range(beats_per_row * lanes + 1))  # the first column of the word read
+        slot_index = Signal(range(self.slots))
+        slot_col = Signal(range(self.beats_per_row * p.lanes + 1))  # the first column of the word read
         m.d.comb += [
             self.minima_read.addr.eq(step),
             self.minima_read.en.eq(1),
-            self.slots_read.addr.eq(step - scan_rows_end),
+            self.slots_read.addr.eq(step - rows),
             self.slots_read.en.eq(1),
         ]
         # What the memories' data registers hold this cycle: the word read for the previous step.
         seen, seen_final = Signal(), Signal()
         seen_row_minimum = Signal()
-        seen_slot = Signal(range(slots))
-        seen_cols = [Signal.like(slot_col, name=f"seen_col{lane}") for lane in range(lanes)]
-        seen_row = Signal(row_shape)
+        seen_slot = Signal(range(self.slots))
+        seen_cols = [Signal.like(slot_col, name=f"seen_col{lane}") for lane in range(p.lanes)]
+        seen_row = Signal(unsigned(p.row_bits))
+        return _Scan(scanning, step, slot_index, slot_col, seen, seen_final, seen_row_minimum, seen_slot, seen_cols,
+                     seen_row)
 
-        # The band's bounds, registered: the best fit is final before the scan starts.
+    def _band(self, m: Module) -> tuple[tuple[Signal, Signal], tuple[Signal, Signal]]:
+        """The band's bounds, registered (the best fit is final before the scan starts): rows, columns."""
+        p, r = self._parameters, self._parameters.exclusion_radius
+        rows, cols = p.surface_shape
         band_rows = Signal(range(-r, rows)), Signal(range(rows + r))
         band_cols = Signal(range(-r, cols)), Signal(range(cols + r))
         m.d.sync += [
             band_rows[0].eq(self.best_i - r), band_rows[1].eq(self.best_i + r),
             band_cols[0].eq(self.best_j - r), band_cols[1].eq(self.best_j + r),
         ]
+        return band_rows, band_cols
+
+    def _candidates(self, m: Module, scan: _Scan, band_rows: tuple, band_cols: tuple) -> tuple[Value, Value, Value]:
+        """The fetched words' candidates, registered, then their smallest key (:class:`MinimumTree`).
+
+        Returns whether there is one, its key, and whether the scan's last word reaches the runner-up.
+        """
+        p = self._parameters
+        _, cols = p.surface_shape
+        lanes, row_shape = p.lanes, unsigned(p.row_bits)
 
         def outside(index, band):
             return (index < band[0]) | (index > band[1])
 
-        fetched, fetched_final = delayed(seen, 1, 1, "fetched"), delayed(seen_final, 1, 1, "fetched_final")
-        fetched_row_minimum = delayed(seen_row_minimum, 1, 1, "fetched_row_minimum")
-        fetched_slot = delayed(seen_slot, seen_slot.shape(), 1, "fetched_slot")
-        fetched_cols = [delayed(seen_col, seen_col.shape(), 1, f"fetched_col{lane}")
-                        for lane, seen_col in enumerate(seen_cols)]
-        fetched_row = delayed(seen_row, row_shape, 1, "fetched_row")
-        fetched_minimum = delayed(self.minima_read.data, row_minimum_layout(p), 1, "fetched_minimum")
-        fetched_words = delayed(self.slots_read.data, self.values_layout, 1, "fetched_words")
+        fetched, fetched_final = _delayed(m, scan.seen, 1, 1, "fetched"), _delayed(m, scan.seen_final, 1, 1, "fetched_final")
+        fetched_row_minimum = _delayed(m, scan.seen_row_minimum, 1, 1, "fetched_row_minimum")
+        fetched_slot = _delayed(m, scan.seen_slot, scan.seen_slot.shape(), 1, "fetched_slot")
+        fetched_cols = [_delayed(m, seen_col, seen_col.shape(), 1, f"fetched_col{lane}")
+                        for lane, seen_col in enumerate(scan.seen_cols)]
+        fetched_row = _delayed(m, scan.seen_row, row_shape, 1, "fetched_row")
+        fetched_minimum = _delayed(m, self.minima_read.data, row_minimum_layout(p), 1, "fetched_minimum")
+        fetched_words = _delayed(m, self.slots_read.data, self.values_layout, 1, "fetched_words")
 
         key_shape = unsigned(p.value_bits + p.row_bits + p.col_bits)
         slot_row = Signal(row_shape)
         slot_in_band = Signal()
         with m.Switch(fetched_slot):
-            for s in range(slots):
+            for s in range(self.slots):
                 with m.Case(s):
                     m.d.comb += [slot_row.eq(self.slot_rows[s]), slot_in_band.eq(self.slot_in_band[s])]
         candidates = []
@@ -163,10 +201,13 @@ class RunnerUpScan(wiring.Component):
             leaf = Signal(candidate_tree.item, name=f"leaf{lane}")
             m.d.sync += [leaf.valid.eq(ok), leaf.key.eq(key)]
             m.d.comb += candidate_tree.leaves[lane].eq(leaf)
-        candidate_ok, candidate_key = candidate_tree.root.valid, candidate_tree.root.key
-        candidate_final = delayed(fetched & fetched_final, 1, candidate_tree.latency + 1, "candidate_final")
+        candidate_final = _delayed(m, fetched & fetched_final, 1, candidate_tree.latency + 1, "candidate_final")
+        return candidate_tree.root.valid, candidate_tree.root.key, candidate_final
 
-        runner_key = Signal(key_shape)
+    def _runner(self, m: Module, candidate_ok: Value, candidate_key: Value) -> Signal:
+        """The smallest candidate so far, the ``runner`` output; returns its valid bit (the scan clears it)."""
+        p = self._parameters
+        runner_key = Signal(unsigned(p.value_bits + p.row_bits + p.col_bits))
         runner_valid = Signal()
         with m.If(candidate_ok & (~runner_valid | (candidate_key < runner_key))):
             m.d.sync += [runner_key.eq(candidate_key), runner_valid.eq(1)]
@@ -176,17 +217,26 @@ class RunnerUpScan(wiring.Component):
             self.runner.i.eq(runner_key[p.col_bits:p.row_bits + p.col_bits]),
             self.runner.j.eq(runner_key[:p.col_bits]),
         ]
+        return runner_valid
 
+    def _sequence(self, m: Module, scan: _Scan, runner_valid: Signal, candidate_final: Value) -> None:
+        """The scan's steps: the row minima, then every slot word; ``done`` once the last word is counted."""
+        p = self._parameters
+        rows, _ = p.surface_shape
+        lanes, beats_per_row = p.lanes, self.beats_per_row
+        scan_rows_end = rows
+        scan_end = rows + self.slots * beats_per_row
+        step, slot_col, slot_index = scan.step, scan.slot_col, scan.slot_index
         with m.If(self.start):
-            m.d.sync += [scanning.eq(1), step.eq(0), runner_valid.eq(0), slot_index.eq(0), slot_col.eq(0)]
-        m.d.sync += seen.eq(scanning)
-        with m.If(scanning):
+            m.d.sync += [scan.scanning.eq(1), step.eq(0), runner_valid.eq(0), slot_index.eq(0), slot_col.eq(0)]
+        m.d.sync += scan.seen.eq(scan.scanning)
+        with m.If(scan.scanning):
             m.d.sync += [
-                seen_final.eq(step == scan_end - 1),
-                seen_row_minimum.eq(step < scan_rows_end),
-                seen_row.eq(step),
-                seen_slot.eq(slot_index),
-                *(seen_col.eq(slot_col + lane) for lane, seen_col in enumerate(seen_cols)),
+                scan.seen_final.eq(step == scan_end - 1),
+                scan.seen_row_minimum.eq(step < scan_rows_end),
+                scan.seen_row.eq(step),
+                scan.seen_slot.eq(slot_index),
+                *(seen_col.eq(slot_col + lane) for lane, seen_col in enumerate(scan.seen_cols)),
                 step.eq(step + 1),
             ]
             with m.If(step >= scan_rows_end):
@@ -195,7 +245,7 @@ class RunnerUpScan(wiring.Component):
                 with m.Else():
                     m.d.sync += slot_col.eq(slot_col + lanes)
             with m.If(step == scan_end - 1):
-                m.d.sync += scanning.eq(0)
+                m.d.sync += scan.scanning.eq(0)
         done = Signal()
         with m.If(candidate_final):
             # The last word reaches the runner-up on this edge; it is final on the next.
@@ -203,4 +253,3 @@ class RunnerUpScan(wiring.Component):
         with m.If(self.taken):
             m.d.sync += done.eq(0)
         m.d.comb += self.done.eq(done)
-        return m

@@ -66,6 +66,7 @@ window follow the step enable rather than a stream's handshake: their ports are 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from amaranth.hdl import Const, Module, Mux, Signal, Value, signed, unsigned
@@ -88,6 +89,28 @@ __all__ = ["PipelineStages", "WindowCore", "WindowCorrelator"]
 
 #: How a high-fan-out enable reaches its loads: ``(module, enable) -> the value the loads see``.
 EnableBuffer = Callable[[Module, Value], Value]
+
+
+@dataclass(frozen=True)
+class _StepIssue:
+    """The step issue's parts and the state :meth:`WindowCore._control` sets at each correlation."""
+
+    sequencer: MapSequencer
+    output_queue: CreditQueue
+    issuing: Signal
+    issuing_words: Signal
+    request_addr: Signal
+    flush_left: Signal
+    issue: Signal
+
+
+@dataclass(frozen=True)
+class _BeatStages:
+    """The beat beside each stage: the step-synchronous ones (``sync_meta``), then the term stages' delay lines."""
+
+    sync_meta: Signal
+    term_meta: DelayLine
+    term_valid: DelayLine
 
 
 def _check_enable_buffer(enable_buffer: Any) -> EnableBuffer | None:
@@ -151,19 +174,41 @@ class WindowCore(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        p, t = self._parameters, self._timing
-        (h, w), L = p.patch_shape, p.lanes
-        G = t.groups
-        stages = PipelineStages.of(t)
+        stages = PipelineStages.of(self._timing)
 
         idle = Signal()
-        m.submodules.reducer = reducer = BestFitReducer(parameters=p)
+        m.submodules.reducer = reducer = BestFitReducer(parameters=self._parameters)
         ready_for_more = idle & ~reducer.busy
         m.d.comb += [self.start.ready.eq(ready_for_more), self.busy.eq(~ready_for_more)]
         start = self.start.valid & self.start.ready
 
-        # ---- the patch, its count and sum, and its lifted depths 2**b - S (formed at start) -----------
-        m.submodules.patch = patch = PatchPreparation(parameters=p)
+        patch = self._patch(m, ready_for_more, idle, start)
+        steps = self._step_issue(m)
+        advance, step_is_word = self._advance(m, steps.issue, steps.issuing_words)
+        # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
+        # own, so that the start beat's condition reaches only the pass's few registers.
+        clearing = Signal(init=1)
+        m.d.sync += clearing.eq(idle)
+        step_group, step_meta, meta_layout = self._step_beats(m, advance, clearing)
+        beats = self._beat_stages(m, stages, advance, step_meta, meta_layout)
+        window, sums_port = self._window(m, stages, advance, steps.sequencer, step_group, step_is_word)
+        lane_values = self._lanes(m, patch, window, sums_port, advance)
+        self._output(m, steps.output_queue, beats, lane_values)
+
+        # The reducer watches the surface's transfers (registering each before any logic, so the
+        # queue's read stays out of its paths) and answers on ``best``.
+        m.d.comb += [
+            reducer.surface.valid.eq(self.surface.valid & self.surface.ready),
+            reducer.surface.payload.eq(self.surface.payload),
+        ]
+        wiring.connect(m, reducer.best, wiring.flipped(self.best))
+
+        self._control(m, stages, idle, start, clearing, patch, steps, beats)
+        return m
+
+    def _patch(self, m: Module, ready_for_more: Value, idle: Signal, start: Value) -> PatchPreparation:
+        """The patch, its count and sum, and its lifted depths ``2**b - S`` (formed at start)."""
+        m.submodules.patch = patch = PatchPreparation(parameters=self._parameters)
         wiring.connect(m, wiring.flipped(self.patch_in), patch.patch_in)
         m.d.comb += [
             patch.accept.eq(ready_for_more),
@@ -171,8 +216,11 @@ class WindowCore(wiring.Component):
             patch.start.eq(start),
             patch.start_mode.eq(self.start.payload.mean_compensation),
         ]
+        return patch
 
-        # ---- the steps: one map read or flush step issued per credit, taken on the next edge ----------
+    def _step_issue(self, m: Module) -> _StepIssue:
+        """The steps: one map read or flush step issued per credit of the output queue, taken on the next edge."""
+        p, t = self._parameters, self._timing
         m.submodules.sequencer = sequencer = MapSequencer(addr_width=ceil_log2(self.map_depth), shape=self.map_word)
         wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
         m.submodules.output_queue = output_queue = CreditQueue(shape=p.surface_beat, depth=t.queue_depth)
@@ -200,44 +248,56 @@ class WindowCore(wiring.Component):
                 m.d.sync += flush_left.eq(flush_left - 1)
                 with m.If(flush_left == 1):
                     m.d.sync += issuing.eq(0)
+        return _StepIssue(sequencer, output_queue, issuing, issuing_words, request_addr, flush_left, issue)
 
-        # ``advance`` is a register: the only enable of the step-synchronous stages (step register,
-        # line buffers, window register, masked depths, window-sum tree, dividend, quotient stages);
-        # the lanes' term stages run every clock.
+    def _advance(self, m: Module, issue: Signal, issuing_words: Signal) -> tuple[Value, Signal]:
+        """The step enable as its loads see it, and whether the step taken is a map word (not a flush step).
+
+        ``advance`` is a register: the only enable of the step-synchronous stages (step register, line
+        buffers, window register, masked depths, window-sum tree, dividend, quotient stages); the lanes'
+        term stages run every clock. The builder's ``enable_buffer`` carries it to them.
+        """
         advance_register = Signal()
         step_is_word = Signal()
         m.d.sync += [advance_register.eq(issue), step_is_word.eq(issue & issuing_words)]
         advance = advance_register if self._enable_buffer is None else self._enable_buffer(m, advance_register)
+        return advance, step_is_word
 
-        # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
-        # own, so that the start beat's condition reaches only the pass's few registers.
-        clearing = Signal(init=1)
-        m.d.sync += clearing.eq(idle)
-        step_group, step_meta, meta_layout = self._step_beats(m, advance, clearing)
+    def _beat_stages(self, m: Module, stages: PipelineStages, advance: Value, step_meta: Signal,
+                     meta_layout: data.StructLayout) -> _BeatStages:
+        """The beat of each stage, carried beside the pipeline: step-synchronous, then every clock.
 
-        # The beat of each step-synchronous stage (cleared between correlations: see ``clearing``).
+        The step-synchronous stages' beats are cleared between correlations (by :meth:`_control`). The term
+        stages run every clock: ``fresh`` says the last edge was a step, so the window's bottom and the
+        window sums hold a new placement; otherwise the lanes recompute the previous one and their result
+        is dropped. Only the valid bits need a reset: after one, no stale step may reach the queue.
+        """
         sync_meta = Signal(data.ArrayLayout(meta_layout, stages.quotient), reset_less=True)
         with m.If(advance):
             m.d.sync += sync_meta[0].eq(step_meta)
             m.d.sync += [sync_meta[x].eq(sync_meta[x - 1]) for x in range(1, stages.quotient)]
-        # The term stages run every clock: ``fresh`` says the last edge was a step, so the window's bottom
-        # and the window sums hold a new placement; otherwise the lanes recompute the previous one and
-        # their result is dropped. Only the valid bits need a reset: after one, no stale step may reach the queue.
         fresh = Signal()
         m.d.sync += fresh.eq(advance)
         m.submodules.term_meta = term_meta = DelayLine(meta_layout, stages.value, reset_less=True)
         m.submodules.term_valid = term_valid = DelayLine(1, stages.value)
         m.d.comb += [term_meta.i.eq(sync_meta[stages.quotient - 1]), term_valid.i.eq(fresh)]
+        return _BeatStages(sync_meta, term_meta, term_valid)
 
-        # ---- the step register, the line buffers and the window register -------------------------------
-        # The columns the lanes' sums start on sit ``window_to_quotient`` steps of L columns above those
-        # their terms take (by then the same columns have moved down the register).
-        # Between them the steps no lane reads (``lead + 1`` steps hold a lane's terms' columns) are only a
-        # delay: block RAM, not registers (``stored``).
+    def _window(self, m: Module, stages: PipelineStages, advance: Value, sequencer: MapSequencer, step_group: Signal,
+                step_is_word: Signal) -> tuple[StepWindow, int]:
+        """The step register, the line buffers and the window register; returns it and the sums' first port.
+
+        The columns the lanes' sums start on sit ``window_to_quotient`` steps of L columns above those
+        their terms take (by then the same columns have moved down the register). Between them the steps
+        no lane reads (``lead + 1`` steps hold a lane's terms' columns) are only a delay: block RAM, not
+        registers (``stored``).
+        """
+        p, t = self._parameters, self._timing
+        h, L = p.patch_shape[0], p.lanes
         top = stages.window_to_quotient * L
         bottom = t.lead + 1
         stored = range(bottom, stages.window_to_quotient) if stages.window_to_quotient - bottom >= 2 else range(0)
-        m.submodules.window = window = StepWindow(lanes=L, rows=h, groups=G, span=top + (t.lead + 1) * L,
+        m.submodules.window = window = StepWindow(lanes=L, rows=h, groups=t.groups, span=top + (t.lead + 1) * L,
                                                   depth_bits=p.depth_bits, stored=stored)
         sums_port = top - len(stored) * L  # the sums' first column among the window's ports
         m.d.comb += [
@@ -246,26 +306,32 @@ class WindowCore(wiring.Component):
             window.group.eq(step_group),
             window.is_word.eq(step_is_word),
         ]
+        return window, sums_port
 
-        # ---- the lanes ------------------------------------------------------------------------------
+    def _lanes(self, m: Module, patch: PatchPreparation, window: StepWindow, sums_port: int, advance: Value) -> list:
+        """The lanes, lane ``q`` on the window's columns ``q ...``; returns their values."""
+        p = self._parameters
+        w = p.patch_shape[1]
         lane_values = []
-        for q in range(L):
+        for q in range(p.lanes):
             m.submodules[f"lane{q}"] = lane = WindowLane(parameters=p)
             m.d.comb += [
                 lane.advance.eq(advance),
                 *(lane.sum_window[l].eq(window.columns[sums_port + q + l]) for l in range(w)),
                 *(lane.term_window[l].eq(window.columns[q + l]) for l in range(w)),
-                lane.patch_valid.eq(patch.patch_valid),
+                lane.patch_valid.eq(patch.lane_patch_valid[q]),
                 lane.lifted_patch.eq(patch.lifted_patch),
                 lane.mean_compensation.eq(patch.mean_compensation),
                 lane.factor.eq(patch.factor),
                 lane.dividend_bias.eq(patch.dividend_bias),
             ]
             lane_values.append(lane.value)
+        return lane_values
 
-        # ---- into the output queue; a credit comes back with each step leaving without a beat ----------
-        last_meta = term_meta.o
-        last_valid = term_valid.o & last_meta.live
+    def _output(self, m: Module, output_queue: CreditQueue, beats: _BeatStages, lane_values: list) -> None:
+        """Into the output queue; a credit comes back with each step leaving without a beat."""
+        last_meta = beats.term_meta.o
+        last_valid = beats.term_valid.o & last_meta.live
         beat = output_queue.write.payload
         m.d.comb += [
             beat.i.eq(last_meta.i),
@@ -275,25 +341,19 @@ class WindowCore(wiring.Component):
             output_queue.write.valid.eq(last_valid & last_meta.emit),
             output_queue.passed.eq(last_valid & ~last_meta.emit),
         ]
-        m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(L)]
+        m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(self._parameters.lanes)]
 
-        # The reducer watches the surface's transfers (registering each before any logic, so the
-        # queue's read stays out of its paths) and answers on ``best``.
-        m.d.comb += [
-            reducer.surface.valid.eq(self.surface.valid & self.surface.ready),
-            reducer.surface.payload.eq(self.surface.payload),
-        ]
-        wiring.connect(m, reducer.best, wiring.flipped(self.best))
-
-        # ---- control ----------------------------------------------------------------------------------
-        m.d.comb += output_queue.clear.eq(clearing)
+    def _control(self, m: Module, stages: PipelineStages, idle: Signal, start: Value, clearing: Signal,
+                 patch: PatchPreparation, steps: _StepIssue, beats: _BeatStages) -> None:
+        """The state machine (idle, the patch pass, the run) and what ``clearing`` resets between correlations."""
+        m.d.comb += steps.output_queue.clear.eq(clearing)
         with m.If(clearing):
             m.d.sync += [
-                request_addr.eq(0),
-                flush_left.eq(t.flush_steps),
+                steps.request_addr.eq(0),
+                steps.flush_left.eq(self._timing.flush_steps),
             ]
             # The step-synchronous stages may still hold the last correlation's flush steps.
-            m.d.sync += [sync_meta[x].live.eq(0) for x in range(stages.quotient)]
+            m.d.sync += [beats.sync_meta[x].live.eq(0) for x in range(stages.quotient)]
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
@@ -301,14 +361,11 @@ class WindowCore(wiring.Component):
                     m.next = "PREPARE"
             with m.State("PREPARE"):
                 with m.If(patch.done):
-                    m.d.sync += [issuing.eq(1), issuing_words.eq(1)]
+                    m.d.sync += [steps.issuing.eq(1), steps.issuing_words.eq(1)]
                     m.next = "RUN"
             with m.State("RUN"):
                 with m.If(self.surface.valid & self.surface.ready & self.surface.payload.last):
                     m.next = "IDLE"
-
-        return m
-
 
     def _step_beats(self, m: Module, advance: Value, clearing: Value) -> tuple[Signal, Signal, data.StructLayout]:
         """The group of the step being taken and the beat it completes (its metadata), for ``sync_meta``.

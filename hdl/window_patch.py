@@ -7,9 +7,10 @@ mode, ``f`` (``n`` with mean compensation, 1 without) and the dividend's bias ``
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -21,6 +22,19 @@ from lost.hdl.window_lane import LaneArithmetic
 LIFTING_COPY_NODES = 10
 
 __all__ = ["PatchPreparation"]
+
+
+@dataclass(frozen=True)
+class _Held:
+    """The registers :class:`PatchPreparation` holds for the lanes (its outputs) and the pass's sums."""
+
+    patch_valid: Signal
+    lifted_patch: Signal
+    mean_compensation: Signal
+    valid_count: Signal
+    patch_sum: Signal
+    factor: Signal
+    dividend_bias: Signal
 
 
 class PatchPreparation(wiring.Component):
@@ -35,7 +49,7 @@ class PatchPreparation(wiring.Component):
     on edge ``h * w + 3`` (the pass takes a node per clock, after the memory's read register and one
     after it: a block RAM's output is slow), when ``dividend_bias`` loads; every output holds from
     edge ``h * w + 3`` until the next ``start``. ``factor``, ``lifted_patch`` and ``patch_valid`` are
-    final an edge earlier.
+    final an edge earlier. Each of ``lane_patch_valid`` equals ``patch_valid`` on every cycle.
 
     Parameters
     ----------
@@ -56,6 +70,8 @@ class PatchPreparation(wiring.Component):
         The pass's last cycle.
     patch_valid, lifted_patch, mean_compensation, factor, dividend_bias : ``Out(...)``
         As the :class:`~lost.hdl.window_lane.WindowLane`'s ports of those names.
+    lane_patch_valid : ``Out(ArrayLayout(h * w, lanes))``
+        A copy of ``patch_valid`` for each lane, a register of its own (the same value on every cycle).
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
@@ -72,6 +88,7 @@ class PatchPreparation(wiring.Component):
             "start_mode": In(1),
             "done": Out(1),
             "patch_valid": Out(nodes),
+            "lane_patch_valid": Out(data.ArrayLayout(nodes, p.lanes)),
             "lifted_patch": Out(data.ArrayLayout(a.lifted, nodes)),
             "mean_compensation": Out(1),
             "factor": Out(a.count),
@@ -80,14 +97,19 @@ class PatchPreparation(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        p, a = self._parameters, self._arithmetic
-        (h, w), b = p.patch_shape, p.depth_bits
-        nodes = h * w
-        idle = self.idle
-
+        a, nodes = self._arithmetic, self._parameters.patch_shape[0] * self._parameters.patch_shape[1]
         m.submodules.patch_memory = patch_memory = memory.Memory(shape=a.depth, depth=nodes, init=[])
         patch_write = patch_memory.write_port()
         patch_read = patch_memory.read_port()
+        held = self._held(m)
+        patch_pointer = self._load(m, patch_write, held.patch_valid)
+        lifting_next, prepare_step, head_valid = self._pass(m, patch_read, held)
+        self._control(m, held, patch_pointer, lifting_next, prepare_step, head_valid)
+        return m
+
+    def _held(self, m: Module) -> _Held:
+        """The registers the lanes read through a correlation (the outputs) and the pass's sums."""
+        a, nodes = self._arithmetic, self._parameters.patch_shape[0] * self._parameters.patch_shape[1]
         patch_valid = Signal(nodes, reset_less=True)
         lifted_patch = Signal(data.ArrayLayout(a.lifted, nodes), reset_less=True)
         mean_compensation = Signal()
@@ -102,10 +124,24 @@ class PatchPreparation(wiring.Component):
             self.factor.eq(factor),
             self.dividend_bias.eq(dividend_bias),
         ]
+        return _Held(patch_valid, lifted_patch, mean_compensation, valid_count, patch_sum, factor, dividend_bias)
 
-        # Patch words since the last start (or reset) fill nodes 0, 1, ...; the valid bits shift in.
+    def _load(self, m: Module, patch_write: memory.WritePort, patch_valid: Signal) -> Signal:
+        """Patch words since the last start (or reset) fill nodes 0, 1, ...; the valid bits shift in.
+
+        Returns the write pointer (the state machine clears it at start).
+        """
+        p = self._parameters
+        nodes = p.patch_shape[0] * p.patch_shape[1]
         patch_pointer = Signal(index_range(nodes))
         loading = self.patch_in.valid & self.patch_in.ready
+        # Each lane takes a copy of the valid bits, loaded with them from the same shifted value so that every
+        # copy equals them (reset-less, as they are): a valid bit resets 33 of a lane's registers, and one
+        # register driving them in every lane was the 4-lane build's critical path (c984e45: 10.8 ns of
+        # routing to the last lane's quotient copy). Loaded only on a patch word, the copies need no LUT.
+        # Named ``*_replica`` so that the synthesis flow keeps them apart.
+        lane_copies = [Signal(nodes, name=f"lane{q}_patch_valid_replica", reset_less=True) for q in range(p.lanes)]
+        m.d.comb += [self.lane_patch_valid[q].eq(copy) for q, copy in enumerate(lane_copies)]
         m.d.comb += [
             self.patch_in.ready.eq(self.accept),
             patch_write.addr.eq(patch_pointer),
@@ -114,10 +150,18 @@ class PatchPreparation(wiring.Component):
         ]
         with m.If(loading):
             m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
-            m.d.sync += [patch_valid[x].eq(patch_valid[x + 1]) for x in range(nodes - 1)]
-            m.d.sync += patch_valid[nodes - 1].eq(self.patch_in.payload.valid)
+            shifted = Cat(patch_valid[1:], self.patch_in.payload.valid)
+            m.d.sync += [patch_valid.eq(shifted), *(copy.eq(shifted) for copy in lane_copies)]
+        return patch_pointer
 
-        # The pass reads the patch in place: the memory's read register and one after it keep its paths short.
+    def _pass(self, m: Module, patch_read: memory.ReadPort, held: _Held) -> tuple[Signal, Signal, Signal]:
+        """The pass: each node's depth and valid bit read in place, then n, Ssum and the lifted depths.
+
+        The memory's read register and one after it keep its paths short. Returns ``lifting``'s next
+        value (set by the state machine), the pass's step and the node taken's valid bit.
+        """
+        a, nodes = self._arithmetic, self._parameters.patch_shape[0] * self._parameters.patch_shape[1]
+        idle, lifted_patch, valid_count, patch_sum = self.idle, held.lifted_patch, held.valid_count, held.patch_sum
         prepare_step = Signal(range(nodes + 2))
         lifting = Signal()  # the pass takes a node: n, Ssum and lifted_patch (cycles 3 .. hw + 2)
         lifting_next = Signal()  # the value ``lifting`` takes on the next edge (set by the state machine)
@@ -140,7 +184,7 @@ class PatchPreparation(wiring.Component):
         head_valid = Signal()
         m.d.comb += [patch_read.addr.eq(node), head_read.eq(patch_read.data)]
         m.d.sync += [
-            head_valid_read.eq(patch_valid.bit_select(node, 1)),
+            head_valid_read.eq(held.patch_valid.bit_select(node, 1)),
             head_depth.eq(head_read),
             head_valid.eq(head_valid_read),
         ]
@@ -155,7 +199,13 @@ class PatchPreparation(wiring.Component):
             ]
         with m.If(idle):
             m.d.sync += [valid_count.eq(0), patch_sum.eq(0), prepare_step.eq(0)]
+        return lifting_next, prepare_step, head_valid
 
+    def _control(self, m: Module, held: _Held, patch_pointer: Signal, lifting_next: Signal, prepare_step: Signal,
+                 head_valid: Signal) -> None:
+        """The state machine: idle, the pass (``COUNT``), then ``f`` and the dividend's bias."""
+        nodes, b = self._parameters.patch_shape[0] * self._parameters.patch_shape[1], self._parameters.depth_bits
+        mean_compensation, factor = held.mean_compensation, held.factor
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
@@ -168,10 +218,9 @@ class PatchPreparation(wiring.Component):
                     m.d.comb += lifting_next.eq(1)
                 with m.If(prepare_step == nodes + 1):
                     m.d.comb += lifting_next.eq(0)
-                    m.d.sync += factor.eq(Mux(mean_compensation, valid_count + head_valid, 1))
+                    m.d.sync += factor.eq(Mux(mean_compensation, held.valid_count + head_valid, 1))
                     m.next = "BIAS"
             with m.State("BIAS"):
                 m.d.comb += self.done.eq(1)
-                m.d.sync += dividend_bias.eq(Mux(mean_compensation, factor << b, 0) - patch_sum)
+                m.d.sync += held.dividend_bias.eq(Mux(mean_compensation, factor << b, 0) - held.patch_sum)
                 m.next = "IDLE"
-        return m

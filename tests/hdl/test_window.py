@@ -117,6 +117,42 @@ def test_the_papers_patch_size():
     assert best_cycle == expected_cycles.best
 
 
+# Five and six lanes (the builds after the 4-lane one): W a multiple of L and not, a row's last beat completed
+# by the next row, one-group rows (L >= W), and Nygren's 10 x 10 patch.
+MORE_LANES = [
+    ((7, 13), (3, 4), 5),
+    ((6, 15), (2, 3), 5),
+    ((5, 4), (2, 2), 5),
+    ((8, 14), (3, 3), 6),
+    ((16, 29), (10, 10), 5),
+]
+
+
+@pytest.mark.parametrize("map_shape, patch_shape, lanes", MORE_LANES)
+def test_five_and_six_lanes(map_shape, patch_shape, lanes):
+    """Every value, the best fit and every beat's cycle at 5 and 6 lanes, in both modes."""
+    rng = np.random.default_rng([*map_shape, *patch_shape, lanes])
+    bench = window_bench(map_shape=map_shape, patch_shape=patch_shape, lanes=lanes, exclusion_radius=2)
+    cases = [random_case(rng, map_shape, patch_shape) for _ in range(2)]
+    results = []
+
+    async def testbench(ctx):
+        for (terrain, patch, mask), mode in zip(cases, [True, False]):
+            await bench.load(ctx, terrain=terrain, patch=patch, mask=mask)
+            results.append(await bench.correlate(ctx, mean_compensation=mode))
+
+    bench.run(testbench)
+    expected_cycles = schedule(map_shape, patch_shape, lanes, exclusion_radius=2)
+    for run, ((terrain, patch, mask), mode) in enumerate(zip(cases, [True, False])):
+        surface, best = results[run]
+        expected = correlate(terrain, patch, mask=mask, mean_compensation=mode)
+        np.testing.assert_array_equal(surface, expected)
+        assert best == best_fit_payload(best_fit(expected, exclusion_radius=2))
+        surface_cycles, best_cycle = bench.cycles(run)
+        np.testing.assert_array_equal(surface_cycles, expected_cycles.surface)
+        assert best_cycle == expected_cycles.best
+
+
 @pytest.mark.parametrize("seed", range(8))
 def test_random_configurations(seed):
     """Seeded random shapes, lanes, radius, mask and mode: values, best fit and cycles."""

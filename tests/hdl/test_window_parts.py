@@ -3,6 +3,7 @@
 
 import numpy as np
 import pytest
+from amaranth.hdl import ClockDomain, Module
 from amaranth.sim import Simulator
 
 from lost.hdl.interface import CorrelatorParameters
@@ -135,6 +136,47 @@ def test_patch_preparation_forms_the_lanes_terms_in_hw_plus_3_cycles(patch_shape
     assert (result["factor"], result["bias"], result["mode"]) == (f, bias, int(mode))
     assert result["lifted"] == lifted
     assert result["valid"] == sum(1 << x for x, valid in enumerate(mask.flat) if valid)
+
+
+def test_patch_preparation_lane_copies_equal_the_valid_bits_every_cycle():
+    """Each lane's copy of the valid bits equals them on every cycle: loading, a pass, a reset (both persist)."""
+    h, w, lanes = 3, 4, 3
+    rng = np.random.default_rng(17)
+    params = CorrelatorParameters(map_shape=(4, 5), patch_shape=(h, w), depth_bits=B, lanes=lanes)
+    dut = PatchPreparation(parameters=params)
+    top = Module()
+    top.domains.sync = sync = ClockDomain()
+    top.submodules.dut = dut
+    seen = []
+
+    async def check(ctx):
+        valid = ctx.get(dut.patch_valid)
+        assert [ctx.get(dut.lane_patch_valid[q]) for q in range(lanes)] == [valid] * lanes
+        seen.append(valid)
+
+    async def bench(ctx):
+        ctx.set(dut.idle, 1)
+        for cycle in range(4 * h * w):
+            ctx.set(dut.accept, int(rng.random() < 0.8))
+            ctx.set(dut.patch_in.valid, int(rng.random() < 0.7))
+            ctx.set(dut.patch_in.payload, {"depth": int(rng.integers(-100, 100)), "valid": bool(rng.random() < 0.5)})
+            ctx.set(sync.rst, int(cycle == 2 * h * w))
+            await ctx.tick()
+            await check(ctx)
+        ctx.set(dut.patch_in.valid, 0)
+        ctx.set(dut.start, 1)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        ctx.set(dut.idle, 0)
+        for _ in range(h * w + 4):
+            await ctx.tick()
+            await check(ctx)
+
+    sim = Simulator(top)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert len(set(seen)) > 5  # the bits changed many times, so the copies followed them
 
 
 def test_credit_queue_keeps_order_and_counts_credits():
