@@ -18,7 +18,8 @@ from amaranth.utils import ceil_log2
 
 from lost.model.widths import bits_for
 
-__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "enabled_delay", "index_range", "minimum_item", "shape_for", "tree_levels"]
+__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "delayed", "enabled_delay", "index_range", "minimum_item",
+           "shape_for", "tree_levels"]
 
 
 def shape_for(lo: int, hi: int) -> Shape:
@@ -101,6 +102,13 @@ class DelayLine(wiring.Component):
 
 #: Data bits of one block RAM port (the ECP5's DP16KD: 18; two ports joined give 36).
 BLOCK_RAM_PORT_BITS = 18
+
+
+def delayed(m: Module, value: Value, shape: ShapeLike, cycles: int, name: str) -> Value:
+    """``value`` through a :class:`DelayLine` of ``cycles`` registers, added to ``m`` as ``name``."""
+    m.submodules[name] = line = DelayLine(shape, cycles)
+    m.d.comb += line.i.eq(value)
+    return line.o
 
 
 class MemoryDelayLine(wiring.Component):

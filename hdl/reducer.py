@@ -45,18 +45,12 @@ from amaranth.lib.wiring import In, Out
 
 from lost.model.cycles import reducer_geometry
 
-from .blocks import DelayLine, MinimumTree
+from .blocks import MinimumTree, delayed
 from .interface import CorrelatorParameters
 from .reducer_scan import RunnerUpScan, row_minimum_layout
 
 __all__ = ["BestFitReducer"]
 
-
-def _delayed(m: Module, value, shape, cycles: int, name: str) -> Value:
-    """``value`` through ``cycles`` registers."""
-    m.submodules[name] = line = DelayLine(shape, cycles)
-    m.d.comb += line.i.eq(value)
-    return line.o
 
 
 @dataclass(frozen=True)
@@ -174,7 +168,7 @@ class BestFitReducer(wiring.Component):
             in_meta.first_in_row.eq(in_j == 0),
             in_meta.row_end.eq(in_j + in_count >= cols),
         ]
-        tree_meta = _delayed(m, in_meta, meta_layout, levels, "tree_meta")
+        tree_meta = delayed(m, in_meta, meta_layout, levels, "tree_meta")
 
         # Stage "row": this row's minimum so far (an earlier column wins ties).
         row_value, row_col = Signal(value_shape), Signal(col_shape)
@@ -183,7 +177,7 @@ class BestFitReducer(wiring.Component):
         row_col_new = Mux(take_beat, beat_col, row_col)
         with m.If(tree_meta.valid):
             m.d.sync += [row_value.eq(row_value_new), row_col.eq(row_col_new)]
-        row_meta = _delayed(m, tree_meta, meta_layout, 1, "row_meta")
+        row_meta = delayed(m, tree_meta, meta_layout, 1, "row_meta")
 
         # Stage "best": at a row's end, store its minimum and compare it with the best so far.
         best_value, best_i, best_j = Signal(value_shape), Signal(row_shape), Signal(col_shape)
@@ -197,8 +191,8 @@ class BestFitReducer(wiring.Component):
         ]
         with m.If(becomes_best):
             m.d.sync += [best_value.eq(row_value), best_i.eq(row_meta.i), best_j.eq(row_col)]
-        slot_meta = _delayed(m, row_meta, meta_layout, 1, "slot_meta")
-        slot_becomes_best = _delayed(m, becomes_best, 1, 1, "slot_becomes_best")
+        slot_meta = delayed(m, row_meta, meta_layout, 1, "slot_meta")
+        slot_becomes_best = delayed(m, becomes_best, 1, 1, "slot_becomes_best")
         return _Collected(in_values=in_values, tree_levels=levels, slot_meta=slot_meta, slot_becomes_best=slot_becomes_best,
                           best_value=best_value, best_i=best_i, best_j=best_j)
 
@@ -266,7 +260,7 @@ class BestFitReducer(wiring.Component):
             write_first.eq(slot_meta.first_in_row),
             write_last.eq(slot_meta.valid & slot_meta.last),
         ]
-        write_values = _delayed(m, collected.in_values, self._values_layout, collected.tree_levels + 3, "write_values")
+        write_values = delayed(m, collected.in_values, self._values_layout, collected.tree_levels + 3, "write_values")
         next_address = Signal(range(slots * beats_per_row + 1))  # the next word of the current row
         address = Mux(write_first, write_base, next_address)
         m.d.comb += [

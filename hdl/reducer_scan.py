@@ -10,7 +10,7 @@ from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import DelayLine, MinimumTree, tree_levels
+from lost.hdl.blocks import MinimumTree, delayed, tree_levels
 from lost.hdl.interface import CorrelatorParameters
 from lost.model.cycles import reducer_geometry
 
@@ -21,12 +21,6 @@ def row_minimum_layout(p: CorrelatorParameters) -> data.StructLayout:
     """A row's minimum: its value and its column (the first of equal values)."""
     return data.StructLayout({"value": unsigned(p.value_bits), "col": unsigned(p.col_bits)})
 
-
-def _delayed(m: Module, value: Value, shape: Any, cycles: int, name: str) -> Value:
-    """``value`` through a :class:`DelayLine` of ``cycles`` registers, added to ``m`` as ``name``."""
-    m.submodules[name] = line = DelayLine(shape, cycles)
-    m.d.comb += line.i.eq(value)
-    return line.o
 
 
 @dataclass(frozen=True)
@@ -168,14 +162,14 @@ class RunnerUpScan(wiring.Component):
         def outside(index, band):
             return (index < band[0]) | (index > band[1])
 
-        fetched, fetched_final = _delayed(m, scan.seen, 1, 1, "fetched"), _delayed(m, scan.seen_final, 1, 1, "fetched_final")
-        fetched_row_minimum = _delayed(m, scan.seen_row_minimum, 1, 1, "fetched_row_minimum")
-        fetched_slot = _delayed(m, scan.seen_slot, scan.seen_slot.shape(), 1, "fetched_slot")
-        fetched_cols = [_delayed(m, seen_col, seen_col.shape(), 1, f"fetched_col{lane}")
+        fetched, fetched_final = delayed(m, scan.seen, 1, 1, "fetched"), delayed(m, scan.seen_final, 1, 1, "fetched_final")
+        fetched_row_minimum = delayed(m, scan.seen_row_minimum, 1, 1, "fetched_row_minimum")
+        fetched_slot = delayed(m, scan.seen_slot, scan.seen_slot.shape(), 1, "fetched_slot")
+        fetched_cols = [delayed(m, seen_col, seen_col.shape(), 1, f"fetched_col{lane}")
                         for lane, seen_col in enumerate(scan.seen_cols)]
-        fetched_row = _delayed(m, scan.seen_row, row_shape, 1, "fetched_row")
-        fetched_minimum = _delayed(m, self.minima_read.data, row_minimum_layout(p), 1, "fetched_minimum")
-        fetched_words = _delayed(m, self.slots_read.data, self.values_layout, 1, "fetched_words")
+        fetched_row = delayed(m, scan.seen_row, row_shape, 1, "fetched_row")
+        fetched_minimum = delayed(m, self.minima_read.data, row_minimum_layout(p), 1, "fetched_minimum")
+        fetched_words = delayed(m, self.slots_read.data, self.values_layout, 1, "fetched_words")
 
         key_shape = unsigned(p.value_bits + p.row_bits + p.col_bits)
         slot_row = Signal(row_shape)
@@ -201,7 +195,7 @@ class RunnerUpScan(wiring.Component):
             leaf = Signal(candidate_tree.item, name=f"leaf{lane}")
             m.d.sync += [leaf.valid.eq(ok), leaf.key.eq(key)]
             m.d.comb += candidate_tree.leaves[lane].eq(leaf)
-        candidate_final = _delayed(m, fetched & fetched_final, 1, candidate_tree.latency + 1, "candidate_final")
+        candidate_final = delayed(m, fetched & fetched_final, 1, candidate_tree.latency + 1, "candidate_final")
         return candidate_tree.root.valid, candidate_tree.root.key, candidate_final
 
     def _runner(self, m: Module, candidate_ok: Value, candidate_key: Value) -> Signal:
