@@ -205,8 +205,9 @@ class Trust:
             self.counts["lookalike"] += 1
             self.good_in_row = 0
             self.usable = False
-        self._elsewhere.append(margin < -self._p.elsewhere_margin)
-        if margin < -self._p.elsewhere_margin:
+        better_elsewhere = margin < -self._p.elsewhere_margin
+        self._elsewhere.append(better_elsewhere)
+        if better_elsewhere:
             self.counts["fits_better_elsewhere"] += 1
         if sum(self._elsewhere) >= self._p.reinit_after:
             self._restart("reinitialized_elsewhere")
