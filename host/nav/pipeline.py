@@ -126,8 +126,9 @@ class NavParameters:
     gyro_bias_rps, accel_bias_mps2 : float
         RMS gyro and accelerometer biases of the INS error model (eq. 6.2) that widens the density
         while no update arrives. Defaults 0.01 deg/h and 10 micro-g, a navigation-grade INS.
-    velocity_bias_time_s : float or None
-        Time constant of the point-mass filter's velocity-bias estimate; None: not estimated.
+    estimate_velocity_bias : bool
+        Whether the point-mass filter estimates its velocity bias (a Kalman filter on the drift of its
+        corrections, :mod:`lost.host.nav.velocity_bias`). Default True.
     bias_learning_updates : int
         Terrain updates in a row with the density under the usable width before the point-mass filter
         learns its velocity bias from its corrections (before, they are the acquisition's own moves).
@@ -135,8 +136,8 @@ class NavParameters:
         reckoned by (0.1-0.2 m/s): its patches were misplaced by up to 8 m through the first minute
         (RMS 2.70 m; 2.20 m with 5; 2.35 with 10). 3: ``short``'s NEES in band 0.90, under its 0.92.
     velocity_bias_sigma_mps, velocity_bias_walk_mps : float
-        The particle filter's prior on the velocity bias (1-sigma, m/s) and its random walk (m/s per
-        square-root second).
+        The prior on the velocity bias (1-sigma, m/s) and its random walk (m/s per square-root second),
+        for both filters: the particles' bias state and the point-mass filter's bias filter.
     depth_bias_sigma_m, depth_bias_walk_m : float
         The single-depth (point) form's depth bias, measured ocean depth minus the map (tide, a
         pressure-depth error, a datum): its prior 1-sigma, metres, and its random walk, metres per
@@ -237,7 +238,7 @@ class NavParameters:
     velocity_noise_mps: float = 0.05
     gyro_bias_rps: float = math.radians(0.01) / 3600.0
     accel_bias_mps2: float = 10e-6 * 9.81
-    velocity_bias_time_s: float | None = 600.0
+    estimate_velocity_bias: bool = True
     bias_learning_updates: int = 5
     velocity_bias_sigma_mps: float = 0.05
     velocity_bias_walk_mps: float = 0.0005
@@ -287,7 +288,7 @@ class NavParameters:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number, at least 0, got {value!r}.")
-        for name in ("map_error_m", "pmf_min_cell_m", "velocity_bias_time_s"):
+        for name in ("map_error_m", "pmf_min_cell_m"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number or None, got {value!r}.")

@@ -35,7 +35,7 @@ def _grid():
 
 def _quiet(**changes):
     return replace(NavParameters(velocity_noise_mps=0.0, gyro_bias_rps=0.0, accel_bias_mps2=0.0, use_slant_range=False, usable_updates=1,
-                                 velocity_bias_time_s=None, pmf_min_cell_m=1.0), **changes)
+                                 estimate_velocity_bias=False, pmf_min_cell_m=1.0), **changes)
 
 
 def _fix_observation(position, covariance, slant=np.nan, t_s=0.0, frame=None):
