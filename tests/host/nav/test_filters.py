@@ -576,3 +576,17 @@ def test_the_point_mass_filter_learns_its_bias_only_once_its_density_has_been_na
     pmf._accept(*narrow_pull, terrain=True)
     bias = pmf.velocity_bias_mps
     assert bias[0] > 0.0 and bias[1] == 0.0  # pulled west: the measured velocity ran fast east
+
+
+def test_the_point_mass_filter_keeps_its_density_as_wide_as_an_unlearned_bias_may_misplace_a_patch():
+    grid = _map()
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    learning = PointMassFilter(likelihood, _quiet(estimate_velocity_bias=True, velocity_bias_sigma_mps=0.05), grid=grid)
+    blind = PointMassFilter(likelihood, _quiet(estimate_velocity_bias=False, velocity_bias_sigma_mps=0.05), grid=grid)
+    for f in (learning, blind):
+        f._patch_age_s = 60.0
+    base = blind._floor_var
+    assert base < (0.05 * 60.0) ** 2
+    assert learning._floor_var == pytest.approx((0.05 * 60.0) ** 2)  # the larger of the two, not their sum
+    learning._patch_age_s = 1.0
+    assert learning._floor_var == base
