@@ -74,7 +74,8 @@ class VelocityBiasFilter:
         ``position_var_m2`` the density's variance each axis after it, ``weight`` the update's tempering.
         The first update after a start or restart only anchors the sum at the density's position.
         """
-        noise = np.asarray(position_var_m2, float) / max(weight, 1e-3)
+        # A millimetre at least: a density of one point would otherwise make the gain 0 / 0.
+        noise = np.maximum(np.asarray(position_var_m2, float), 1e-6) / max(weight, 1e-3)
         if not self._following:
             self._following = True
             self._drift = np.zeros(2)

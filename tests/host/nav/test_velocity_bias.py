@@ -59,3 +59,11 @@ def test_a_patch_may_lie_off_by_the_bias_uncertainty_times_its_age():
     assert f.misplacement_var(60.0) == 0.05**2 * 60.0**2
     f.walk(100.0)
     assert np.isclose(f.misplacement_var(10.0), (0.05**2 + 0.001**2 * 100.0) * 100.0)
+
+
+def test_a_density_of_one_point_does_not_make_the_gain_zero_over_zero():
+    f = VelocityBiasFilter(0.05, 0.0)
+    f.update(np.zeros(2), 1.0, np.zeros(2), weight=0.0)  # anchors
+    f.update(np.array([-1.0, 1.0]), 1.0, np.zeros(2), weight=0.0)
+    assert np.all(np.isfinite(f.mean_mps)) and np.all(np.isfinite(f.variance_mps2))
+    assert f.mean_mps[0] > 0.0 > f.mean_mps[1]
