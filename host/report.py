@@ -16,7 +16,9 @@ The Bayesian filters' trust figures (``methods.pmf``, ``methods.pf``):
 - ``usable_fraction``: the share of records flagged usable;
 - ``ms_per_update``: the median wall time of the estimator's work at a record, milliseconds;
 - ``depth_bias_m``: the single-depth form's last depth-bias estimate (measured minus map), metres;
-  None for the patch form, which needs none.
+  None for the patch form, which needs none;
+- ``velocity_bias_mps``, ``velocity_bias_sigma_mps``: the last velocity-bias estimate (the measured velocity
+  less the true, [east, north], m/s) and its 1-sigma: what the tow taught of its DVL or INS.
 """
 
 from __future__ import annotations
@@ -96,6 +98,12 @@ def _last_finite(values: np.ndarray) -> float | None:
     return round(float(finite[-1]), 3) if finite.size else None
 
 
+def _last_finite_row(values: np.ndarray) -> list[float] | None:
+    """The last row of an (N, 2) series with both values finite, to 0.1 mm/s; None without one."""
+    finite = values[np.isfinite(values).all(axis=1)]
+    return [round(float(v), 4) for v in finite[-1]] if len(finite) else None
+
+
 def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | None) -> dict[str, Any]:
     """The trust figures of one Bayesian filter (see the module docstring); None where the truth is needed but unknown."""
     updates = np.isin(track.stage, UPDATE_STAGES)
@@ -108,6 +116,8 @@ def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | No
         "nees_in_band": None,
         "false_fixes": None,
         "depth_bias_m": _last_finite(track.depth_bias_m),
+        "velocity_bias_mps": _last_finite_row(track.velocity_bias_mps),
+        "velocity_bias_sigma_mps": _last_finite_row(track.velocity_bias_sigma_mps),
     }
     if truth is None:
         return figures
@@ -191,8 +201,8 @@ def _accuracy(error: np.ndarray, start: int | None) -> dict[str, Any]:
     return {**after, "whole_run": error_stats(error)}
 
 
-def _fmt(value: float) -> str:
-    return "" if not math.isfinite(value) else f"{value:.3f}"
+def _fmt(value: float, digits: int = 3) -> str:
+    return "" if not math.isfinite(value) else f"{value:.{digits}f}"
 
 
 def write_track_csv(path: Path, result: NavResult) -> None:
@@ -205,8 +215,10 @@ def write_track_csv(path: Path, result: NavResult) -> None:
 
     Each Bayesian filter that ran adds ``<name>_x_m``, ``<name>_y_m``, its covariance
     (``<name>_sxx``, ``<name>_syy``, ``<name>_sxy``, m**2), ``<name>_usable`` (0/1), ``<name>_nis``,
-    ``<name>_stage``, ``<name>_rejected``, ``<name>_error_m`` and ``<name>_depth_bias_m`` (the
-    single-depth form's depth-bias estimate, measured minus map; empty for the patch form).
+    ``<name>_stage``, ``<name>_rejected``, ``<name>_error_m``, ``<name>_depth_bias_m`` (the
+    single-depth form's depth-bias estimate, measured minus map; empty for the patch form) and the
+    velocity-bias estimate with its 1-sigma, m/s (``<name>_velocity_bias_e_mps``, ``_n_mps``,
+    ``<name>_velocity_bias_sigma_e_mps``, ``_sigma_n_mps``).
     """
     started = np.flatnonzero(np.isfinite(result.estimate[:, 0]))
     first = int(started[0]) if started.size else -1
@@ -220,7 +232,8 @@ def write_track_csv(path: Path, result: NavResult) -> None:
     filters = {name: track for name, track in result.tracks.items() if name != "lost"}
     for name in filters:
         header += [f"{name}_{column}" for column in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "nis", "stage", "rejected", "error_m",
-                                                       "depth_bias_m")]
+                                                       "depth_bias_m", "velocity_bias_e_mps", "velocity_bias_n_mps",
+                                                       "velocity_bias_sigma_e_mps", "velocity_bias_sigma_n_mps")]
     filter_errors = {name: horizontal_error(track.position, truth) for name, track in filters.items()}
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
@@ -247,7 +260,8 @@ def write_track_csv(path: Path, result: NavResult) -> None:
 def _filter_cells(track: FilterTrack, n: int, error: float) -> list[str]:
     c = track.covariance[n]
     return [*map(_fmt, track.position[n]), _fmt(c[0, 0]), _fmt(c[1, 1]), _fmt(c[0, 1]), str(int(track.usable[n])), _fmt(track.nis[n]),
-            str(track.stage[n]), str(track.rejected[n]), _fmt(error), _fmt(track.depth_bias_m[n])]
+            str(track.stage[n]), str(track.rejected[n]), _fmt(error), _fmt(track.depth_bias_m[n]),
+            *(_fmt(v, 4) for v in (*track.velocity_bias_mps[n], *track.velocity_bias_sigma_mps[n]))]
 
 
 def write_summary(path: Path, summary: dict[str, Any]) -> None:

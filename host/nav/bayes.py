@@ -161,6 +161,16 @@ class BayesFilter:
         """
         raise NotImplementedError
 
+    @property
+    def velocity_bias_mps(self) -> np.ndarray:
+        """The velocity-bias estimate (east, north), m/s: the measured velocity less the true."""
+        raise NotImplementedError
+
+    @property
+    def velocity_bias_sigma_mps(self) -> np.ndarray:
+        """Its 1-sigma each axis, m/s (NaN where it is not estimated)."""
+        raise NotImplementedError
+
     def _before_patch(self, patch, weight: float) -> None:
         """A hook before a patch is weighed: a particle cloud may redraw itself where the patch fits."""
 
@@ -338,4 +348,5 @@ class BayesFilter:
         mean, cov = self._moments()
         bias = self.depth_bias_m[0] if self._p.matching == "point" else float("nan")
         return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected,
-                        depth_bias_m=bias)
+                        depth_bias_m=bias, velocity_bias_mps=tuple(self.velocity_bias_mps),
+                        velocity_bias_sigma_mps=tuple(self.velocity_bias_sigma_mps))

@@ -122,6 +122,9 @@ class Estimate:
         Why a measurement of this record was refused ("" when none was).
     depth_bias_m : float
         The single-depth form's depth-bias estimate, measured minus map (NaN for the patch form).
+    velocity_bias_mps, velocity_bias_sigma_mps : (east, north)
+        The velocity-bias estimate (the measured velocity less the true, m/s) and its 1-sigma; NaN for an
+        estimator that does not estimate one.
     """
 
     position: np.ndarray
@@ -131,6 +134,8 @@ class Estimate:
     nis: float = float("nan")
     rejected: str = ""
     depth_bias_m: float = float("nan")
+    velocity_bias_mps: tuple[float, float] = (float("nan"), float("nan"))
+    velocity_bias_sigma_mps: tuple[float, float] = (float("nan"), float("nan"))
 
 
 class Estimator(Protocol):

@@ -100,6 +100,11 @@ class ParticleFilter(BayesFilter):
     def velocity_bias_mps(self) -> np.ndarray:
         return self._b @ self._w
 
+    @property
+    def velocity_bias_sigma_mps(self) -> np.ndarray:
+        """The particles' weighted spread of their biases."""
+        return np.sqrt(((self._b - self.velocity_bias_mps[:, None]) ** 2) @ self._w)
+
     def start(self, t_s: float, position: np.ndarray, observation: Observation) -> None:
         self._spawn(np.asarray(position, float), None, self._p.initial_sigma_m)
         self._stage = "initialization"

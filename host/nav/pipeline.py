@@ -330,6 +330,8 @@ class FilterTrack:
     rejected : (N,) str array, why a measurement was refused ("" when none was)
     ms : (N,) array, wall time of the estimator's predict + update at each record, milliseconds
     depth_bias_m : (N,) array, the single-depth form's depth-bias estimate (NaN for the patch form)
+    velocity_bias_mps, velocity_bias_sigma_mps : (N, 2) arrays, the velocity-bias estimate and its 1-sigma
+        (east, north), m/s (NaN where the estimator has none)
     counts : dict, every skip, rejection and re-initialization the estimator made
     """
 
@@ -341,12 +343,15 @@ class FilterTrack:
     rejected: np.ndarray
     ms: np.ndarray
     depth_bias_m: np.ndarray
+    velocity_bias_mps: np.ndarray
+    velocity_bias_sigma_mps: np.ndarray
     counts: dict[str, int] = field(default_factory=dict)
 
     @classmethod
     def empty(cls, n: int) -> FilterTrack:
         return cls(np.full((n, 2), np.nan), np.full((n, 2, 2), np.nan), np.zeros(n, bool), np.full(n, "uninitialized", dtype="<U14"),
-                   np.full(n, np.nan), np.full(n, "", dtype="<U32"), np.full(n, np.nan), np.full(n, np.nan))
+                   np.full(n, np.nan), np.full(n, "", dtype="<U32"), np.full(n, np.nan), np.full(n, np.nan), np.full((n, 2), np.nan),
+                   np.full((n, 2), np.nan))
 
 
 @dataclass(frozen=True)
@@ -571,6 +576,7 @@ class _RecordLoop:
         track.position[n], track.covariance[n], track.usable[n] = answer.position, answer.covariance, answer.usable
         track.stage[n], track.nis[n], track.rejected[n], track.ms[n] = answer.stage, answer.nis, answer.rejected, ms
         track.depth_bias_m[n] = answer.depth_bias_m
+        track.velocity_bias_mps[n], track.velocity_bias_sigma_mps[n] = answer.velocity_bias_mps, answer.velocity_bias_sigma_mps
         if isinstance(estimator, PatentEstimator):
             last = estimator.last
             self.patent["predicted"][n] = last["predicted"]

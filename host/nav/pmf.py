@@ -270,8 +270,13 @@ class PointMassFilter(BayesFilter):
 
     @property
     def velocity_bias_mps(self) -> np.ndarray:
-        """The velocity-bias estimate (east, north), m/s."""
         return self._velocity_bias.mean_mps
+
+    @property
+    def velocity_bias_sigma_mps(self) -> np.ndarray:
+        if not self._p.estimate_velocity_bias:
+            return np.full(2, np.nan)
+        return np.sqrt(self._velocity_bias.variance_mps2)
 
     def _before_patch(self, patch, weight: float) -> None:
         self._patch_age_s, self._patch_weight = patch.age_s, weight

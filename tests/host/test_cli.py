@@ -46,6 +46,10 @@ def test_one_estimator_writes_its_track_with_covariance(tmp_path, capsys):
     assert float(late["pmf_error_m"]) < 3.0 * math.sqrt(float(late["pmf_sxx"]) + float(late["pmf_syy"]))
     assert "pmf converged after" in capsys.readouterr().out
     assert {r["pmf_depth_bias_m"] for r in rows} == {""}  # the patch form has no depth bias to report
+    # The velocity bias it learned, with its 1-sigma (wide on this tow: its "bias" is the towfish's lag, walking fast).
+    bias, sigma = summary["methods"]["pmf"]["velocity_bias_mps"], summary["methods"]["pmf"]["velocity_bias_sigma_mps"]
+    assert [float(rows[-1][f"pmf_velocity_bias_{axis}_mps"]) for axis in "en"] == pytest.approx(bias, abs=1e-4)
+    assert min(sigma) > 0.0 and [float(rows[-1][f"pmf_velocity_bias_sigma_{axis}_mps"]) for axis in "en"] == pytest.approx(sigma, abs=1e-4)
 
 
 def test_run_by_builtin_name_with_backend_and_matching(tmp_path):

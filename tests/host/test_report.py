@@ -66,3 +66,13 @@ def test_a_filters_figures_carry_its_last_depth_bias_estimate_or_none():
     assert filter_figures(track, None, None)["depth_bias_m"] is None  # the patch form
     track.depth_bias_m[:3] = [0.5, 1.25, 1.5]
     assert filter_figures(track, None, None)["depth_bias_m"] == 1.5  # the last finite estimate
+
+
+def test_a_filters_figures_carry_its_last_velocity_bias_estimate_with_its_sigma_or_none():
+    track = FilterTrack.empty(4)
+    assert filter_figures(track, None, None)["velocity_bias_mps"] is None  # an estimator without one
+    track.velocity_bias_mps[:3] = [[0.01, -0.02], [0.02, -0.015], [0.021, np.nan]]
+    track.velocity_bias_sigma_mps[:3] = [[0.05, 0.05], [0.0072, 0.0076], [0.007, np.nan]]
+    figures = filter_figures(track, None, None)
+    assert figures["velocity_bias_mps"] == [0.02, -0.015]  # the last row with both axes
+    assert figures["velocity_bias_sigma_mps"] == [0.0072, 0.0076]

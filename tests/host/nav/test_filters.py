@@ -590,3 +590,21 @@ def test_the_point_mass_filter_keeps_its_density_as_wide_as_an_unlearned_bias_ma
     assert learning._floor_var == pytest.approx((0.05 * 60.0) ** 2)  # the larger of the two, not their sum
     learning._patch_age_s = 1.0
     assert learning._floor_var == base
+
+
+def test_each_filter_reports_its_velocity_bias_with_its_sigma():
+    grid = _map()
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    pf = ParticleFilter(likelihood, _quiet(pf_particles=100), grid=grid, seed=1)
+    pf.start(0.0, np.array([400.0, 400.0]), _observation())
+    pf._b = np.array([[0.0] * 50 + [0.1] * 50, [0.02] * 100])
+    pf._w = np.full(100, 0.01)
+    estimate = pf.estimate()
+    np.testing.assert_allclose(estimate.velocity_bias_mps, [0.05, 0.02])
+    np.testing.assert_allclose(estimate.velocity_bias_sigma_mps, [0.05, 0.0], atol=1e-12)  # the weighted spread
+    pmf = PointMassFilter(likelihood, _quiet(estimate_velocity_bias=True, velocity_bias_sigma_mps=0.03), grid=grid)
+    pmf.start(0.0, np.array([400.0, 400.0]), _observation())
+    np.testing.assert_allclose(pmf.estimate().velocity_bias_sigma_mps, [0.03, 0.03])  # the prior, nothing learned yet
+    blind = PointMassFilter(likelihood, _quiet(estimate_velocity_bias=False), grid=grid)
+    blind.start(0.0, np.array([400.0, 400.0]), _observation())
+    assert np.isnan(blind.estimate().velocity_bias_sigma_mps).all()
