@@ -72,12 +72,19 @@ class PatchPreparation(wiring.Component):
         As the :class:`~lost.hdl.window_lane.WindowLane`'s ports of those names.
     lane_patch_valid : ``Out(ArrayLayout(h * w, lanes))``
         A copy of ``patch_valid`` for each lane, a register of its own (the same value on every cycle).
+    lane_accept : ``In(ArrayLayout(1, lanes))``
+        Only with ``lane_accept=True``: a copy of ``accept`` for each lane's copy of the valid bits (the
+        caller's registers, each equal to ``accept`` on every cycle), so that each lane's copy has a load
+        enable of its own: one enable for all of them spans the chip.
     """
 
-    def __init__(self, *, parameters: CorrelatorParameters):
+    def __init__(self, *, parameters: CorrelatorParameters, lane_accept: bool = False):
         if not isinstance(parameters, CorrelatorParameters):
             raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        if not isinstance(lane_accept, bool):
+            raise ValueError(f"lane_accept must be a bool, got {lane_accept!r}")
         self._parameters = p = parameters
+        self._lane_accept = lane_accept
         self._arithmetic = a = LaneArithmetic.of(p)
         nodes = p.patch_shape[0] * p.patch_shape[1]
         super().__init__({
@@ -93,6 +100,7 @@ class PatchPreparation(wiring.Component):
             "mean_compensation": Out(1),
             "factor": Out(a.count),
             "dividend_bias": Out(a.bias),
+            **({"lane_accept": In(data.ArrayLayout(1, p.lanes))} if lane_accept else {}),
         })
 
     def elaborate(self, platform: Any) -> Module:
@@ -148,10 +156,15 @@ class PatchPreparation(wiring.Component):
             patch_write.data.eq(self.patch_in.payload.depth),
             patch_write.en.eq(loading),
         ]
+        shifted = Cat(patch_valid[1:], self.patch_in.payload.valid)
+        shared_enable = [] if self._lane_accept else lane_copies
         with m.If(loading):
             m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
-            shifted = Cat(patch_valid[1:], self.patch_in.payload.valid)
-            m.d.sync += [patch_valid.eq(shifted), *(copy.eq(shifted) for copy in lane_copies)]
+            m.d.sync += [patch_valid.eq(shifted), *(copy.eq(shifted) for copy in shared_enable)]
+        if self._lane_accept:
+            for q, copy in enumerate(lane_copies):
+                with m.If(self.patch_in.valid & self.lane_accept[q]):
+                    m.d.sync += copy.eq(shifted)
         return patch_pointer
 
     def _pass(self, m: Module, patch_read: memory.ReadPort, held: _Held) -> tuple[Signal, Signal, Signal]:
