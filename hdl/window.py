@@ -232,7 +232,7 @@ class WindowCore(wiring.Component):
     def _patch(self, m: Module, ready_for_more: Value, lane_ready: Value, idle: Signal,
                start: Value) -> PatchPreparation:
         """The patch, its count and sum, and its lifted depths ``2**b - S`` (formed at start)."""
-        m.submodules.patch = patch = PatchPreparation(parameters=self._parameters, lane_accept=True)
+        m.submodules.patch = patch = PatchPreparation(parameters=self._parameters, lane_resets=True)
         wiring.connect(m, wiring.flipped(self.patch_in), patch.patch_in)
         m.d.comb += [
             patch.accept.eq(ready_for_more),
@@ -344,7 +344,8 @@ class WindowCore(wiring.Component):
                 lane.advance.eq(advance),
                 *(lane.sum_window[l].eq(window.columns[sums_port + q + l]) for l in range(w)),
                 *(lane.term_window[l].eq(window.columns[q + l]) for l in range(w)),
-                lane.patch_valid.eq(patch.lane_patch_valid[q]),
+                # The lane's resets are ~patch_valid: the copy holds them, so no inverter is left.
+                lane.patch_valid.eq(~patch.lane_patch_invalid[q]),
                 lane.lifted_patch.eq(patch.lifted_patch),
                 lane.mean_compensation.eq(patch.mean_compensation),
                 lane.factor.eq(patch.factor),

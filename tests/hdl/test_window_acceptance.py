@@ -57,38 +57,52 @@ def test_busy_on_every_edge_from_start_to_the_best_beat_with_stalls():
 
 
 @pytest.mark.parametrize("held_lane", [None, 1])
-def test_patch_preparation_lane_accept_loads_each_copy(held_lane):
-    """With ``lane_accept``, each lane's copy loads on its own enable: driven equal to ``accept`` every copy
-    equals the valid bits on every cycle; a lane whose enable is held low keeps its copy (so the port,
-    not ``accept``, is that copy's enable)."""
+def test_patch_preparation_lane_resets_are_the_invalid_bits_each_on_its_own_enable(held_lane):
+    """With ``lane_resets``, each lane's copy holds the invalid bits and loads on its own enable: driven
+    equal to ``accept``, every copy equals ``~patch_valid`` on every cycle (loads, a reset, a pass); a lane
+    whose enable is held low keeps its copy (so the port, not ``accept``, is that copy's enable)."""
     h, w, lanes = 3, 4, 3
+    nodes = h * w
     rng = np.random.default_rng(31)
     params = CorrelatorParameters(map_shape=(4, 5), patch_shape=(h, w), depth_bits=B, lanes=lanes)
-    dut = PatchPreparation(parameters=params, lane_accept=True)
+    dut = PatchPreparation(parameters=params, lane_resets=True)
+    assert "lane_patch_valid" not in dut.signature.members
     top = Module()
     top.domains.sync = sync = ClockDomain()
     top.submodules.dut = dut
     seen, held = [], []
 
+    def check(ctx):
+        valid = ctx.get(dut.patch_valid)
+        seen.append(valid)
+        for q in range(lanes):
+            copy = ctx.get(dut.lane_patch_invalid[q])
+            if q == held_lane:
+                held.append(copy)
+            else:
+                assert copy == valid ^ ((1 << nodes) - 1)
+
     async def bench(ctx):
         ctx.set(dut.idle, 1)
-        for cycle in range(4 * h * w):
+        check(ctx)
+        for cycle in range(4 * nodes):
             accept = int(rng.random() < 0.8)
             ctx.set(dut.accept, accept)
             for q in range(lanes):
                 ctx.set(dut.lane_accept[q], 0 if q == held_lane else accept)
             ctx.set(dut.patch_in.valid, int(rng.random() < 0.7))
             ctx.set(dut.patch_in.payload, {"depth": int(rng.integers(-100, 100)), "valid": bool(rng.random() < 0.5)})
-            ctx.set(sync.rst, int(cycle == 2 * h * w))
+            ctx.set(sync.rst, int(cycle == 2 * nodes))
             await ctx.tick()
-            valid = ctx.get(dut.patch_valid)
-            seen.append(valid)
-            for q in range(lanes):
-                copy = ctx.get(dut.lane_patch_valid[q])
-                if q == held_lane:
-                    held.append(copy)
-                else:
-                    assert copy == valid
+            check(ctx)
+        ctx.set(dut.patch_in.valid, 0)
+        ctx.set(dut.start, 1)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        ctx.set(dut.idle, 0)
+        for _ in range(nodes + 4):
+            await ctx.tick()
+            check(ctx)
 
     sim = Simulator(top)
     sim.add_clock(1e-8)
@@ -96,10 +110,10 @@ def test_patch_preparation_lane_accept_loads_each_copy(held_lane):
     sim.run()
     assert len(set(seen)) > 5
     if held_lane is not None:
-        assert set(held) == {0}  # reset-less, initially zero, never loaded
+        assert set(held) == {(1 << nodes) - 1}  # reset-less, initially all invalid, never loaded
 
 
-def test_patch_preparation_refuses_a_non_bool_lane_accept():
+def test_patch_preparation_refuses_a_non_bool_lane_resets():
     params = CorrelatorParameters(map_shape=(4, 5), patch_shape=(2, 2), depth_bits=B, lanes=2)
-    with pytest.raises(ValueError, match="lane_accept must be a bool"):
-        PatchPreparation(parameters=params, lane_accept=1)
+    with pytest.raises(ValueError, match="lane_resets must be a bool"):
+        PatchPreparation(parameters=params, lane_resets=1)
