@@ -9,17 +9,16 @@ one comparison. None of them knows a device: a register meant to stay a separate
 
 from __future__ import annotations
 
-import itertools
 from typing import Any
 
-from amaranth.hdl import Cat, Module, Mux, Shape, ShapeLike, Signal, Value, signed, unsigned
+from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, Value, signed, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
 from lost.model.widths import bits_for
 
-__all__ = ["AdderTree", "BitCount", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "delayed", "enabled_delay", "index_range", "minimum_item",
+__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "delayed", "enabled_delay", "index_range", "minimum_item",
            "shape_for", "tree_levels"]
 
 
@@ -300,78 +299,6 @@ class AdderTree(wiring.Component):
         for extra in range(self.registered_levels.count(False)):
             register = Signal(root.shape(), name=f"root{extra + 1}", reset_less=True)
             load([register.eq(root)])
-            root = register
-        m.d.comb += self.sum.eq(root)
-        return m
-
-
-#: Bits a :class:`BitCount` counts in LUTs before its adder tree: a LUT4 per bit of their count.
-COUNTED_IN_LUTS = 4
-
-
-def _count_bits(bits: list[Value]) -> list[Value]:
-    """The binary count of set bits among ``bits`` (at most four), each bit a function of the four alone.
-
-    Bit ``j`` of a count ``k`` is the parity of ``C(k, 2**j)`` (Lucas), so it is the XOR, over every
-    ``2**j`` of the bits, of their AND: a LUT4 per bit, never a carry chain.
-    """
-    width = len(bits).bit_length()
-    return [Cat(*(Cat(*subset).all() for subset in itertools.combinations(bits, 1 << j))).xor()
-            for j in range(width)]
-
-
-class BitCount(wiring.Component):
-    """The number of set bits among ``count``, with the latency of an :class:`AdderTree` over ``count`` 1-bit leaves.
-
-    A binary tree of 1-bit leaves spends its first two levels on carry chains of 2 and 3 bits (200 LUT4
-    of a 100-leaf count); here each group of :data:`COUNTED_IN_LUTS` bits is counted by three LUT4s (one
-    per bit of its count), registered, and the groups' counts are summed by an :class:`AdderTree` with
-    ``adders_per_register``; the level the groups save is a register after its root.
-
-    Latency: :func:`tree_levels` ``(count)`` clocks; one bit passes through. Registers reset-less.
-
-    Parameters
-    ----------
-    count : int
-    total : int
-        The largest count the bits can have (e.g. the valid nodes'), at most ``count``: the sum's width.
-    adders_per_register : int
-        As :class:`AdderTree`'s.
-
-    Members
-    -------
-    leaves : ``In(count)``
-    sum : ``Out(shape_for(0, total))``
-    """
-
-    def __init__(self, *, count: int, total: int, adders_per_register: int = 1):
-        self._count = _check_count("count", count)
-        if isinstance(total, bool) or not isinstance(total, int) or not 0 <= total <= count:
-            raise ValueError(f"total must be an integer in [0, count = {count}], got {total!r}")
-        self._total = total
-        self._adders_per_register = _check_count("adders_per_register", adders_per_register)
-        super().__init__({"leaves": In(count), "sum": Out(shape_for(0, total))})
-
-    @property
-    def latency(self) -> int:
-        return tree_levels(self._count)
-
-    def elaborate(self, platform: Any) -> Module:
-        m = Module()
-        if self._count == 1:
-            m.d.comb += self.sum.eq(self.leaves)
-            return m
-        groups = [[self.leaves[k] for k in range(start, min(start + COUNTED_IN_LUTS, self._count))]
-                  for start in range(0, self._count, COUNTED_IN_LUTS)]
-        m.submodules.tree = tree = AdderTree(count=len(groups), leaf=(0, COUNTED_IN_LUTS), total=(0, self._total),
-                                             adders_per_register=self._adders_per_register)
-        counts = Signal(data.ArrayLayout(tree.leaf_shape, len(groups)), name="counts", reset_less=True)
-        m.d.sync += [counts[g].eq(Cat(*_count_bits(group))) for g, group in enumerate(groups)]
-        m.d.comb += [tree.leaves[g].eq(counts[g]) for g in range(len(groups))]
-        root = tree.sum
-        for extra in range(self.latency - 1 - tree.latency):
-            register = Signal(root.shape(), name=f"root{extra + 1}", reset_less=True)
-            m.d.sync += register.eq(root)
             root = register
         m.d.comb += self.sum.eq(root)
         return m

@@ -29,7 +29,7 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import AdderTree, BitCount, Replicas, enabled_delay, shape_for, tree_levels
+from lost.hdl.blocks import AdderTree, Replicas, enabled_delay, shape_for, tree_levels
 from lost.hdl.interface import CorrelatorParameters
 from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
 
@@ -514,8 +514,8 @@ class WindowLane(wiring.Component):
                 ]
         m.submodules.above_sum = above_tree = AdderTree(count=nodes, leaf=(0, 2 * a.lift - 1), total=(0, a.lifted_sum_hi),
                                                    adders_per_register=TREE_ADDERS_PER_REGISTER)
-        m.submodules.above_count = count_tree = BitCount(count=nodes, total=nodes,
-                                                  adders_per_register=TREE_ADDERS_PER_REGISTER)
+        m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes),
+                                                   adders_per_register=TREE_ADDERS_PER_REGISTER)
         m.d.comb += [above_tree.leaves[x].eq(above[x]) for x in range(nodes)]
         m.d.comb += [count_tree.leaves[x].eq(selected[x]) for x in range(nodes)]
         return above_tree.sum, count_tree.sum, carried_at
