@@ -74,7 +74,7 @@ from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import DelayLine, index_range
+from lost.hdl.blocks import DelayLine, Replicas, index_range
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
@@ -177,12 +177,13 @@ class WindowCore(wiring.Component):
         stages = PipelineStages.of(self._timing)
 
         idle = Signal()
+        idle_next = Signal()  # the value ``idle`` takes on the next edge (set by the state machine)
         m.submodules.reducer = reducer = BestFitReducer(parameters=self._parameters)
-        ready_for_more = idle & ~reducer.busy
+        ready_for_more, lane_ready = self._acceptance(m, reducer, idle_next)
         m.d.comb += [self.start.ready.eq(ready_for_more), self.busy.eq(~ready_for_more)]
         start = self.start.valid & self.start.ready
 
-        patch = self._patch(m, ready_for_more, idle, start)
+        patch = self._patch(m, ready_for_more, lane_ready, idle, start)
         steps = self._step_issue(m)
         advance, step_is_word = self._advance(m, steps.issue, steps.issuing_words)
         # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
@@ -203,15 +204,39 @@ class WindowCore(wiring.Component):
         ]
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
-        self._control(m, stages, idle, start, clearing, patch, steps, beats)
+        self._control(m, stages, idle, idle_next, start, clearing, patch, steps, beats)
         return m
 
-    def _patch(self, m: Module, ready_for_more: Value, idle: Signal, start: Value) -> PatchPreparation:
+    def _acceptance(self, m: Module, reducer: BestFitReducer, idle_next: Value) -> tuple[Signal, Value]:
+        """Whether the core takes a start or patch words (``idle & ~reducer.busy``), as registers.
+
+        Formed from both flags' next values, so it equals ``idle & ~reducer.busy`` on every cycle: the
+        patch words' load enable then starts at a register, not at the state register's decode and the
+        reducer's flag (the 4-lane build's critical path, d7d03eb: 13.5 ns from ``fsm_state`` to the
+        lanes' copies of the valid bits). Each lane's copy of the valid bits takes its own copy of it.
+        The reducer's ``busy`` is set by a last surface beat's arrival and cleared by the best beat's
+        transfer, which wins (:class:`~lost.hdl.reducer.BestFitReducer`).
+
+        Returns the register and the lanes' copies of it.
+        """
+        best_taken = reducer.best.valid & reducer.best.ready
+        last_arrives = reducer.surface.valid & reducer.surface.payload.last
+        busy_next = ~best_taken & (last_arrives | reducer.busy)
+        ready_next = idle_next & ~busy_next
+        accepting = Signal(init=1)  # reset: idle and not busy
+        m.d.sync += accepting.eq(ready_next)
+        m.submodules.accepting_copies = copies = Replicas(1, self._parameters.lanes, init=1)
+        m.d.comb += copies.i.eq(ready_next)
+        return accepting, copies.o
+
+    def _patch(self, m: Module, ready_for_more: Value, lane_ready: Value, idle: Signal,
+               start: Value) -> PatchPreparation:
         """The patch, its count and sum, and its lifted depths ``2**b - S`` (formed at start)."""
-        m.submodules.patch = patch = PatchPreparation(parameters=self._parameters)
+        m.submodules.patch = patch = PatchPreparation(parameters=self._parameters, lane_resets=True)
         wiring.connect(m, wiring.flipped(self.patch_in), patch.patch_in)
         m.d.comb += [
             patch.accept.eq(ready_for_more),
+            patch.lane_accept.eq(lane_ready),
             patch.idle.eq(idle),
             patch.start.eq(start),
             patch.start_mode.eq(self.start.payload.mean_compensation),
@@ -319,7 +344,8 @@ class WindowCore(wiring.Component):
                 lane.advance.eq(advance),
                 *(lane.sum_window[l].eq(window.columns[sums_port + q + l]) for l in range(w)),
                 *(lane.term_window[l].eq(window.columns[q + l]) for l in range(w)),
-                lane.patch_valid.eq(patch.lane_patch_valid[q]),
+                # The lane's resets are ~patch_valid: the copy holds them, so no inverter is left.
+                lane.patch_valid.eq(~patch.lane_patch_invalid[q]),
                 lane.lifted_patch.eq(patch.lifted_patch),
                 lane.mean_compensation.eq(patch.mean_compensation),
                 lane.factor.eq(patch.factor),
@@ -343,9 +369,12 @@ class WindowCore(wiring.Component):
         ]
         m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(self._parameters.lanes)]
 
-    def _control(self, m: Module, stages: PipelineStages, idle: Signal, start: Value, clearing: Signal,
-                 patch: PatchPreparation, steps: _StepIssue, beats: _BeatStages) -> None:
-        """The state machine (idle, the patch pass, the run) and what ``clearing`` resets between correlations."""
+    def _control(self, m: Module, stages: PipelineStages, idle: Signal, idle_next: Signal, start: Value,
+                 clearing: Signal, patch: PatchPreparation, steps: _StepIssue, beats: _BeatStages) -> None:
+        """The state machine (idle, the patch pass, the run) and what ``clearing`` resets between correlations.
+
+        ``idle`` is high in ``IDLE``; ``idle_next`` is its value on the next edge.
+        """
         m.d.comb += steps.output_queue.clear.eq(clearing)
         with m.If(clearing):
             m.d.sync += [
@@ -356,7 +385,7 @@ class WindowCore(wiring.Component):
             m.d.sync += [beats.sync_meta[x].live.eq(0) for x in range(stages.quotient)]
         with m.FSM():
             with m.State("IDLE"):
-                m.d.comb += idle.eq(1)
+                m.d.comb += [idle.eq(1), idle_next.eq(~start)]
                 with m.If(start):
                     m.next = "PREPARE"
             with m.State("PREPARE"):
@@ -365,6 +394,7 @@ class WindowCore(wiring.Component):
                     m.next = "RUN"
             with m.State("RUN"):
                 with m.If(self.surface.valid & self.surface.ready & self.surface.payload.last):
+                    m.d.comb += idle_next.eq(1)
                     m.next = "IDLE"
 
     def _step_beats(self, m: Module, advance: Value, clearing: Value) -> tuple[Signal, Signal, data.StructLayout]:

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Cat, Module, Mux, Shape, Signal, signed, unsigned
+from amaranth.hdl import Cat, Const, Module, Mux, Shape, Signal, signed, unsigned
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
@@ -495,29 +495,33 @@ class WindowLane(wiring.Component):
         carried_at = {stages.sums - 1: carried_line.o, stages.sums: carried_last}  # by term stage
         difference = Signal(data.ArrayLayout(a.lifted, nodes), name="difference", reset_less=True)
         above = Signal(data.ArrayLayout(a.lifted, nodes), name="above", reset_less=True)
-        selected = Signal(nodes, name="selected", reset_less=True)
+        passed = Signal(nodes, name="passed", reset_less=True)  # not above the quotient (the complement of "chosen")
+        lifted_bits = Shape.cast(a.lifted).width
         for k in range(h):
             for l in range(w):
                 x = k * w + l
-                # d' > q as the sign of q - d': a sum bit of the carry chain, where a comparison's
-                # carry out would be rebuilt in LUTs. An invalid node's d' is held at 0 by its register's
-                # synchronous reset, and q - 0 is never negative: no node is chosen there, with no LUT.
-                chosen = (quotient_copy[x // COPY_NODES] - difference[x])[-1]
+                # d' > q by its complement q >= d': the carry of q - d', a sum bit of the carry chain (a
+                # comparison's carry out would be rebuilt in LUTs). d' is given a top bit of 1, so that the
+                # chain's top sum bit is that carry itself, not its inverse: the polarity of the registers'
+                # synchronous resets below, so no LUT inverts it (one a node did, 100 LUT4 a lane). An
+                # invalid node's d' is held at 0 by its register's reset, and q >= 0: never chosen, no LUT.
+                not_above = (quotient_copy[x // COPY_NODES] - Cat(difference[x], Const(1, 1)))[lifted_bits]
                 with m.If(~patch_valid[x]):
                     m.d.sync += difference[x].eq(0)
                 with m.Else():
                     m.d.sync += difference[x].eq(self.term_window[l][k] + self.lifted_patch[x])
                 m.d.sync += [
-                    # A register's synchronous reset, driven by the sign itself: no LUT.
-                    above[x].eq(Mux(chosen, difference[x], 0)),
-                    selected[x].eq(chosen),
+                    # A register's synchronous reset, driven by the carry itself: no LUT.
+                    above[x].eq(Mux(not_above, 0, difference[x])),
+                    passed[x].eq(not_above),
                 ]
         m.submodules.above_sum = above_tree = AdderTree(count=nodes, leaf=(0, 2 * a.lift - 1), total=(0, a.lifted_sum_hi),
                                                    adders_per_register=TREE_ADDERS_PER_REGISTER)
         m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes),
                                                    adders_per_register=TREE_ADDERS_PER_REGISTER)
         m.d.comb += [above_tree.leaves[x].eq(above[x]) for x in range(nodes)]
-        m.d.comb += [count_tree.leaves[x].eq(selected[x]) for x in range(nodes)]
+        # The count's first level is LUTs (two 1-bit leaves a sum), which take the inversion in.
+        m.d.comb += [count_tree.leaves[x].eq(~passed[x]) for x in range(nodes)]
         return above_tree.sum, count_tree.sum, carried_at
 
     def _value(self, m: Module, term_mode: Any, lane_factor: Any, above_sum: Any, above_count: Any, carried_at: dict) -> None:

@@ -49,11 +49,15 @@ class PatchPreparation(wiring.Component):
     on edge ``h * w + 3`` (the pass takes a node per clock, after the memory's read register and one
     after it: a block RAM's output is slow), when ``dividend_bias`` loads; every output holds from
     edge ``h * w + 3`` until the next ``start``. ``factor``, ``lifted_patch`` and ``patch_valid`` are
-    final an edge earlier. Each of ``lane_patch_valid`` equals ``patch_valid`` on every cycle.
+    final an edge earlier. Each of ``lane_patch_valid`` equals ``patch_valid`` on every cycle (each of
+    ``lane_patch_invalid``, ``~patch_valid``).
 
     Parameters
     ----------
     parameters : CorrelatorParameters
+    lane_resets : bool
+        The lanes' copies as the window core's lanes use them: inverted (``lane_patch_invalid``) and
+        each loaded on its own enable (``lane_accept``).
 
     Members
     -------
@@ -72,12 +76,24 @@ class PatchPreparation(wiring.Component):
         As the :class:`~lost.hdl.window_lane.WindowLane`'s ports of those names.
     lane_patch_valid : ``Out(ArrayLayout(h * w, lanes))``
         A copy of ``patch_valid`` for each lane, a register of its own (the same value on every cycle).
+        Not with ``lane_resets=True``.
+    lane_patch_invalid : ``Out(ArrayLayout(h * w, lanes))``
+        Only with ``lane_resets=True``, instead of ``lane_patch_valid``: for each lane, a register of
+        its own equal to ``~patch_valid`` on every cycle (the invalid bits are the resets of a lane's
+        per-node registers, so a lane reads them with no inverter, one LUT4 a node otherwise).
+    lane_accept : ``In(ArrayLayout(1, lanes))``
+        Only with ``lane_resets=True``: for each lane's copy a copy of ``accept`` (the caller's
+        registers, each equal to ``accept`` on every cycle), so that each lane's copy has a load
+        enable of its own: one enable for all of them spans the chip.
     """
 
-    def __init__(self, *, parameters: CorrelatorParameters):
+    def __init__(self, *, parameters: CorrelatorParameters, lane_resets: bool = False):
         if not isinstance(parameters, CorrelatorParameters):
             raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        if not isinstance(lane_resets, bool):
+            raise ValueError(f"lane_resets must be a bool, got {lane_resets!r}")
         self._parameters = p = parameters
+        self._lane_resets = lane_resets
         self._arithmetic = a = LaneArithmetic.of(p)
         nodes = p.patch_shape[0] * p.patch_shape[1]
         super().__init__({
@@ -88,11 +104,12 @@ class PatchPreparation(wiring.Component):
             "start_mode": In(1),
             "done": Out(1),
             "patch_valid": Out(nodes),
-            "lane_patch_valid": Out(data.ArrayLayout(nodes, p.lanes)),
+            ("lane_patch_invalid" if lane_resets else "lane_patch_valid"): Out(data.ArrayLayout(nodes, p.lanes)),
             "lifted_patch": Out(data.ArrayLayout(a.lifted, nodes)),
             "mean_compensation": Out(1),
             "factor": Out(a.count),
             "dividend_bias": Out(a.bias),
+            **({"lane_accept": In(data.ArrayLayout(1, p.lanes))} if lane_resets else {}),
         })
 
     def elaborate(self, platform: Any) -> Module:
@@ -140,18 +157,29 @@ class PatchPreparation(wiring.Component):
         # register driving them in every lane was the 4-lane build's critical path (c984e45: 10.8 ns of
         # routing to the last lane's quotient copy). Loaded only on a patch word, the copies need no LUT.
         # Named ``*_replica`` so that the synthesis flow keeps them apart.
-        lane_copies = [Signal(nodes, name=f"lane{q}_patch_valid_replica", reset_less=True) for q in range(p.lanes)]
-        m.d.comb += [self.lane_patch_valid[q].eq(copy) for q, copy in enumerate(lane_copies)]
+        if self._lane_resets:
+            lane_copies = [Signal(nodes, name=f"lane{q}_patch_invalid_replica", init=(1 << nodes) - 1, reset_less=True)
+                           for q in range(p.lanes)]
+            m.d.comb += [self.lane_patch_invalid[q].eq(copy) for q, copy in enumerate(lane_copies)]
+        else:
+            lane_copies = [Signal(nodes, name=f"lane{q}_patch_valid_replica", reset_less=True) for q in range(p.lanes)]
+            m.d.comb += [self.lane_patch_valid[q].eq(copy) for q, copy in enumerate(lane_copies)]
         m.d.comb += [
             self.patch_in.ready.eq(self.accept),
             patch_write.addr.eq(patch_pointer),
             patch_write.data.eq(self.patch_in.payload.depth),
             patch_write.en.eq(loading),
         ]
+        shifted = Cat(patch_valid[1:], self.patch_in.payload.valid)
+        shared_enable = [] if self._lane_resets else lane_copies
         with m.If(loading):
             m.d.sync += patch_pointer.eq(Mux(patch_pointer == nodes - 1, 0, patch_pointer + 1))
-            shifted = Cat(patch_valid[1:], self.patch_in.payload.valid)
-            m.d.sync += [patch_valid.eq(shifted), *(copy.eq(shifted) for copy in lane_copies)]
+            m.d.sync += [patch_valid.eq(shifted), *(copy.eq(shifted) for copy in shared_enable)]
+        if self._lane_resets:
+            # Each copy shifts itself (it is ~patch_valid), so only the incoming bit reaches every lane.
+            for q, copy in enumerate(lane_copies):
+                with m.If(self.patch_in.valid & self.lane_accept[q]):
+                    m.d.sync += copy.eq(Cat(copy[1:], ~self.patch_in.payload.valid))
         return patch_pointer
 
     def _pass(self, m: Module, patch_read: memory.ReadPort, held: _Held) -> tuple[Signal, Signal, Signal]:

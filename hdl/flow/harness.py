@@ -8,10 +8,18 @@ in the one way that keeps the measurement honest:
   clock from registered pins, so no input is constant and none can be optimised away;
 * every core output is registered, then XOR-folded into ``fold_bits`` registered pins through a tree
   of registered 4-input XORs, so every output bit stays live and the fold never sets Fmax;
-* with ``global_reset`` (the synthesis builds), the reset pin is registered and that register drives
-  the core's reset through a ``DCCA`` clock buffer onto a global net, as an ECP5 design with a
-  reset fanning out to thousands of flip-flops does (nextpnr promotes only clocks to globals): else
-  the reset pin itself is the start of the longest path;
+* with ``global_reset`` (the synthesis builds), the reset pin drives the core's reset through a
+  ``DCCA`` clock buffer onto a global net, as an ECP5 design with a reset fanning out to thousands of
+  flip-flops does (nextpnr promotes only clocks to globals): else the reset net itself is the
+  longest path. The pin sits on a primary clock input (:data:`RESET_SITE`), whose pad reaches an edge
+  clock buffer over dedicated wires. A register before the buffer (as this harness had) must enter the
+  clock network from the fabric, whose entries to an edge buffer are LUT inputs of fixed tiles
+  (``JD7`` of ``X75/Y1`` to ``TDCC0``, ``JD7`` of ``X61/Y1`` to ``TDCC1``, in nextpnr's routed
+  netlist): when the placer puts a LUT there, router2 reserves that input for the LUT's own net
+  (``common/route/router2.cc``, reserved wires), and the register may not reach its buffer at all
+  (``Failed to route arc 0.0 of net 'reset_pin'``, two of the 4-lane builds). The reset then
+  arrives unsynchronised: nextpnr times it as an input path (``<async> -> posedge``, not in the
+  Fmax), which a measurement harness may; a board's top-level synchronises its reset;
 * the core's ``map_read`` port, when it has one (the external-memory build), goes to its own pins,
   address and enable out through one register each, data in through one register: the pins an
   external memory would drive. Those registers add two cycles to the one-cycle latency the core
@@ -30,7 +38,12 @@ from amaranth.hdl import Cat, ClockDomain, Instance, Module, Signal, Value
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["MeasurementHarness", "ecp5_global_buffer"]
+__all__ = ["RESET_SITE", "MeasurementHarness", "ecp5_global_buffer"]
+
+#: The ball of the harness's reset pin (``LOC``; the flow's LFE5U-85F in CABGA381): ``PCLKT6_1``, a primary
+#: clock input whose pad nextpnr routes through ``JINCK`` to the left edge's ``LDCC1`` on dedicated wires, so
+#: the reset's ``DCCA`` needs no fabric route.
+RESET_SITE = "G2"
 
 
 def ecp5_global_buffer(m: Module, signal: Value) -> Value:
@@ -80,9 +93,10 @@ class MeasurementHarness(wiring.Component):
     fold_bits : int
         Output pins carrying the XOR fold of the core's outputs.
     global_reset : bool
-        Define the ``sync`` domain here, clocked by the ``clk`` pin and reset from the registered
-        ``reset`` pin through an ECP5 ``DCCA`` global buffer (synthesis only: the simulator knows no
-        ``DCCA``). Without it the domain is the caller's, with its ``rst`` port.
+        Define the ``sync`` domain here, clocked by the ``clk`` pin and reset from the ``reset`` pin
+        (placed on :data:`RESET_SITE` by its ``LOC`` attribute) through an ECP5 ``DCCA`` global
+        buffer (synthesis only: the simulator knows no ``DCCA``). Without it the domain is the
+        caller's, with its ``rst`` port.
 
     Members
     -------
@@ -95,7 +109,7 @@ class MeasurementHarness(wiring.Component):
     map_data : ``In(...)``
         Only with a ``map_read`` port: its data, registered before it reaches the core.
     clk, reset : ``In(1)``
-        Only with ``global_reset``: the clock and the reset pin.
+        Only with ``global_reset``: the clock and the reset pin (``LOC`` :data:`RESET_SITE`).
     """
 
     def __init__(self, *, core: wiring.Component, scan_bits: int = 4, fold_bits: int = 8, global_reset: bool = False):
@@ -117,6 +131,8 @@ class MeasurementHarness(wiring.Component):
                 "map_data": In(len(Value.cast(port.data))),
             }
         super().__init__(members)
+        if self._global_reset:
+            self.reset.attrs["LOC"] = RESET_SITE
 
     @property
     def external_memory(self) -> bool:
@@ -129,9 +145,7 @@ class MeasurementHarness(wiring.Component):
 
         if self._global_reset:
             m.domains.sync = sync = ClockDomain("sync")
-            reset_pin = Signal(reset_less=True)
-            m.d.sync += reset_pin.eq(self.reset)
-            m.d.comb += sync.rst.eq(ecp5_global_buffer(m, reset_pin))
+            m.d.comb += sync.rst.eq(ecp5_global_buffer(m, self.reset))
             m.d.comb += sync.clk.eq(self.clk)
 
         inputs, outputs = [], []
