@@ -93,15 +93,14 @@ def nees(track: FilterTrack, truth: np.ndarray) -> np.ndarray:
     return out
 
 
-def _last_finite(values: np.ndarray) -> float | None:
-    finite = values[np.isfinite(values)]
-    return round(float(finite[-1]), 3) if finite.size else None
-
-
-def _last_finite_row(values: np.ndarray) -> list[float] | None:
-    """The last row of an (N, 2) series with both values finite, to 0.1 mm/s; None without one."""
-    finite = values[np.isfinite(values).all(axis=1)]
-    return [round(float(v), 4) for v in finite[-1]] if len(finite) else None
+def _last_finite(values: np.ndarray, digits: int = 3) -> float | list[float] | None:
+    """The last finite value of an (N,) series, or the last row of an (N, 2) one with both finite; None without one."""
+    rows = values.reshape(len(values), -1)
+    finite = rows[np.isfinite(rows).all(axis=1)]
+    if not len(finite):
+        return None
+    last = [round(float(v), digits) for v in finite[-1]]
+    return last if values.ndim > 1 else last[0]
 
 
 def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | None) -> dict[str, Any]:
@@ -116,8 +115,8 @@ def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | No
         "nees_in_band": None,
         "false_fixes": None,
         "depth_bias_m": _last_finite(track.depth_bias_m),
-        "velocity_bias_mps": _last_finite_row(track.velocity_bias_mps),
-        "velocity_bias_sigma_mps": _last_finite_row(track.velocity_bias_sigma_mps),
+        "velocity_bias_mps": _last_finite(track.velocity_bias_mps, 4),
+        "velocity_bias_sigma_mps": _last_finite(track.velocity_bias_sigma_mps, 4),
     }
     if truth is None:
         return figures

