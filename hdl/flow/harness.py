@@ -38,12 +38,17 @@ from amaranth.hdl import Cat, ClockDomain, Instance, Module, Signal, Value
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["RESET_SITE", "MeasurementHarness", "ecp5_global_buffer"]
+__all__ = ["CLOCK_SITE", "RESET_SITE", "MeasurementHarness", "ecp5_global_buffer"]
 
 #: The ball of the harness's reset pin (``LOC``; the flow's LFE5U-85F in CABGA381): ``PCLKT6_1``, a primary
 #: clock input whose pad nextpnr routes through ``JINCK`` to the left edge's ``LDCC1`` on dedicated wires, so
 #: the reset's ``DCCA`` needs no fabric route.
 RESET_SITE = "G2"
+
+#: The ball of the harness's clock pin: ``PCLKT6_0``, the other primary clock input of the same IO group (PL47),
+#: so the clock too reaches its global buffer on dedicated wires whatever the placement (unplaced, a
+#: clock pin may land on a plain IO and enter the clock network from the fabric, as the reset once did).
+CLOCK_SITE = "H2"
 
 
 def ecp5_global_buffer(m: Module, signal: Value) -> Value:
@@ -109,7 +114,8 @@ class MeasurementHarness(wiring.Component):
     map_data : ``In(...)``
         Only with a ``map_read`` port: its data, registered before it reaches the core.
     clk, reset : ``In(1)``
-        Only with ``global_reset``: the clock and the reset pin (``LOC`` :data:`RESET_SITE`).
+        Only with ``global_reset``: the clock pin (``LOC`` :data:`CLOCK_SITE`) and the reset pin
+        (``LOC`` :data:`RESET_SITE`).
     """
 
     def __init__(self, *, core: wiring.Component, scan_bits: int = 4, fold_bits: int = 8, global_reset: bool = False):
@@ -132,6 +138,7 @@ class MeasurementHarness(wiring.Component):
             }
         super().__init__(members)
         if self._global_reset:
+            self.clk.attrs["LOC"] = CLOCK_SITE
             self.reset.attrs["LOC"] = RESET_SITE
 
     @property

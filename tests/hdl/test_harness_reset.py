@@ -1,5 +1,5 @@
 # amaranth: UnusedElaboratable=no
-"""The synthesis harness's reset: the pin on a primary clock input, straight into its DCCA."""
+"""The synthesis harness's clock and reset: each pin on a primary clock input, the reset straight into its DCCA."""
 
 import re
 
@@ -8,7 +8,7 @@ from amaranth.back import rtlil
 from amaranth.lib import wiring
 from amaranth.lib.wiring import Out
 
-from lost.hdl.flow.harness import RESET_SITE, MeasurementHarness
+from lost.hdl.flow.harness import CLOCK_SITE, RESET_SITE, MeasurementHarness
 
 
 class Counter(wiring.Component):
@@ -37,6 +37,13 @@ def test_the_reset_pin_is_placed_on_a_clock_input_and_drives_the_buffer_directly
     # Nothing else reads the pin: the core's reset is the buffer's output.
     assert len(re.findall(r"\\reset\b(?!_)", top)) == 2  # its declaration and the buffer's input
     assert re.search(r"connect \\reset_global \\rst", top)
+
+
+def test_the_clock_pin_is_placed_on_the_other_clock_input():
+    top = _top(MeasurementHarness(core=Counter(), global_reset=True))
+    # nextpnr routes a clock from this pad to a global buffer on dedicated wires (JINCK to LDCC0).
+    assert re.search(r'attribute \\LOC "' + CLOCK_SITE + r'"\n\s*wire width 1 input \d+ +\\clk\n', top)
+    assert CLOCK_SITE != RESET_SITE
 
 
 def test_the_simulation_harness_has_no_site_and_no_buffer():

@@ -116,7 +116,7 @@ def test_harness_scans_every_input_in_and_folds_every_output_out():
     assert len(checked) == len(scan) - fold_latency
 
 
-def test_synthesis_harness_resets_the_core_through_a_registered_global_buffer():
+def test_synthesis_harness_owns_the_clock_and_resets_the_core_through_a_global_buffer():
     from amaranth.back import rtlil
 
     text = rtlil.convert(MeasurementHarness(core=Echo(), global_reset=True), name="top")
