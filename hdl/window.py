@@ -176,7 +176,7 @@ class WindowCore(wiring.Component):
         # own, so that the start beat's condition reaches only the pass's few registers.
         clearing = Signal(init=1)
         m.d.sync += clearing.eq(idle)
-        m.submodules.beats = beats = BeatMetadata(parameters=self._parameters)
+        m.submodules.beat_metadata = beats = BeatMetadata(parameters=self._parameters)
         m.d.comb += [beats.advance.eq(advance), beats.clear.eq(clearing)]
         window, sums_port = self._window(m, stages, advance, sequencer, beats.group, steps.step_is_word)
         lane_values = self._lanes(m, patch, window, sums_port, advance)
@@ -236,7 +236,7 @@ class WindowCore(wiring.Component):
         wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
         m.submodules.output_queue = output_queue = CreditQueue(shape=p.surface_beat, depth=t.queue_depth)
         wiring.connect(m, output_queue.surface, wiring.flipped(self.surface))
-        m.submodules.steps = steps = StepIssue(words=self.map_depth, flush_steps=t.flush_steps)
+        m.submodules.step_issue = steps = StepIssue(words=self.map_depth, flush_steps=t.flush_steps)
         m.d.comb += [
             steps.has_credit.eq(output_queue.has_credit),
             output_queue.issue.eq(steps.issue),

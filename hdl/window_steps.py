@@ -39,7 +39,8 @@ class StepIssue(wiring.Component):
     map sequencer's register). After the last flush step nothing issues until the next ``begin``.
     ``clear`` puts the counters back to the first step (address 0, every flush step left); it does not
     stop a run, so each run is cleared before its ``begin`` (the core clears while idle; a reset stops
-    a run). ``clear`` and ``begin`` take precedence over an issue.
+    a run), or on the same edge: ``clear`` with ``begin`` restarts a run from its first step. Both take
+    precedence over a step issued on their edge.
 
     Latency: ``issue`` is combinational, high in a cycle in which a step is issued, i.e. on the edge
     ending it. ``advance`` and ``step_is_word`` are registers, high in the cycle after an issue: the
@@ -154,13 +155,15 @@ class BeatMetadata(wiring.Component):
     previous one, and the beat is stale).
 
     Latency: let step ``s`` be taken on edge ``e_s`` (``advance`` high in the cycle ending on it).
-    ``group`` is step ``s``'s group from the edge after ``e_{s-1}`` (after the clear, for step 0) up
-    to ``e_s``. ``fresh`` is high in the cycle after edge ``e_s + value`` for each step ``s`` (low on
-    every other), and ``beat`` then holds step ``s - quotient + 1``'s beat: step ``s``'s beat leaves
-    ``value`` clocks after the edge taking the ``quotient - 1``-th step after it (``output_delay - 1``
-    edges after ``e_s`` when steps follow one per clock, so it is written into the queue on edge
-    ``e_s + output_delay``). The beats of the first ``quotient - 1`` steps after a clear are the
-    stages' cleared ones: ``live`` low.
+    ``group`` is step ``s``'s group in every cycle from the one after ``e_{s-1}`` (after the clear's
+    edge, for step 0) to the one ending on ``e_s``. ``fresh`` is high in the cycle after edge
+    ``e_s + value`` (``value`` clocks after ``e_s``) for each step ``s``, low in every other; ``beat``
+    then holds step ``s - quotient + 1``'s beat (``beat`` means nothing without ``fresh``). So step
+    ``s``'s beat leaves ``value`` clocks after the edge taking the ``quotient - 1``-th step after it:
+    ``output_delay - 1`` edges after ``e_s`` when steps follow one a clock, and it is written into the
+    queue on edge ``e_s + output_delay``, as :mod:`lost.model.cycles_window` counts. When step
+    ``s - quotient + 1`` would precede the last clear (``s`` is among the first ``quotient - 1`` steps
+    after it), ``beat`` is a stage's cleared content: ``live`` low.
 
     Parameters
     ----------
