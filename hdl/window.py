@@ -48,33 +48,39 @@ nothing but the issue of further steps. The cycles are modelled exactly by
 pipeline its constants.
 
 The core is made of components, each with its latency in its docstring and a test of its own against
-a NumPy model (``tests/hdl/test_window_parts.py``):
+a NumPy model (``tests/hdl/test_window_parts.py``, ``tests/hdl/test_window_steps.py``):
 
 * :class:`~lost.hdl.window_patch.PatchPreparation`: the patch memory and the pass at start;
+* :class:`~lost.hdl.window_steps.StepIssue`: the steps, each issued against a credit (the map read
+  requests, a stream), and the step enable ``advance``;
 * :class:`~lost.hdl.sequencer.MapSequencer`: the map reads (a stream of requests and words);
+* :class:`~lost.hdl.window_steps.BeatMetadata`: the group each step reads and the beat it completes,
+  carried beside the step-synchronous and term stages to the output queue;
 * :class:`~lost.hdl.window_columns.StepWindow`: the step register, line buffers and window register;
 * :class:`~lost.hdl.window_lane.WindowLane`, one per lane: the threshold terms (masked depths,
   window sum, divider, selected differences, their sums, the products, the value);
 * :class:`~lost.hdl.window_queue.CreditQueue`: the output queue and the credits for issuing steps;
 * :class:`~lost.hdl.reducer.BestFitReducer`: the best fit and runner-up.
 
-What stays here is the step issue, the beat each step completes (carried beside the stages) and the
-state machine. The stages are named by :class:`~lost.hdl.window_lane.PipelineStages`. The lane and the
-window follow the step enable rather than a stream's handshake: their ports are step-synchronous.
+What stays here is their wiring, the acceptance of a start and the patch words (registers formed from
+the next state), the register that clears the queue and the steps between correlations, and the state
+machine (idle, the patch pass, the run). The stages are named by
+:class:`~lost.hdl.window_lane.PipelineStages`. The beat metadata, the lane and the window follow the
+step enable rather than a stream's handshake (their ports are step-synchronous), as does the step issue
+beside its stream of map requests.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Const, Module, Mux, Signal, Value, signed, unsigned
+from amaranth.hdl import Module, Mux, Signal, Value, signed
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import DelayLine, Replicas, index_range
+from lost.hdl.blocks import Replicas, index_range
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
@@ -82,6 +88,7 @@ from lost.hdl.window_columns import StepWindow
 from lost.hdl.window_lane import PipelineStages, WindowLane
 from lost.hdl.window_patch import PatchPreparation
 from lost.hdl.window_queue import CreditQueue
+from lost.hdl.window_steps import BeatMetadata, StepIssue
 from lost.model.cycles_window import WindowTiming, window_timing
 
 __all__ = ["PipelineStages", "WindowCore", "WindowCorrelator"]
@@ -89,28 +96,6 @@ __all__ = ["PipelineStages", "WindowCore", "WindowCorrelator"]
 
 #: How a high-fan-out enable reaches its loads: ``(module, enable) -> the value the loads see``.
 EnableBuffer = Callable[[Module, Value], Value]
-
-
-@dataclass(frozen=True)
-class _StepIssue:
-    """The step issue's parts and the state :meth:`WindowCore._control` sets at each correlation."""
-
-    sequencer: MapSequencer
-    output_queue: CreditQueue
-    issuing: Signal
-    issuing_words: Signal
-    request_addr: Signal
-    flush_left: Signal
-    issue: Signal
-
-
-@dataclass(frozen=True)
-class _BeatStages:
-    """The beat beside each stage: the step-synchronous ones (``sync_meta``), then the term stages' delay lines."""
-
-    sync_meta: Signal
-    term_meta: DelayLine
-    term_valid: DelayLine
 
 
 def _check_enable_buffer(enable_buffer: Any) -> EnableBuffer | None:
@@ -184,17 +169,18 @@ class WindowCore(wiring.Component):
         start = self.start.valid & self.start.ready
 
         patch = self._patch(m, ready_for_more, lane_ready, idle, start)
-        steps = self._step_issue(m)
-        advance, step_is_word = self._advance(m, steps.issue, steps.issuing_words)
+        sequencer, output_queue, steps = self._step_issue(m)
+        # The builder's ``enable_buffer`` carries the step enable, a register, to its loads.
+        advance = steps.advance if self._enable_buffer is None else self._enable_buffer(m, steps.advance)
         # The run's counters are cleared while idle (and on the pass's first cycle) by a register of their
         # own, so that the start beat's condition reaches only the pass's few registers.
         clearing = Signal(init=1)
         m.d.sync += clearing.eq(idle)
-        step_group, step_meta, meta_layout = self._step_beats(m, advance, clearing)
-        beats = self._beat_stages(m, stages, advance, step_meta, meta_layout)
-        window, sums_port = self._window(m, stages, advance, steps.sequencer, step_group, step_is_word)
+        m.submodules.beat_metadata = beats = BeatMetadata(parameters=self._parameters)
+        m.d.comb += [beats.advance.eq(advance), beats.clear.eq(clearing)]
+        window, sums_port = self._window(m, stages, advance, sequencer, beats.group, steps.step_is_word)
         lane_values = self._lanes(m, patch, window, sums_port, advance)
-        self._output(m, steps.output_queue, beats, lane_values)
+        self._output(m, output_queue, beats, lane_values)
 
         # The reducer watches the surface's transfers (registering each before any logic, so the
         # queue's read stays out of its paths) and answers on ``best``.
@@ -204,7 +190,7 @@ class WindowCore(wiring.Component):
         ]
         wiring.connect(m, reducer.best, wiring.flipped(self.best))
 
-        self._control(m, stages, idle, idle_next, start, clearing, patch, steps, beats)
+        self._control(m, idle, idle_next, start, clearing, patch, steps, output_queue)
         return m
 
     def _acceptance(self, m: Module, reducer: BestFitReducer, idle_next: Value) -> tuple[Signal, Value]:
@@ -243,70 +229,25 @@ class WindowCore(wiring.Component):
         ]
         return patch
 
-    def _step_issue(self, m: Module) -> _StepIssue:
-        """The steps: one map read or flush step issued per credit of the output queue, taken on the next edge."""
+    def _step_issue(self, m: Module) -> tuple[MapSequencer, CreditQueue, StepIssue]:
+        """The map reads, the output queue and the steps, one issued per credit of the queue."""
         p, t = self._parameters, self._timing
         m.submodules.sequencer = sequencer = MapSequencer(addr_width=ceil_log2(self.map_depth), shape=self.map_word)
         wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
         m.submodules.output_queue = output_queue = CreditQueue(shape=p.surface_beat, depth=t.queue_depth)
         wiring.connect(m, output_queue.surface, wiring.flipped(self.surface))
-
-        issuing = Signal()  # steps of this correlation are left to issue
-        issuing_words = Signal()  # ... and map words among them
-        request_addr = Signal(range(self.map_depth + 1))
-        flush_left = Signal(range(t.flush_steps + 1))
-        issue = Signal()
+        m.submodules.step_issue = steps = StepIssue(words=self.map_depth, flush_steps=t.flush_steps)
         m.d.comb += [
-            issue.eq(issuing & output_queue.has_credit & (sequencer.request.ready | ~issuing_words)),
-            output_queue.issue.eq(issue),
-            sequencer.request.valid.eq(issuing & issuing_words & output_queue.has_credit),
-            sequencer.request.payload.addr.eq(request_addr),
+            steps.has_credit.eq(output_queue.has_credit),
+            output_queue.issue.eq(steps.issue),
+            # The sequencer's request carries a tag (of no bits here) beside the address.
+            sequencer.request.valid.eq(steps.request.valid),
+            sequencer.request.payload.addr.eq(steps.request.payload),
+            steps.request.ready.eq(sequencer.request.ready),
             # Every word is taken on the edge after its request: nothing downstream stalls.
             sequencer.response.ready.eq(1),
         ]
-        with m.If(issue):
-            with m.If(issuing_words):
-                m.d.sync += request_addr.eq(request_addr + 1)
-                with m.If(request_addr == self.map_depth - 1):
-                    m.d.sync += issuing_words.eq(0)
-            with m.Else():
-                m.d.sync += flush_left.eq(flush_left - 1)
-                with m.If(flush_left == 1):
-                    m.d.sync += issuing.eq(0)
-        return _StepIssue(sequencer, output_queue, issuing, issuing_words, request_addr, flush_left, issue)
-
-    def _advance(self, m: Module, issue: Signal, issuing_words: Signal) -> tuple[Value, Signal]:
-        """The step enable as its loads see it, and whether the step taken is a map word (not a flush step).
-
-        ``advance`` is a register: the only enable of the step-synchronous stages (step register, line
-        buffers, window register, masked depths, window-sum tree, dividend, quotient stages); the lanes'
-        term stages run every clock. The builder's ``enable_buffer`` carries it to them.
-        """
-        advance_register = Signal()
-        step_is_word = Signal()
-        m.d.sync += [advance_register.eq(issue), step_is_word.eq(issue & issuing_words)]
-        advance = advance_register if self._enable_buffer is None else self._enable_buffer(m, advance_register)
-        return advance, step_is_word
-
-    def _beat_stages(self, m: Module, stages: PipelineStages, advance: Value, step_meta: Signal,
-                     meta_layout: data.StructLayout) -> _BeatStages:
-        """The beat of each stage, carried beside the pipeline: step-synchronous, then every clock.
-
-        The step-synchronous stages' beats are cleared between correlations (by :meth:`_control`). The term
-        stages run every clock: ``fresh`` says the last edge was a step, so the window's bottom and the
-        window sums hold a new placement; otherwise the lanes recompute the previous one and their result
-        is dropped. Only the valid bits need a reset: after one, no stale step may reach the queue.
-        """
-        sync_meta = Signal(data.ArrayLayout(meta_layout, stages.quotient), reset_less=True)
-        with m.If(advance):
-            m.d.sync += sync_meta[0].eq(step_meta)
-            m.d.sync += [sync_meta[x].eq(sync_meta[x - 1]) for x in range(1, stages.quotient)]
-        fresh = Signal()
-        m.d.sync += fresh.eq(advance)
-        m.submodules.term_meta = term_meta = DelayLine(meta_layout, stages.value, reset_less=True)
-        m.submodules.term_valid = term_valid = DelayLine(1, stages.value)
-        m.d.comb += [term_meta.i.eq(sync_meta[stages.quotient - 1]), term_valid.i.eq(fresh)]
-        return _BeatStages(sync_meta, term_meta, term_valid)
+        return sequencer, output_queue, steps
 
     def _window(self, m: Module, stages: PipelineStages, advance: Value, sequencer: MapSequencer, step_group: Signal,
                 step_is_word: Signal) -> tuple[StepWindow, int]:
@@ -354,10 +295,10 @@ class WindowCore(wiring.Component):
             lane_values.append(lane.value)
         return lane_values
 
-    def _output(self, m: Module, output_queue: CreditQueue, beats: _BeatStages, lane_values: list) -> None:
+    def _output(self, m: Module, output_queue: CreditQueue, beats: BeatMetadata, lane_values: list) -> None:
         """Into the output queue; a credit comes back with each step leaving without a beat."""
-        last_meta = beats.term_meta.o
-        last_valid = beats.term_valid.o & last_meta.live
+        last_meta = beats.beat
+        last_valid = beats.fresh & last_meta.live
         beat = output_queue.write.payload
         m.d.comb += [
             beat.i.eq(last_meta.i),
@@ -369,20 +310,13 @@ class WindowCore(wiring.Component):
         ]
         m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(self._parameters.lanes)]
 
-    def _control(self, m: Module, stages: PipelineStages, idle: Signal, idle_next: Signal, start: Value,
-                 clearing: Signal, patch: PatchPreparation, steps: _StepIssue, beats: _BeatStages) -> None:
-        """The state machine (idle, the patch pass, the run) and what ``clearing`` resets between correlations.
+    def _control(self, m: Module, idle: Signal, idle_next: Signal, start: Value, clearing: Signal,
+                 patch: PatchPreparation, steps: StepIssue, output_queue: CreditQueue) -> None:
+        """The state machine (idle, the patch pass, the run); ``clearing`` resets the queue and the steps.
 
         ``idle`` is high in ``IDLE``; ``idle_next`` is its value on the next edge.
         """
-        m.d.comb += steps.output_queue.clear.eq(clearing)
-        with m.If(clearing):
-            m.d.sync += [
-                steps.request_addr.eq(0),
-                steps.flush_left.eq(self._timing.flush_steps),
-            ]
-            # The step-synchronous stages may still hold the last correlation's flush steps.
-            m.d.sync += [beats.sync_meta[x].live.eq(0) for x in range(stages.quotient)]
+        m.d.comb += [output_queue.clear.eq(clearing), steps.clear.eq(clearing)]
         with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += [idle.eq(1), idle_next.eq(~start)]
@@ -390,75 +324,12 @@ class WindowCore(wiring.Component):
                     m.next = "PREPARE"
             with m.State("PREPARE"):
                 with m.If(patch.done):
-                    m.d.sync += [steps.issuing.eq(1), steps.issuing_words.eq(1)]
+                    m.d.comb += steps.begin.eq(1)
                     m.next = "RUN"
             with m.State("RUN"):
                 with m.If(self.surface.valid & self.surface.ready & self.surface.payload.last):
                     m.d.comb += idle_next.eq(1)
                     m.next = "IDLE"
-
-    def _step_beats(self, m: Module, advance: Value, clearing: Value) -> tuple[Signal, Signal, data.StructLayout]:
-        """The group of the step being taken and the beat it completes (its metadata), for ``sync_meta``.
-
-        The beat is known from the step's row and group; formed from them in one clock it was the
-        3-lane build's critical path (14 logic cells). So it is formed in two step-synchronous stages
-        from counters one step ahead: ``parts`` (whether the step completes a beat in its row or wraps,
-        the beat's row and group, whether each is the last) is loaded on the step before, the metadata
-        from ``parts`` on the step itself. ``clearing`` sets the counters to the first step (and ``parts``
-        to its beat).
-
-        Returns the step's group (the line buffers' address), its metadata and the metadata's layout.
-        """
-        p, t = self._parameters, self._timing
-        (H, _), (h, _), L = p.map_shape, p.patch_shape, p.lanes
-        Ho, Wo = p.surface_shape
-        G = t.groups
-        meta_layout = data.StructLayout({
-            "live": 1, "emit": 1, "i": unsigned(p.row_bits), "j": unsigned(p.col_bits),
-            "count": p.surface_beat["count"].shape, "last": 1,
-        })
-        parts_layout = data.StructLayout({
-            "normal": 1, "wrapped": 1, "row": unsigned(p.row_bits), "group": index_range(t.out_groups),
-            "last_row": 1, "last_group": 1,
-        })
-
-        def parts_of(row: Value, group: Value) -> list:
-            """The beat of the step at ``row``, ``group``, as assignments to a ``parts`` value's fields."""
-            normal = (row >= h - 1) & (row <= H - 1) & (group >= t.lead)
-            return [
-                ("normal", normal),
-                ("wrapped", Const(t.wraps) & (group == 0) & (row >= h) & (row <= H)),
-                ("row", Mux(normal, row - (h - 1), row - h)),
-                ("group", Mux(normal, group - t.lead, t.out_groups - 1)),
-                # The beat's row is Ho - 1 (its group out_groups - 1) without forming it first.
-                ("last_row", Mux(normal, row == H - 1, row == H)),
-                ("last_group", ~normal | (group == t.out_groups - 1 + t.lead)),
-            ]
-
-        step_group = Signal(index_range(G))
-        ahead_row = Signal(range(H + t.flush_steps + 3))
-        ahead_group = Signal(index_range(G))
-        parts = Signal(parts_layout)
-        with m.If(advance):
-            m.d.sync += [step_group.eq(ahead_group), *(parts[name].eq(value) for name, value in parts_of(ahead_row, ahead_group))]
-            with m.If(ahead_group == G - 1):
-                m.d.sync += [ahead_group.eq(0), ahead_row.eq(ahead_row + 1)]
-            with m.Else():
-                m.d.sync += ahead_group.eq(ahead_group + 1)
-        with m.If(clearing):
-            second_group, second_row = (1, 0) if G > 1 else (0, 1)  # the second step's group and row
-            m.d.sync += [step_group.eq(0), ahead_group.eq(second_group), ahead_row.eq(second_row),
-                         *(parts[name].eq(value) for name, value in parts_of(Const(0, 1), Const(0, 1)))]
-        step_meta = Signal(meta_layout)
-        m.d.comb += [
-            step_meta.live.eq(1),
-            step_meta.emit.eq(parts.normal | parts.wrapped),
-            step_meta.i.eq(parts.row),
-            step_meta.j.eq(parts.group * L),
-            step_meta.count.eq(Mux(parts.last_group, Wo - (t.out_groups - 1) * L, L)),
-            step_meta.last.eq(parts.last_row & parts.last_group),
-        ]
-        return step_group, step_meta, meta_layout
 
 
 class WindowCorrelator(wiring.Component):
