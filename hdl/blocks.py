@@ -18,7 +18,7 @@ from amaranth.utils import ceil_log2
 
 from lost.model.widths import bits_for
 
-__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "delayed", "enabled_delay", "index_range", "minimum_item",
+__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "check_count", "delayed", "enabled_delay", "index_range", "minimum_item",
            "shape_for", "tree_levels"]
 
 
@@ -38,7 +38,8 @@ def tree_levels(count: int) -> int:
     return ceil_log2(count)
 
 
-def _check_count(name: str, value: Any) -> int:
+def check_count(name: str, value: Any) -> int:
+    """``value`` if it is a positive integer (not a bool), else a ``ValueError`` naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise ValueError(f"{name} must be a positive integer, got {value!r}")
     return value
@@ -240,8 +241,8 @@ class AdderTree(wiring.Component):
 
     def __init__(self, *, count: int, leaf: tuple[int, int], total: tuple[int, int], enable: bool = False,
                  adders_per_register: int = 1):
-        self._count = _check_count("count", count)
-        self._adders_per_register = _check_count("adders_per_register", adders_per_register)
+        self._count = check_count("count", count)
+        self._adders_per_register = check_count("adders_per_register", adders_per_register)
         self._leaf, self._total, self._enable = tuple(leaf), tuple(total), bool(enable)
         self.leaf_shape = shape_for(*self._leaf)
         self.level_shapes = []
@@ -340,7 +341,7 @@ class MinimumTree(wiring.Component):
     """
 
     def __init__(self, *, count: int, key: ShapeLike, payload: ShapeLike | None = None):
-        self._count = _check_count("count", count)
+        self._count = check_count("count", count)
         self.item = minimum_item(key, payload)
         super().__init__({
             "leaves": In(data.ArrayLayout(self.item, count)),
@@ -401,7 +402,7 @@ class Replicas(wiring.Component):
     """
 
     def __init__(self, shape: ShapeLike, count: int, *, init: int = 0):
-        self._shape, self._count, self._init = shape, _check_count("count", count), init
+        self._shape, self._count, self._init = shape, check_count("count", count), init
         super().__init__({"i": In(shape), "o": Out(data.ArrayLayout(shape, count))})
 
     def elaborate(self, platform: Any) -> Module:

@@ -16,18 +16,13 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import DelayLine, index_range
+from lost.hdl.blocks import DelayLine, check_count, index_range
 from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.window_lane import PipelineStages
 from lost.model.cycles_window import window_timing
 
 __all__ = ["BeatMetadata", "StepIssue", "beat_layout"]
 
-
-def _check_positive(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    return value
 
 
 class StepIssue(wiring.Component):
@@ -78,8 +73,8 @@ class StepIssue(wiring.Component):
     """
 
     def __init__(self, *, words: int, flush_steps: int):
-        self._words = _check_positive("words", words)
-        self._flush_steps = _check_positive("flush_steps", flush_steps)
+        self._words = check_count("words", words)
+        self._flush_steps = check_count("flush_steps", flush_steps)
         super().__init__({
             "request": Out(stream.Signature(unsigned(ceil_log2(words)))),
             "has_credit": In(1),

@@ -38,6 +38,8 @@ from amaranth.hdl import Cat, ClockDomain, Instance, Module, Signal, Value
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from lost.hdl.blocks import check_count
+
 __all__ = ["CLOCK_SITE", "RESET_SITE", "MeasurementHarness", "ecp5_global_buffer"]
 
 #: The ball of the harness's reset pin (``LOC``; the flow's LFE5U-85F in CABGA381): ``PCLKT6_1``, a primary
@@ -60,11 +62,6 @@ def ecp5_global_buffer(m: Module, signal: Value) -> Value:
     m.submodules[f"{buffered.name}_buffer"] = Instance("DCCA", i_CLKI=signal, i_CE=1, o_CLKO=buffered)
     return buffered
 
-
-def _check_positive(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    return value
 
 
 def _fold(m: Module, bits: Value, fold_bits: int) -> Value:
@@ -122,8 +119,8 @@ class MeasurementHarness(wiring.Component):
         if not isinstance(core, wiring.Component):
             raise ValueError(f"core must be an amaranth wiring.Component, got {type(core).__name__}")
         self._core = core
-        self._scan_bits = _check_positive("scan_bits", scan_bits)
-        self._fold_bits = _check_positive("fold_bits", fold_bits)
+        self._scan_bits = check_count("scan_bits", scan_bits)
+        self._fold_bits = check_count("fold_bits", fold_bits)
         self._global_reset = bool(global_reset)
         members = {"scan_in": In(scan_bits), "fold_out": Out(fold_bits)}
         if self._global_reset:
