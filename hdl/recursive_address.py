@@ -93,10 +93,13 @@ class AddressGenerator(wiring.Component):
         p = self._parameters
         (H, W), (h, w) = p.map_shape, p.patch_shape
         rows, cols = p.surface_shape
-        generating, flushing, has_previous = Signal(), Signal(), Signal()
+        generating = Signal()
+        flushing = Signal()
+        has_previous = Signal()
         node_index = Signal(range(h * w))
         base = Signal(range(H * W))  # the placement's corner, i * W + j
-        gen_i, gen_j = Signal(range(rows)), Signal(range(cols))
+        gen_i = Signal(range(rows))  # the placement, (i, j)
+        gen_j = Signal(range(cols))
         node = self.nodes_read.data
         queued = Signal()
         queued_base = Signal.like(base)
