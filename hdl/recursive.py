@@ -27,6 +27,13 @@ next clock. So a placement costs ``n`` clocks in either mode, and one extra roun
 last placement empties the pipeline. The schedule is modelled exactly by
 :func:`lost.model.cycles_recursive.schedule`.
 
+The core joins its parts: :class:`~lost.hdl.recursive_patch.NodeCompaction` (the patch memory and
+the node list), :class:`~lost.hdl.recursive_address.AddressGenerator` (a map read per valid node and
+placement, and the flush round), the :class:`~lost.hdl.sequencer.MapSequencer` (the map reads as
+streams), the window memory and the window sums (here, in ``_step_and_term``),
+:class:`~lost.hdl.recursive_term.TermUnit` (the terms and the accumulator), the surface's positions and
+the state machine (here), and :class:`~lost.hdl.reducer.BestFitReducer` (the best fit).
+
 A patch without any valid node has nothing to correlate; the host refuses it
 (:func:`lost.model.check_inputs`) before it reaches the core, which would give an all-zero surface (one
 clock per placement) rather than hang.

@@ -24,13 +24,13 @@ rolling design of ``3r + 2``.)
 Every beat passes a fixed pipeline, so that no path is longer than one comparison or one small choice
 whatever the lanes: a register for the incoming beat, a compare tree for its minimum (a register per
 level), the row minimum, the best fit (and the row minimum's store), the slot choice, the row-store
-write. The slot choice compares no row numbers: each slot keeps whether it is needed as a flag, updated
-from two counters that saturate at ``r + 1`` (see ``_choose_slot``).
+write. The slot choice (:class:`~lost.hdl.reducer_slots.SlotBand`) compares no row numbers: each slot
+keeps whether it is needed as a flag, updated from two counters that saturate at ``r + 1``.
 
-After the last beat is stored the reducer scans the row minima (rows outside the band), then every
-slot (columns outside ``[bj - r, bj + r]`` of held rows inside the band), one memory word per cycle,
-keeping the candidate that is smallest, then first in raster order (one comparison of the key
-``(value, i, j)``), through the same kind of lane tree. The scan takes a fixed number of cycles
+After the last beat is stored the reducer (:class:`~lost.hdl.reducer_scan.RunnerUpScan`) scans the row
+minima (rows outside the band), then every slot (columns outside ``[bj - r, bj + r]`` of held rows inside
+the band), one memory word per cycle, keeping the candidate that is smallest, then first in raster order
+(one comparison of the key ``(value, i, j)``), through the same kind of lane tree. The scan takes a fixed number of cycles
 whatever the data, so the cycle models stay exact (:func:`lost.model.cycles.reducer_latency`).
 """
 
