@@ -101,6 +101,7 @@ class AddressGenerator(wiring.Component):
         gen_i = Signal(range(rows))  # the placement, (i, j)
         gen_j = Signal(range(cols))
         node = self.nodes_read.data
+        # The request register: the node memory's clock-to-output and the address sum on separate clocks.
         queued = Signal()
         queued_base = Signal.like(base)
         queued_offset = Signal(self.node_layout["offset"].shape)
@@ -113,6 +114,7 @@ class AddressGenerator(wiring.Component):
             self.request.valid.eq(queued),
             self.request.payload.addr.eq(queued_base + queued_offset),
             self.request.payload.tag.eq(queued_tag),
+            # The read port always holds the node the generator is at.
             self.nodes_read.addr.eq(Mux(advance, Mux(last_node, 0, node_index + 1), node_index)),
         ]
         with m.If(take):
