@@ -27,6 +27,13 @@ next clock. So a placement costs ``n`` clocks in either mode, and one extra roun
 last placement empties the pipeline. The schedule is modelled exactly by
 :func:`lost.model.cycles_recursive.schedule`.
 
+The core joins its parts: :class:`~lost.hdl.recursive_patch.NodeCompaction` (the patch memory and
+the node list), :class:`~lost.hdl.recursive_address.AddressGenerator` (a map read per valid node and
+placement, and the flush round), the :class:`~lost.hdl.sequencer.MapSequencer` (the map reads as
+streams), the window memory and the window sums (here, in ``_step_and_term``),
+:class:`~lost.hdl.recursive_term.TermUnit` (the terms and the accumulator), the surface's positions and
+the state machine (here), and :class:`~lost.hdl.reducer.BestFitReducer` (the best fit).
+
 A patch without any valid node has nothing to correlate; the host refuses it
 (:func:`lost.model.check_inputs`) before it reaches the core, which would give an all-zero surface (one
 clock per placement) rather than hang.
@@ -37,14 +44,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Signal, Value, signed, unsigned
-from amaranth.lib import data, memory, wiring
+from amaranth.hdl import Module, Mux, Signal, Value, signed
+from amaranth.lib import memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
+from lost.hdl.recursive_address import AddressGenerator
 from lost.hdl.recursive_patch import NodeCompaction
-from lost.hdl.recursive_term import RecursiveShapes, TermUnit
+from lost.hdl.recursive_term import TermUnit
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
 
@@ -53,16 +61,10 @@ __all__ = ["RecursiveCore", "RecursiveCorrelator"]
 
 @dataclass(frozen=True)
 class _Generator:
-    """The address generator's sequencer and the state the control resets at each correlation."""
+    """The map reads' sequencer, and the generator's start that the control drives."""
 
     sequencer: MapSequencer
-    generating: Signal
-    flushing: Signal
-    has_previous: Signal
-    node_index: Signal
-    base: Signal
-    i: Signal
-    j: Signal
+    start: Signal
 
 
 def _parameters(map_shape, patch_shape, depth_bits, exclusion_radius) -> CorrelatorParameters:
@@ -141,80 +143,16 @@ class RecursiveCore(wiring.Component):
         return compaction, nodes_read
 
     def _generator(self, m: Module, compaction: NodeCompaction, nodes_read: memory.ReadPort) -> _Generator:
-        """The address generator: one map read per valid node and placement, through the ``MapSequencer``.
-
-        After the last placement, one more round of n reads (``flush``) pushes its terms out.
-        """
+        """The address generator (``AddressGenerator``) and the ``MapSequencer`` its requests read the map through."""
         p = self._parameters
-        (H, W), (h, w) = p.map_shape, p.patch_shape
-        rows, cols = p.surface_shape
-        nodes_total = h * w
-        empty, count_last = compaction.empty, compaction.count_last
-        node_layout = compaction.node_layout
-        tag_layout = data.StructLayout({
-            "index": unsigned(max((nodes_total - 1).bit_length(), 1)),
-            "first": 1,
-            "last": 1,
-            "centred": RecursiveShapes.of(p).centred,
-            "current": 1,   # the word belongs to a placement (not the flush round)
-            "previous": 1,  # a previous placement's terms are due on this step
-        })
-        map_read = _map_read_signature(p)
+        m.submodules.generator = generator = AddressGenerator(parameters=p)
         m.submodules.sequencer = sequencer = MapSequencer(
-            addr_width=map_read.addr_width, shape=signed(p.depth_bits), tag_shape=tag_layout)
+            addr_width=_map_read_signature(p).addr_width, shape=signed(p.depth_bits), tag_shape=generator.tag_layout)
         wiring.connect(m, wiring.flipped(self.map_read), sequencer.read)
-
-        generating = Signal()
-        flushing = Signal()
-        has_previous = Signal()
-        node_index = Signal(range(nodes_total))
-        base = Signal(range(H * W))
-        gen_i, gen_j = Signal(range(rows)), Signal(range(cols))
-        node = nodes_read.data
-        # Each request is registered (``queued``) before the sequencer takes it: the node memory's
-        # clock-to-output and the address sum are on separate clocks.
-        request = sequencer.request
-        queued = Signal()
-        queued_base = Signal.like(base)
-        queued_offset = Signal(node_layout["offset"].shape)
-        queued_tag = Signal(tag_layout)
-        take = ~queued | request.ready
-        advance = generating & take
-        # Without a valid node each placement still takes one step, whose term is zero.
-        last_node = (node_index == count_last) | empty
-        m.d.comb += [
-            request.valid.eq(queued),
-            request.payload.addr.eq(queued_base + queued_offset),
-            request.payload.tag.eq(queued_tag),
-            # The read port always holds the node the generator is at.
-            nodes_read.addr.eq(Mux(advance, Mux(last_node, 0, node_index + 1), node_index)),
-        ]
-        with m.If(take):
-            m.d.sync += [
-                queued.eq(generating),
-                queued_base.eq(base),
-                queued_offset.eq(Mux(empty, 0, node.offset)),
-                queued_tag.index.eq(node_index),
-                queued_tag.first.eq(node_index == 0),
-                queued_tag.last.eq(last_node),
-                queued_tag.centred.eq(node.centred),
-                queued_tag.current.eq(~flushing),
-                queued_tag.previous.eq(has_previous),
-            ]
-        with m.If(advance):
-            m.d.sync += node_index.eq(Mux(last_node, 0, node_index + 1))
-            with m.If(last_node):
-                m.d.sync += has_previous.eq(1)
-                with m.If(flushing):
-                    m.d.sync += generating.eq(0)
-                with m.Elif((gen_i == rows - 1) & (gen_j == cols - 1)):
-                    m.d.sync += flushing.eq(1)
-                with m.Elif(gen_j == cols - 1):
-                    m.d.sync += [gen_j.eq(0), gen_i.eq(gen_i + 1), base.eq(base + w)]
-                with m.Else():
-                    m.d.sync += [gen_j.eq(gen_j + 1), base.eq(base + 1)]
-        return _Generator(sequencer=sequencer, generating=generating, flushing=flushing, has_previous=has_previous,
-                          node_index=node_index, base=base, i=gen_i, j=gen_j)
+        wiring.connect(m, generator.request, sequencer.request)
+        wiring.connect(m, generator.nodes_read, nodes_read)
+        m.d.comb += [generator.count_last.eq(compaction.count_last), generator.empty.eq(compaction.empty)]
+        return _Generator(sequencer=sequencer, start=generator.start)
 
     def _step_and_term(self, m: Module, sequencer: MapSequencer, compaction: NodeCompaction) -> TermUnit:
         """Each step sums the window of placement q and keeps its words; the term unit takes placement q-1's."""
@@ -301,17 +239,9 @@ class RecursiveCore(wiring.Component):
                     m.d.sync += [running.eq(1), out[0].eq(0), out[1].eq(0)]
                     m.next = "PREPARE"
             with m.State("PREPARE"):
+                # The last valid node is appended on this cycle's edge; the generator starts on it.
+                m.d.comb += g.start.eq(compaction.done)
                 with m.If(compaction.done):
-                    # The last valid node is appended on this cycle's edge.
-                    m.d.sync += [
-                        g.generating.eq(1),
-                        g.flushing.eq(0),
-                        g.has_previous.eq(0),
-                        g.node_index.eq(0),
-                        g.base.eq(0),
-                        g.i.eq(0),
-                        g.j.eq(0),
-                    ]
                     m.next = "RUN"
             with m.State("RUN"):
                 with m.If(~running):

@@ -24,13 +24,13 @@ rolling design of ``3r + 2``.)
 Every beat passes a fixed pipeline, so that no path is longer than one comparison or one small choice
 whatever the lanes: a register for the incoming beat, a compare tree for its minimum (a register per
 level), the row minimum, the best fit (and the row minimum's store), the slot choice, the row-store
-write. The slot choice compares no row numbers: each slot keeps whether it is needed as a flag, updated
-from two counters that saturate at ``r + 1`` (see ``_choose_slot``).
+write. The slot choice (:class:`~lost.hdl.reducer_slots.SlotBand`) compares no row numbers: each slot
+keeps whether it is needed as a flag, updated from two counters that saturate at ``r + 1``.
 
-After the last beat is stored the reducer scans the row minima (rows outside the band), then every
-slot (columns outside ``[bj - r, bj + r]`` of held rows inside the band), one memory word per cycle,
-keeping the candidate that is smallest, then first in raster order (one comparison of the key
-``(value, i, j)``), through the same kind of lane tree. The scan takes a fixed number of cycles
+After the last beat is stored the reducer (:class:`~lost.hdl.reducer_scan.RunnerUpScan`) scans the row
+minima (rows outside the band), then every slot (columns outside ``[bj - r, bj + r]`` of held rows inside
+the band), one memory word per cycle, keeping the candidate that is smallest, then first in raster order
+(one comparison of the key ``(value, i, j)``), through the same kind of lane tree. The scan takes a fixed number of cycles
 whatever the data, so the cycle models stay exact (:func:`lost.model.cycles.reducer_latency`).
 """
 
@@ -48,6 +48,7 @@ from lost.model.cycles import reducer_geometry
 from .blocks import MinimumTree, delayed
 from .interface import CorrelatorParameters
 from .reducer_scan import RunnerUpScan, row_minimum_layout
+from .reducer_slots import SlotBand
 
 __all__ = ["BestFitReducer"]
 
@@ -196,53 +197,17 @@ class BestFitReducer(wiring.Component):
         return _Collected(in_values=in_values, tree_levels=levels, slot_meta=slot_meta, slot_becomes_best=slot_becomes_best,
                           best_value=best_value, best_i=best_i, best_j=best_j)
 
-    def _choose_slot(self, m: Module, collected: _Collected) -> tuple[Value, list[Signal], list[Signal]]:
-        """Stage "slot": the slot of a row that begins; each slot's row and whether it is in the band.
-
-        A slot is needed while its row lies within r rows of the best row so far; rather than comparing
-        row numbers on every choice, each slot keeps that as a flag (``in_band``), kept exact from two
-        small counters: the age of the slot's row (rows begun since, saturating at r + 1) and the rows
-        begun since the best row.
-        """
-        p = self._parameters
-        r = p.exclusion_radius
-        slots, _ = reducer_geometry(p.surface_shape, p.lanes, r)
-        row_shape = unsigned(p.row_bits)
-        slot_meta, slot_becomes_best = collected.slot_meta, collected.slot_becomes_best
-        tag = [Signal(row_shape, name=f"slot{s}_row") for s in range(slots)]
-        held = [Signal(name=f"slot{s}_held") for s in range(slots)]
-        age = [Signal(range(r + 2), name=f"slot{s}_age") for s in range(slots)]
-        in_band = [Signal(name=f"slot{s}_in_band") for s in range(slots)]
-        since_best = Signal(range(r + 2))
-        free_slot = Signal(range(slots))
-        for s in reversed(range(slots)):
-            with m.If(~in_band[s]):
-                m.d.comb += free_slot.eq(s)
-        first_beat = slot_meta.first_in_row & (slot_meta.i == 0)
-        slot = Mux(first_beat, 0, free_slot)
-        begins = slot_meta.valid & slot_meta.first_in_row
-        held_next = [Signal(name=f"slot{s}_held_next") for s in range(slots)]
-        age_next = [Signal(range(r + 2), name=f"slot{s}_age_next") for s in range(slots)]
-        band_next = [Signal(name=f"slot{s}_in_band_next") for s in range(slots)]
-        for s in range(slots):
-            chosen = begins & (slot == s)
-            m.d.comb += [
-                held_next[s].eq(Mux(chosen, 1, held[s] & ~(begins & first_beat))),
-                age_next[s].eq(Mux(chosen, 0, Mux(begins & (age[s] <= r), age[s] + 1, age[s]))),
-                # A row that begins lies within r rows of the best so far when fewer than r rows began
-                # since; a new best row keeps exactly the rows of the last r + 1.
-                band_next[s].eq(Mux(slot_becomes_best, held_next[s] & (age_next[s] <= r),
-                                    Mux(chosen, first_beat | (since_best < r),
-                                        in_band[s] & ~(begins & first_beat)))),
-            ]
-            m.d.sync += [held[s].eq(held_next[s]), age[s].eq(age_next[s]), in_band[s].eq(band_next[s])]
-            with m.If(chosen):
-                m.d.sync += tag[s].eq(slot_meta.i)
-        with m.If(slot_becomes_best | (begins & first_beat)):
-            m.d.sync += since_best.eq(0)
-        with m.Elif(begins & (since_best <= r)):
-            m.d.sync += since_best.eq(since_best + 1)
-        return slot, tag, in_band
+    def _choose_slot(self, m: Module, collected: _Collected) -> tuple[Value, list[Value], list[Value]]:
+        """Stage "slot" (``SlotBand``): the slot of a row that begins; each slot's row and whether it is in the band."""
+        m.submodules.slot_band = band = SlotBand(parameters=self._parameters)
+        meta = collected.slot_meta
+        m.d.comb += [
+            band.beat.valid.eq(meta.valid),
+            band.beat.first_in_row.eq(meta.first_in_row),
+            band.beat.i.eq(meta.i),
+            band.becomes_best.eq(collected.slot_becomes_best),
+        ]
+        return band.slot, list(band.rows), list(band.in_band)
 
     def _write(self, m: Module, slots_write, slot: Value, collected: _Collected) -> Signal:
         """Stage "write": the beat's words into its row's slot. Returns the last beat's write strobe."""
