@@ -9,6 +9,14 @@ from amaranth.sim import Simulator
 from lost.hdl.blocks import AdderTree, DelayLine, MinimumTree, Replicas, shape_for, tree_levels
 
 
+def simulate(dut, bench):
+    """Run the testbench ``bench`` against ``dut`` on a 100 MHz clock."""
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+
+
 def run(dut, cycles, drive, sample):
     """Clock ``dut`` for ``cycles``: ``drive(ctx, t)`` before each edge, ``sample(ctx, t)`` after it."""
     seen = []
@@ -22,10 +30,7 @@ def run(dut, cycles, drive, sample):
     top = Module()
     top.domains.sync = ClockDomain()  # a one-leaf tree is a wire, with no domain of its own
     top.submodules.dut = dut
-    sim = Simulator(top)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+    simulate(top, bench)
     return seen
 
 

@@ -10,7 +10,6 @@ from amaranth import Const, Module, Signal, signed
 from amaranth.back import rtlil
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
-from amaranth.sim import Simulator
 
 from lost.hdl.flow.synth import _run, _tool, drop_unused_carry_outs, pack, synthesize
 from lost.hdl.interface import CorrelatorParameters
@@ -23,12 +22,7 @@ from lost.hdl.window_lane import (
 )
 from lost.model import correlate
 
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
+from .test_blocks import simulate
 
 
 def carry_cell(cin, cout):

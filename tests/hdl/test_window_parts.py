@@ -13,15 +13,10 @@ from lost.hdl.window_patch import PatchPreparation
 from lost.hdl.window_queue import CreditQueue
 from lost.model import correlate
 
+from .test_blocks import simulate
+
 B = 16
 LIFT = 1 << B
-
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
 
 
 def patch_terms(patch, mask, mode):

@@ -4,19 +4,12 @@ docstring states (:mod:`lost.hdl.window_steps`)."""
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
 from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.window_steps import BeatMetadata, StepIssue
 from lost.model.cycles_window import completing_steps, window_timing
 
-
-def simulate(dut, bench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
-
+from .test_blocks import simulate
 
 # --- The step issue -------------------------------------------------------------------------------------
 
