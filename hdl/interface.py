@@ -31,6 +31,7 @@ __all__ = [
     "PatchWord",
     "StartCommand",
     "SurfaceBeat",
+    "checked_parameters",
     "correlator_signature",
     "decode_payload",
     "encode_payload",
@@ -168,6 +169,13 @@ class CorrelatorParameters:
     @property
     def best_fit_beat(self) -> BestFitBeat:
         return BestFitBeat(self.value_bits, self.row_bits, self.col_bits)
+
+
+def checked_parameters(parameters: Any) -> CorrelatorParameters:
+    """``parameters`` if it is a :class:`CorrelatorParameters`, else a ``ValueError`` saying what it is."""
+    if not isinstance(parameters, CorrelatorParameters):
+        raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+    return parameters
 
 
 def correlator_signature(parameters: CorrelatorParameters) -> dict[str, wiring.Member]:

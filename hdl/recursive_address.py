@@ -9,7 +9,7 @@ from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.hdl.recursive_patch import node_layout
 from lost.hdl.recursive_term import RecursiveShapes
 
@@ -73,8 +73,7 @@ class AddressGenerator(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = p = parameters
         (H, W), (h, w) = p.map_shape, p.patch_shape
         self.tag_layout = address_tag_layout(p)

@@ -10,7 +10,7 @@ from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.hdl.recursive_term import RecursiveShapes
 
 __all__ = ["NodeCompaction", "node_layout"]
@@ -84,8 +84,7 @@ class NodeCompaction(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = p = parameters
         nodes = p.patch_shape[0] * p.patch_shape[1]
         self.node_layout = node_layout(p)

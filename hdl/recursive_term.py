@@ -11,7 +11,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from lost.hdl.blocks import DelayLine
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 
 __all__ = ["RecursiveShapes", "TermStage", "TermUnit"]
 
@@ -85,8 +85,7 @@ class TermUnit(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = p = parameters
         self.shapes = s = RecursiveShapes.of(p)
         h, w = p.patch_shape

@@ -46,7 +46,7 @@ from amaranth.lib.wiring import In, Out
 from lost.model.cycles import reducer_geometry
 
 from .blocks import MinimumTree, delayed
-from .interface import CorrelatorParameters
+from .interface import CorrelatorParameters, checked_parameters
 from .reducer_scan import RunnerUpScan, row_minimum_layout
 from .reducer_slots import SlotBand
 
@@ -95,8 +95,7 @@ class BestFitReducer(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = parameters
         super().__init__({
             "surface": In(stream.Signature(parameters.surface_beat, always_ready=True)),

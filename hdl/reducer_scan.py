@@ -11,7 +11,7 @@ from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
 from lost.hdl.blocks import MinimumTree, delayed, tree_levels
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.model.cycles import reducer_geometry
 
 __all__ = ["RunnerUpScan", "row_minimum_layout"]
@@ -77,8 +77,7 @@ class RunnerUpScan(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = p = parameters
         rows, _ = p.surface_shape
         self.slots, self.beats_per_row = reducer_geometry(p.surface_shape, p.lanes, p.exclusion_radius)

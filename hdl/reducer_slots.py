@@ -8,7 +8,7 @@ from amaranth.hdl import Module, Mux, Signal, unsigned
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.model.cycles import reducer_geometry
 
 __all__ = ["SlotBand"]
@@ -51,8 +51,7 @@ class SlotBand(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = p = parameters
         self.slots, _ = reducer_geometry(p.surface_shape, p.lanes, p.exclusion_radius)
         row_shape = unsigned(p.row_bits)

@@ -30,7 +30,7 @@ from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
 from lost.hdl.blocks import AdderTree, Replicas, enabled_delay, shape_for, tree_levels
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
 
 __all__ = [
@@ -356,8 +356,7 @@ class WindowLane(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = p = parameters
         self.arithmetic = a = LaneArithmetic.of(p)
         self.stages = PipelineStages.of(window_timing(p.map_shape, p.patch_shape, p.lanes))

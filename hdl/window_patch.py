@@ -15,7 +15,7 @@ from amaranth.lib import data, memory, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from lost.hdl.blocks import Replicas, index_range
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.hdl.window_lane import LaneArithmetic
 
 #: Lifted-patch registers enabled by one copy of the pass's enable (a patch row of Nygren's 10 x 10).
@@ -88,8 +88,7 @@ class PatchPreparation(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters, lane_resets: bool = False):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         if not isinstance(lane_resets, bool):
             raise ValueError(f"lane_resets must be a bool, got {lane_resets!r}")
         self._parameters = p = parameters

@@ -17,7 +17,7 @@ from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
 from lost.hdl.blocks import DelayLine, check_count, index_range
-from lost.hdl.interface import CorrelatorParameters
+from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.hdl.window_lane import PipelineStages
 from lost.model.cycles_window import window_timing
 
@@ -186,8 +186,7 @@ class BeatMetadata(wiring.Component):
     """
 
     def __init__(self, *, parameters: CorrelatorParameters):
-        if not isinstance(parameters, CorrelatorParameters):
-            raise ValueError(f"parameters must be a CorrelatorParameters, got {parameters!r}")
+        checked_parameters(parameters)
         self._parameters = p = parameters
         self._timing = window_timing(p.map_shape, p.patch_shape, p.lanes)
         self.stages = PipelineStages.of(self._timing)
