@@ -503,7 +503,6 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
     netlist = synthesize(config.design(), name, out_dir)
     fingerprint = (out_dir / f"{name}.il.sha256").read_text()
     cycles = int(config.cycles())
-    goal = GOAL_SECONDS[config.variant]
     entry = {
         "name": name,
         "variant": config.variant,
@@ -512,9 +511,35 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         "map_shape": list(config.map_shape),
         "patch_shape": list(config.patch_shape),
         "cycles": cycles,
-        "goal_seconds": goal,
+        "goal_seconds": GOAL_SECONDS[config.variant],
         "lut_mapper": lut_mapper(name, out_dir),
     }
+    # What an entry that is not placed (or whose every seed failed) reports instead of post-route figures.
+    unplaced = _packed_figures(netlist, name, out_dir, fingerprint, log) | {"max_lut_percent": max_lut_percent}
+    if unplaced["lut4_percent"] > max_lut_percent or not place:
+        return entry | {
+            "routed": False,
+            "reason": (f"LUT4 use over {max_lut_percent:g} %" if unplaced["lut4_percent"] > max_lut_percent
+                       else "no time in this run"),
+            **unplaced,
+        }
+    tries = _route_seeds(netlist, name, out_dir, fingerprint, seeds=seeds, target_mhz=target_mhz, router=router,
+                         log=log)
+    seed_figures = {str(_seed_of(t)): (None if "failed" in t else round(t["result"]["fmax_mhz"], 2)) for t in tries}
+    routed = [t for t in tries if "failed" not in t]
+    if not routed:
+        return entry | {
+            "routed": False,
+            "reason": "nextpnr failed on every seed (" + ", ".join(seed_figures) + "; see the -nextpnr.log files)",
+            "seeds": seed_figures,
+            **unplaced,
+        }
+    best = max(routed, key=lambda tried: tried["result"]["fmax_mhz"])
+    return entry | {"routed": True, "router": router, "seeds": seed_figures} | _routed_figures(config, best)
+
+
+def _packed_figures(netlist: Path, name: str, out_dir: Path, fingerprint: str, log) -> dict:
+    """nextpnr's packed cell counts of the netlist (cached per netlist fingerprint) and its LUT4 share."""
     packed_path = out_dir / f"{name}-packed.json"
     packed = json.loads(packed_path.read_text()) if packed_path.exists() else None
     if packed is None or packed["il_sha256"] != fingerprint:
@@ -525,25 +550,29 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
     lut4, lut4_available = util["TRELLIS_COMB"]["used"], util["TRELLIS_COMB"]["available"]
     lut4_percent = round(100 * lut4 / lut4_available, 1)
     log(f"{name}: packed into {lut4} LUT4 ({lut4_percent} %)")
-    # What an entry that was not placed (or whose every seed failed) reports instead of post-route figures.
-    unplaced = {
+    return {
         "packed": {"lut4": lut4, "ff": util["TRELLIS_FF"]["used"], "ebr": util.get("DP16KD", {}).get("used", 0),
                    "dsp": util.get("MULT18X18D", {}).get("used", 0), "lut4_available": lut4_available},
         "lut4_percent": lut4_percent,
-        "max_lut_percent": max_lut_percent,
     }
-    if lut4_percent > max_lut_percent or not place:
-        return entry | {
-            "routed": False,
-            "reason": (f"LUT4 use over {max_lut_percent:g} %" if lut4_percent > max_lut_percent
-                       else "no time in this run"),
-            **unplaced,
-        }
+
+
+def _route_seeds(netlist: Path, name: str, out_dir: Path, fingerprint: str, *, seeds: Sequence[int],
+                 target_mhz: float, router: str, log) -> list[dict]:
+    """Every seed's try of this netlist, router and target, in seed order: the asked seeds (routed unless cached,
+    a router failure kept as that seed's result) and those earlier runs cached."""
 
     def current(tried: dict) -> bool:
         """A cached try of this netlist, router and target (a failed one keeps its seed and target at the top)."""
         target = tried.get("target_mhz", tried.get("result", {}).get("target_mhz"))
         return tried["il_sha256"] == fingerprint and tried.get("router") == router and target == target_mhz
+
+    def with_current_summary(tried: dict) -> dict:
+        """Summaries of cached runs follow this module's reading of the report."""
+        report_path = out_dir / f"{name}-seed{_seed_of(tried)}-report.json"
+        if "failed" not in tried and report_path.exists():
+            tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
+        return tried
 
     tries = []
     for seed in seeds:
@@ -551,50 +580,39 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         tried = json.loads(cached.read_text()) if cached.exists() else None
         if tried is None or not current(tried):
             log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz ({router})")
-            try:
-                result, report = route(netlist, f"{name}-seed{seed}", target_mhz=target_mhz, seed=seed, router=router)
-            except FlowError as error:
-                # One seed's router failure (seen: the clock pin's route to its global buffer) is a
-                # result of that seed, not of the configuration: report it and try the others.
-                tried = {"il_sha256": fingerprint, "router": router, "target_mhz": target_mhz, "seed": seed,
-                         "failed": str(error).splitlines()[0]}
-            else:
-                tried = {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
-                         "critical_path": critical_path_summary(report)}
+            tried = _route_seed(netlist, f"{name}-seed{seed}", fingerprint, seed=seed, target_mhz=target_mhz,
+                                router=router)
             cached.write_text(json.dumps(tried, indent=1))
-        report_path = out_dir / f"{name}-seed{seed}-report.json"
-        if "failed" not in tried and report_path.exists():  # summaries of cached runs follow this module's reading
-            tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
+        tried = with_current_summary(tried)
         log(f"{name}: seed {seed}: " + (f"failed: {tried['failed']}" if "failed" in tried else f"{tried['result']['fmax_mhz']:.1f} MHz"))
         tries.append(tried)
-    # Seeds routed by earlier runs of the same netlist, router and target count too: every seed tried is reported.
     for cached in sorted(out_dir.glob(f"{name}-seed*.json")):
         if cached.name.endswith("-report.json"):
             continue
         tried = json.loads(cached.read_text())
         if _seed_of(tried) not in seeds and current(tried):
-            report_path = out_dir / f"{name}-seed{_seed_of(tried)}-report.json"
-            if "failed" not in tried and report_path.exists():
-                tried["critical_path"] = critical_path_summary(json.loads(report_path.read_text()))
-            tries.append(tried)
-    tries.sort(key=_seed_of)
-    seed_figures = {str(_seed_of(t)): (None if "failed" in t else round(t["result"]["fmax_mhz"], 2)) for t in tries}
-    routed = [t for t in tries if "failed" not in t]
-    if not routed:
-        return entry | {
-            "routed": False,
-            "reason": "nextpnr failed on every seed (" + ", ".join(seed_figures) + "; see the -nextpnr.log files)",
-            "seeds": seed_figures,
-            **unplaced,
-        }
-    tries = routed
-    best = max(tries, key=lambda tried: tried["result"]["fmax_mhz"])
+            tries.append(with_current_summary(tried))
+    return sorted(tries, key=_seed_of)
+
+
+def _route_seed(netlist: Path, name: str, fingerprint: str, *, seed: int, target_mhz: float, router: str) -> dict:
+    """One seed's place and route, as cached: its result and critical path, or its failure."""
+    try:
+        result, report = route(netlist, name, target_mhz=target_mhz, seed=seed, router=router)
+    except FlowError as error:
+        # One seed's router failure (seen: the clock pin's route to its global buffer) is a
+        # result of that seed, not of the configuration: report it and try the others.
+        return {"il_sha256": fingerprint, "router": router, "target_mhz": target_mhz, "seed": seed,
+                "failed": str(error).splitlines()[0]}
+    return {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
+            "critical_path": critical_path_summary(report)}
+
+
+def _routed_figures(config: Configuration, best: dict) -> dict:
+    """The post-route figures of the best seed: its result, shares of the device, time and map bandwidth."""
     result = best["result"]
-    seconds = cycles / (result["fmax_mhz"] * 1e6)
-    return entry | {
-        "routed": True,
-        "router": router,
-        "seeds": seed_figures,
+    seconds = int(config.cycles()) / (result["fmax_mhz"] * 1e6)
+    return {
         "result": result,
         "lut4_percent": round(100 * result["lut4"] / result["lut4_available"], 1),
         "ebr_percent": round(100 * result["ebr"] / result["ebr_available"], 1),
@@ -602,7 +620,7 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
         # Every step reads one map word per lane (the recursive core one per term), whatever the access order.
         "map_bandwidth_gbit_s": (config.lanes * 16 * result["fmax_mhz"] * 1e6 / 1e9
                                  if config.memory == "external" else None),
-        "goal_met": (seconds <= goal) if tuple(config.map_shape) == PAPER_MAP_SHAPE else None,
+        "goal_met": (seconds <= GOAL_SECONDS[config.variant]) if tuple(config.map_shape) == PAPER_MAP_SHAPE else None,
         "critical_path": best["critical_path"],
     }
 
@@ -669,24 +687,7 @@ def critical_path_lines(entries: Sequence[dict]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m lost.hdl.flow.synth``: build the configurations and write the report."""
-    parser = argparse.ArgumentParser(prog="python -m lost.hdl.flow.synth", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=Path("build/fpga"), help="output folder (build/fpga)")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2], help="placer seeds per configuration")
-    parser.add_argument("--target-mhz", type=float, default=250.0,
-                        help="the clock nextpnr is asked for; ambitious on purpose (250)")
-    parser.add_argument("--only", nargs="+", metavar="NAME",
-                        help="configurations to build, by name (default: all); the report keeps the others' cached entries")
-    parser.add_argument("--router", choices=["router1", "router2"], default="router2",
-                        help="nextpnr's router (router2: router1 did not converge on the window core in 25 min)")
-    parser.add_argument("--no-place", nargs="+", metavar="NAME",
-                        help="configurations only synthesized and packed (their cell counts), not placed; a name or its "
-                             "beginning (window_l1_onchip: the on-chip build whatever its map size)")
-    parser.add_argument("--lanes", type=int, nargs="+", default=list(WINDOW_LANES), metavar="L",
-                        help=f"window lane counts, built in order until one is over the LUT budget (default: {' '.join(map(str, WINDOW_LANES))})")
-    parser.add_argument("--figures", type=Path, metavar="CSV",
-                        help="append each placed build's figures to this versioned CSV (make synth: docs/fpga_figures.csv)")
-    parser.add_argument("--on-chip", type=int, nargs="*", metavar="LANES", default=[1],
-                        help="window lane counts also built with the map on chip, at the largest map that fits (default: 1)")
+    parser = _argument_parser()
     args = parser.parse_args(argv)
     if args.target_mhz <= 0:
         parser.error(f"--target-mhz must be positive, got {args.target_mhz}")
@@ -741,27 +742,55 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{config.name} was not placed ({entry['reason']}): no more lanes")
             break
     for lanes in args.on_chip:
-        external = entries.get(Configuration("window", lanes=lanes).name)
-        if external is None or not external["routed"]:
-            print(f"on-chip build with {lanes} lanes skipped: its external-memory build is not in the report")
-            continue
-        available = external["result"]["ebr_available"]
-        core_ebr = external["result"]["ebr"]
-        while True:
-            side = largest_square_map(core_ebr=core_ebr, ebr_available=available, lanes=lanes)
-            config = Configuration("window", lanes=lanes, memory="on-chip", map_shape=(side, side))
-            take(config)
-            entry = entries.get(config.name)
-            used = None if entry is None else (entry["result"] if entry["routed"] else entry["packed"])["ebr"]
-            if used is None or used <= available:
-                break
-            # The whole correlator needs more blocks beside its map than the core alone (its loader's
-            # memory ports): count them and take the next smaller map.
-            print(f"{config.name} needs {used} of {available} EBR: one size smaller")
-            del entries[config.name]
-            core_ebr += used - available
+        _take_on_chip(take, entries, lanes)
     print(write())
     return 0
+
+
+def _argument_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m lost.hdl.flow.synth``."""
+    parser = argparse.ArgumentParser(prog="python -m lost.hdl.flow.synth", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("build/fpga"), help="output folder (build/fpga)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2], help="placer seeds per configuration")
+    parser.add_argument("--target-mhz", type=float, default=250.0,
+                        help="the clock nextpnr is asked for; ambitious on purpose (250)")
+    parser.add_argument("--only", nargs="+", metavar="NAME",
+                        help="configurations to build, by name (default: all); the report keeps the others' cached entries")
+    parser.add_argument("--router", choices=["router1", "router2"], default="router2",
+                        help="nextpnr's router (router2: router1 did not converge on the window core in 25 min)")
+    parser.add_argument("--no-place", nargs="+", metavar="NAME",
+                        help="configurations only synthesized and packed (their cell counts), not placed; a name or its "
+                             "beginning (window_l1_onchip: the on-chip build whatever its map size)")
+    parser.add_argument("--lanes", type=int, nargs="+", default=list(WINDOW_LANES), metavar="L",
+                        help=f"window lane counts, built in order until one is over the LUT budget (default: {' '.join(map(str, WINDOW_LANES))})")
+    parser.add_argument("--figures", type=Path, metavar="CSV",
+                        help="append each placed build's figures to this versioned CSV (make synth: docs/fpga_figures.csv)")
+    parser.add_argument("--on-chip", type=int, nargs="*", metavar="LANES", default=[1],
+                        help="window lane counts also built with the map on chip, at the largest map that fits (default: 1)")
+    return parser
+
+
+def _take_on_chip(take, entries: dict[str, dict], lanes: int) -> None:
+    """The on-chip build of ``lanes`` lanes at the largest square map that fits beside the whole correlator."""
+    external = entries.get(Configuration("window", lanes=lanes).name)
+    if external is None or not external["routed"]:
+        print(f"on-chip build with {lanes} lanes skipped: its external-memory build is not in the report")
+        return
+    available = external["result"]["ebr_available"]
+    core_ebr = external["result"]["ebr"]
+    while True:
+        side = largest_square_map(core_ebr=core_ebr, ebr_available=available, lanes=lanes)
+        config = Configuration("window", lanes=lanes, memory="on-chip", map_shape=(side, side))
+        take(config)
+        entry = entries.get(config.name)
+        used = None if entry is None else (entry["result"] if entry["routed"] else entry["packed"])["ebr"]
+        if used is None or used <= available:
+            return
+        # The whole correlator needs more blocks beside its map than the core alone (its loader's
+        # memory ports): count them and take the next smaller map.
+        print(f"{config.name} needs {used} of {available} EBR: one size smaller")
+        del entries[config.name]
+        core_ebr += used - available
 
 
 if __name__ == "__main__":
