@@ -127,6 +127,40 @@ class BestFitReducer(wiring.Component):
     def _collect(self, m: Module, minima_write) -> _Collected:
         """The stages "in" to "best": a beat's minimum, its row's minimum (stored at the row's end), the best so far."""
         p = self._parameters
+        value_shape = unsigned(p.value_bits)
+        row_shape, col_shape = unsigned(p.row_bits), unsigned(p.col_bits)
+        in_values, beat_value, beat_col, tree_meta, meta_layout, levels = self._beat_minimum(m)
+
+        # Stage "row": this row's minimum so far (an earlier column wins ties).
+        row_value, row_col = Signal(value_shape), Signal(col_shape)
+        take_beat = tree_meta.first_in_row | (beat_value < row_value)
+        row_value_new = Mux(take_beat, beat_value, row_value)
+        row_col_new = Mux(take_beat, beat_col, row_col)
+        with m.If(tree_meta.valid):
+            m.d.sync += [row_value.eq(row_value_new), row_col.eq(row_col_new)]
+        row_meta = delayed(m, tree_meta, meta_layout, 1, "row_meta")
+
+        # Stage "best": at a row's end, store its minimum and compare it with the best so far.
+        best_value, best_i, best_j = Signal(value_shape), Signal(row_shape), Signal(col_shape)
+        row_ends = row_meta.valid & row_meta.row_end
+        becomes_best = row_ends & ((row_meta.i == 0) | (row_value < best_value))
+        m.d.comb += [
+            minima_write.addr.eq(row_meta.i),
+            minima_write.data.value.eq(row_value),
+            minima_write.data.col.eq(row_col),
+            minima_write.en.eq(row_ends),
+        ]
+        with m.If(becomes_best):
+            m.d.sync += [best_value.eq(row_value), best_i.eq(row_meta.i), best_j.eq(row_col)]
+        slot_meta = delayed(m, row_meta, meta_layout, 1, "slot_meta")
+        slot_becomes_best = delayed(m, becomes_best, 1, 1, "slot_becomes_best")
+        return _Collected(in_values=in_values, tree_levels=levels, slot_meta=slot_meta, slot_becomes_best=slot_becomes_best,
+                          best_value=best_value, best_i=best_i, best_j=best_j)
+
+    def _beat_minimum(self, m: Module) -> tuple[Signal, Value, Value, Value, data.StructLayout, int]:
+        """Stage "in" and the beat's compare tree: the beat's words, its minimum and column, its metadata as they
+        leave the tree, the metadata's layout and the tree's depth."""
+        p = self._parameters
         cols, lanes = p.surface_shape[1], p.lanes
         value_shape = unsigned(p.value_bits)
         row_shape, col_shape = unsigned(p.row_bits), unsigned(p.col_bits)
@@ -169,32 +203,7 @@ class BestFitReducer(wiring.Component):
             in_meta.row_end.eq(in_j + in_count >= cols),
         ]
         tree_meta = delayed(m, in_meta, meta_layout, levels, "tree_meta")
-
-        # Stage "row": this row's minimum so far (an earlier column wins ties).
-        row_value, row_col = Signal(value_shape), Signal(col_shape)
-        take_beat = tree_meta.first_in_row | (beat_value < row_value)
-        row_value_new = Mux(take_beat, beat_value, row_value)
-        row_col_new = Mux(take_beat, beat_col, row_col)
-        with m.If(tree_meta.valid):
-            m.d.sync += [row_value.eq(row_value_new), row_col.eq(row_col_new)]
-        row_meta = delayed(m, tree_meta, meta_layout, 1, "row_meta")
-
-        # Stage "best": at a row's end, store its minimum and compare it with the best so far.
-        best_value, best_i, best_j = Signal(value_shape), Signal(row_shape), Signal(col_shape)
-        row_ends = row_meta.valid & row_meta.row_end
-        becomes_best = row_ends & ((row_meta.i == 0) | (row_value < best_value))
-        m.d.comb += [
-            minima_write.addr.eq(row_meta.i),
-            minima_write.data.value.eq(row_value),
-            minima_write.data.col.eq(row_col),
-            minima_write.en.eq(row_ends),
-        ]
-        with m.If(becomes_best):
-            m.d.sync += [best_value.eq(row_value), best_i.eq(row_meta.i), best_j.eq(row_col)]
-        slot_meta = delayed(m, row_meta, meta_layout, 1, "slot_meta")
-        slot_becomes_best = delayed(m, becomes_best, 1, 1, "slot_becomes_best")
-        return _Collected(in_values=in_values, tree_levels=levels, slot_meta=slot_meta, slot_becomes_best=slot_becomes_best,
-                          best_value=best_value, best_i=best_i, best_j=best_j)
+        return in_values, beat_value, beat_col, tree_meta, meta_layout, levels
 
     def _choose_slot(self, m: Module, collected: _Collected) -> tuple[Value, list[Value], list[Value]]:
         """Stage "slot" (``SlotBand``): the slot of a row that begins; each slot's row and whether it is in the band."""
