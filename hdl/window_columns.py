@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Signal, signed
+from amaranth.hdl import Module, Mux, Signal, Value, signed
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -96,17 +96,24 @@ class StepWindow(wiring.Component):
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
-        L, h, G, span = self._lanes, self._rows, self._groups, self._span
         advance, row_layout = self.advance, self.row_layout
 
         # The step register: the words and the group they were read for.
         step_nodes = Signal(row_layout, reset_less=True)
-        step_group = Signal(index_range(G))
+        step_group = Signal(index_range(self._groups))
         step_was_word = Signal()
         with m.If(advance):
             m.d.sync += [step_group.eq(self.group), step_was_word.eq(self.is_word), step_nodes.eq(self.word)]
 
-        # Line buffers: rows r-1 .. r-h+1 of the group being taken.
+        buffer_rows = self._line_buffers(m, step_nodes, step_group, step_was_word)
+        window = self._window(m, buffer_rows, step_nodes)
+        kept = [column for column in window if column is not None]
+        m.d.comb += [self.columns[c].eq(kept[c]) for c in range(len(kept))]
+        return m
+
+    def _line_buffers(self, m: Module, step_nodes: Signal, step_group: Signal, step_was_word: Signal) -> list[Signal]:
+        """Rows r-1 .. r-h+1 of the group being taken: one line buffer a row, its output register last."""
+        h, G, row_layout, advance = self._rows, self._groups, self.row_layout, self.advance
         read_ahead = Mux(self.group == G - 1, 0, self.group + 1)
         buffer_rows = []
         for x in range(h - 1):
@@ -136,6 +143,12 @@ class StepWindow(wiring.Component):
                     m.d.sync += [fetched.eq(read.data), delayed[0].eq(fetched)]
             buffer_rows.append(delayed[-1])
 
+        return buffer_rows
+
+    def _window(self, m: Module, buffer_rows: list[Signal], step_nodes: Signal) -> list[Value | None]:
+        """The window register, one signal a column (the stored steps' columns read from their block RAM);
+        each step shifts it by ``lanes`` columns and enters the step's columns from the line buffers."""
+        L, h, span, advance = self._lanes, self._rows, self._span, self.advance
         # The window register: one signal per column (fewer signals than one per node, while the Python
         # simulator, whose generated code spells masks as decimal literals, still handles their width).
         column_layout = data.ArrayLayout(self._depth, h)
@@ -160,6 +173,4 @@ class StepWindow(wiring.Component):
                 column = [buffer_rows[h - 2 - k][q] for k in range(h - 1)] + [step_nodes[q]]
                 for k in range(h):
                     m.d.sync += window[span - L + q][k].eq(column[k])
-        kept = [column for column in window if column is not None]
-        m.d.comb += [self.columns[c].eq(kept[c]) for c in range(len(kept))]
-        return m
+        return window
