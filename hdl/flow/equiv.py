@@ -425,7 +425,10 @@ if config["part"] == "reducer":
 else:
     from lost.hdl.variants import variant
     top = variant(config["variant"]).build(**sizes, memory=config["memory"])
-out.write_text(rtlil.convert(top, name="top"))
+# A port the component ties to a constant is not a port of the netlist (rtlil.convert refuses constants).
+from amaranth.hdl import Signal, Value
+ports = [value for _, _, port in top.signature.flatten(top) if isinstance(value := Value.cast(port), Signal)]
+out.write_text(rtlil.convert(top, name="top", ports=ports))
 """
 
 
@@ -483,6 +486,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--rename", action="append", default=[], metavar="GATE=GOLD", help="pair a gate register with a gold one (repeatable)")
     parser.add_argument("--rename-file", type=Path, help="file of 'GATE_NAME GOLD_NAME' lines")
     parser.add_argument("--workdir", type=Path, default=Path("build/equiv"), help="netlists, scripts and Yosys logs")
+    parser.add_argument("--repo", type=Path, default=_CHECKOUT, help="the git checkout holding hdl/ and model/ (default: this one)")
     args = parser.parse_args(argv)
     config = {"part": args.part or "variant", "variant": args.variant, "memory": args.memory, "lanes": args.lanes,
               "map_shape": list(args.map), "patch_shape": list(args.patch), "depth_bits": args.depth_bits,
@@ -494,8 +498,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not sep or not gate_name or not gold_name:
                 raise EquivalenceError(f"--rename {pair!r}: expected GATE=GOLD")
             renames[gate_name] = gold_name
-        gold = elaborate_revision(args.gold, config, args.workdir / "gold_top.il")
-        gate = elaborate_revision(args.gate, config, args.workdir / "gate_top.il")
+        gold = elaborate_revision(args.gold, config, args.workdir / "gold_top.il", checkout=args.repo)
+        gate = elaborate_revision(args.gate, config, args.workdir / "gate_top.il", checkout=args.repo)
         result = prove_equivalent(gold, gate, workdir=args.workdir, seq=args.seq, renames=renames)
     except (FlowError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
