@@ -348,6 +348,7 @@ def prove_equivalent(
     proof = ["read_rtlil gold_flat.il", "read_rtlil gate_flat.il", "cd gate", *rename_lines, "cd ..",
              "equiv_make gold gate equiv", "hierarchy -top equiv", f"equiv_simple -seq {seq}", f"equiv_induct -seq {seq}",
              "tee -q -o status.txt equiv_status"]
+    (workdir / "status.txt").unlink(missing_ok=True)  # a reused workdir must not answer for this run
     log = _yosys_script("\n".join(proof), workdir / "equiv.ys")
     status = (workdir / "status.txt").read_text()
     counts = _STATUS.search(status)
