@@ -42,6 +42,7 @@ from lost.model.shapes import shape_argument
 from .synth import FlowError, _run, _tool
 
 __all__ = [
+    "EquivalenceError",
     "EquivalenceResult",
     "Pairing",
     "Register",

@@ -265,3 +265,12 @@ def test_the_command_line_proves_two_revisions_of_a_copy(tmp_path, capsys):
             "--workdir", str(tmp_path / "work")]
     assert equiv.main(argv) == 0
     assert capsys.readouterr().out.startswith("PROVEN")
+    # A tie now replaces the best row: a real difference, which the command must name.
+    reducer = repo / "hdl" / "reducer.py"
+    text = reducer.read_text()
+    assert text.count("(row_value < best_value)") == 1, "the reducer's best-row comparison changed; pick another mutation"
+    reducer.write_text(text.replace("(row_value < best_value)", "(row_value <= best_value)"))
+    subprocess.run([*git, "commit", "-qam", "broken"], check=True)
+    assert equiv.main(argv) == 1  # HEAD~1 is now the commented copy
+    out = capsys.readouterr().out
+    assert out.startswith("NOT PROVEN") and "unproven slot_becomes_best" in out
