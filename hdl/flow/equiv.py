@@ -194,6 +194,19 @@ def _best_matches(name: str, width: int, candidates: Mapping[str, Register]) -> 
     return sorted(other for score, other in scored if best and score == best)
 
 
+def _given_renames(given: Mapping[str, str], gold_wires: set[str], gate_wires: set[str]) -> list[Rename]:
+    renames = []
+    for gate_name, gold_name in given.items():
+        problem = ("the gate has no wire " + gate_name if gate_name not in gate_wires
+                   else "the gold design has no wire " + gold_name if gold_name not in gold_wires
+                   else "the gate already has a wire " + gold_name if gold_name in gate_wires
+                   else "another gate wire is renamed to it too" if gold_name in {r.gold for r in renames} else None)
+        if problem:
+            raise EquivalenceError(f"the rename {gate_name} -> {gold_name}: {problem}")
+        renames.append(Rename(gate_name, gold_name, "given"))
+    return renames
+
+
 def pair_registers(
     gold: Mapping[str, Register],
     gate: Mapping[str, Register],
@@ -229,15 +242,7 @@ def pair_registers(
     """
     gold_wires = set(gold) if gold_wires is None else gold_wires
     gate_wires = set(gate) if gate_wires is None else gate_wires
-    renames: list[Rename] = []
-    for gate_name, gold_name in (given or {}).items():
-        if gate_name not in gate_wires:
-            raise EquivalenceError(f"the rename {gate_name} -> {gold_name}: the gate has no wire {gate_name}")
-        if gold_name not in gold_wires:
-            raise EquivalenceError(f"the rename {gate_name} -> {gold_name}: the gold design has no wire {gold_name}")
-        if gold_name in gate_wires:
-            raise EquivalenceError(f"the rename {gate_name} -> {gold_name}: the gate already has a wire {gold_name}")
-        renames.append(Rename(gate_name, gold_name, "given"))
+    renames = _given_renames(given or {}, gold_wires, gate_wires)
     taken_gold = {r.gold for r in renames}
     taken_gate = {r.gate for r in renames}
     gold_left = {n: r for n, r in gold.items() if n not in gate_wires and n not in taken_gold}

@@ -82,6 +82,8 @@ def test_a_given_rename_is_applied_first_and_checked():
         pair_registers(gold, gate, given={"x": "c"})
     with pytest.raises(EquivalenceError, match="the gate already has a wire x"):
         pair_registers(regs(x=4), gate, given={"y": "x"})
+    with pytest.raises(EquivalenceError, match="the rename y -> a: another gate wire is renamed to it too"):
+        pair_registers(gold, gate, given={"x": "a", "y": "a"})
 
 
 def test_a_rename_file_names_its_bad_line(tmp_path):
