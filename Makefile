@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-nav bench-nav-usbl bench-track bench-usbl synth clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test bench bench-nav bench-nav-usbl bench-track bench-usbl synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -76,6 +76,11 @@ $(BITSTREAM_STAMP): $(STAMP)
 
 bitstream: $(BITSTREAM_STAMP)
 	$(BIN)/python -m lost.hdl.flow.bitstream --out build/bitstream $(BITSTREAM_ARGS)
+
+# A restructuring proven equal to the gateware before it (Yosys equiv_*, which only the FPGA tools' Yosys has):
+# make equiv EQUIV_ARGS="--gold main --variant window_correlator_l4 --memory external" (the gate: this working tree).
+equiv: $(FPGA_STAMP)
+	$(BIN)/python -m lost.hdl.flow.equiv $(EQUIV_ARGS)
 
 # Verilog of each correlator variant at 501 x 501 / 10 x 10 (python -m lost.hdl.flow.generate --help for sizes).
 verilog: setup
