@@ -60,7 +60,7 @@ def test_the_shipped_figures_parse_and_the_page_holds_their_table():
 
 
 def test_the_flow_appends_each_placed_build_once(tmp_path, monkeypatch):
-    def fake_build(config, out_dir, *, seeds, target_mhz, router, place):
+    def fake_build(config, out_dir, *, seeds, target_mhz, router, place, router_patience):
         base = {"name": config.name, "variant": config.variant, "lanes": config.lanes, "memory": config.memory,
                 "map_shape": list(config.map_shape), "patch_shape": list(config.patch_shape), "cycles": 1000}
         if config.variant == "window" and config.lanes == 2:
