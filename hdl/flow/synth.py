@@ -558,7 +558,7 @@ MAX_LUT_PERCENT = 60.0
 
 #: Iterations router2 may go without fewer overused wires (while more than a hundred remain) before its seed is
 #: given up (:class:`RouterStall`).
-ROUTER_PATIENCE = 20
+ROUTER_PATIENCE = 30
 
 
 def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target_mhz: float,
