@@ -9,6 +9,7 @@ one comparison. None of them knows a device: a register meant to stay a separate
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from amaranth.hdl import Module, Mux, Shape, ShapeLike, Signal, Value, signed, unsigned
@@ -18,8 +19,8 @@ from amaranth.utils import ceil_log2
 
 from lost.model.widths import bits_for
 
-__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "Replicas", "check_count", "delayed", "enabled_delay", "index_range", "minimum_item",
-           "shape_for", "tree_levels"]
+__all__ = ["AdderTree", "DelayLine", "MemoryDelayLine", "MinimumTree", "ProductBlock", "RegisteredProduct", "Replicas",
+           "check_count", "delayed", "enabled_delay", "index_range", "minimum_item", "shape_for", "tree_levels"]
 
 
 def shape_for(lo: int, hi: int) -> Shape:
@@ -213,6 +214,10 @@ class AdderTree(wiring.Component):
     adders in series between them, the widest levels, near the leaves, not registered): the latency
     is the same, the levels' missing registers added after the root, where the sum is narrowest.
 
+    With ``registered_sum=False`` the tree's last register (the last one made up after the root, or
+    the root's level if there is none) is left to the consumer, one clock less: for a consumer whose
+    register is not the fabric's, such as a multiplier's input register (:class:`RegisteredProduct`).
+
     Each level's registers are as wide as the sums they can hold: ``k`` leaves in ``[leaf_lo,
     leaf_hi]`` give ``[k * leaf_lo, k * leaf_hi]``, never more than ``total`` (the bounds of the whole
     sum, e.g. over the valid nodes only). The registers are reset-less (datapath registers).
@@ -229,6 +234,8 @@ class AdderTree(wiring.Component):
         Load only on clocks when ``en`` is high.
     adders_per_register : int
         Adder levels between two register levels (1: a register on every level).
+    registered_sum : bool
+        Whether ``sum`` is a register (the default) or the value its last register would load.
 
     Members
     -------
@@ -240,8 +247,11 @@ class AdderTree(wiring.Component):
     """
 
     def __init__(self, *, count: int, leaf: tuple[int, int], total: tuple[int, int], enable: bool = False,
-                 adders_per_register: int = 1):
+                 adders_per_register: int = 1, registered_sum: bool = True):
         self._count = check_count("count", count)
+        if not registered_sum and count < 2:
+            raise ValueError(f"a tree of {count} leaf has no register to leave out (registered_sum=False)")
+        self._registered_sum = bool(registered_sum)
         self._adders_per_register = check_count("adders_per_register", adders_per_register)
         self._leaf, self._total, self._enable = tuple(leaf), tuple(total), bool(enable)
         self.leaf_shape = shape_for(*self._leaf)
@@ -262,13 +272,22 @@ class AdderTree(wiring.Component):
 
     @property
     def latency(self) -> int:
-        return len(self.level_shapes)
+        return len(self.level_shapes) - (not self._registered_sum)
 
     @property
     def registered_levels(self) -> list[bool]:
         """For each level, the first (leaves' sums) first: whether it is a register."""
         levels, every = len(self.level_shapes), self._adders_per_register
-        return [(level + 1) % every == 0 or level + 1 == levels for level in range(levels)]
+        registered = [(level + 1) % every == 0 or level + 1 == levels for level in range(levels)]
+        if not self._registered_sum and all(registered):
+            registered[-1] = False  # no register made up after the root to leave out: the root's own
+        return registered
+
+    @property
+    def _registers_after_root(self) -> int:
+        """The levels' missing registers, made up after the root (but the one left to the consumer)."""
+        missing = self.registered_levels.count(False)
+        return missing - (not self._registered_sum)
 
     def elaborate(self, platform: Any) -> Module:
         m = Module()
@@ -297,7 +316,7 @@ class AdderTree(wiring.Component):
             values = [sums[k] for k in range((len(values) + 1) // 2)]
         root = values[0]
         # The levels without a register, made up after the root.
-        for extra in range(self.registered_levels.count(False)):
+        for extra in range(self._registers_after_root):
             register = Signal(root.shape(), name=f"root{extra + 1}", reset_less=True)
             load([register.eq(root)])
             root = register
@@ -412,3 +431,43 @@ class Replicas(wiring.Component):
             m.d.sync += register.eq(self.i)
             m.d.comb += self.o[k].eq(register)
         return m
+
+
+class RegisteredProduct(wiring.Component):
+    """``a * b`` of unsigned operands registered on their way in: a multiplier holding its own input registers.
+
+    A device's multiplier block may hold its operands' registers inside it (the ECP5's ``MULT18X18D``
+    does); a product of fabric registers pays a route into the block and one out of it on one path.
+    This block is the generic form, two registers and their product; a builder for a device may give a
+    block of its own with the same members and timing (the cores' ``product`` option,
+    :class:`lost.hdl.flow.harness.ECP5RegisteredProduct`).
+
+    Latency: 1 clock to the operands' registers (reset-less); ``p`` follows them combinationally.
+
+    Parameters
+    ----------
+    a_bits, b_bits : int
+        The operands' widths.
+
+    Members
+    -------
+    a : ``In(unsigned(a_bits))``
+    b : ``In(unsigned(b_bits))``
+    p : ``Out(unsigned(a_bits + b_bits))``
+    """
+
+    def __init__(self, a_bits: int, b_bits: int):
+        self.a_bits, self.b_bits = check_count("a_bits", a_bits), check_count("b_bits", b_bits)
+        super().__init__({"a": In(unsigned(a_bits)), "b": In(unsigned(b_bits)), "p": Out(unsigned(a_bits + b_bits))})
+
+    def elaborate(self, platform: Any) -> Module:
+        m = Module()
+        a = Signal(unsigned(self.a_bits), name="a_register", reset_less=True)
+        b = Signal(unsigned(self.b_bits), name="b_register", reset_less=True)
+        m.d.sync += [a.eq(self.a), b.eq(self.b)]
+        m.d.comb += self.p.eq(a * b)
+        return m
+
+
+#: How a core makes a :class:`RegisteredProduct`: ``(a_bits, b_bits) -> component`` of its members and timing.
+ProductBlock = Callable[[int, int], wiring.Component]

@@ -80,7 +80,7 @@ from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import Replicas, index_range
+from lost.hdl.blocks import ProductBlock, RegisteredProduct, Replicas, index_range
 from lost.hdl.interface import CorrelatorParameters, correlator_signature
 from lost.hdl.reducer import BestFitReducer
 from lost.hdl.sequencer import MapSequencer
@@ -104,12 +104,18 @@ def _check_enable_buffer(enable_buffer: Any) -> EnableBuffer | None:
     return enable_buffer
 
 
+def _check_product(product: Any) -> ProductBlock:
+    if not callable(product):
+        raise ValueError(f"product must be a function (a_bits, b_bits) -> a RegisteredProduct's like, got {product!r}")
+    return product
+
+
 class WindowCore(wiring.Component):
     """The window correlator without its map memory, which it reads through ``map_read``.
 
     Parameters
     ----------
-    map_shape, patch_shape, depth_bits, lanes, exclusion_radius, enable_buffer
+    map_shape, patch_shape, depth_bits, lanes, exclusion_radius, enable_buffer, product
         See :class:`WindowCorrelator`.
 
     Members
@@ -135,8 +141,9 @@ class WindowCore(wiring.Component):
     """
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
-                 enable_buffer: EnableBuffer | None = None):
+                 enable_buffer: EnableBuffer | None = None, product: ProductBlock = RegisteredProduct):
         self._enable_buffer = _check_enable_buffer(enable_buffer)
+        self._product = _check_product(product)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -280,7 +287,7 @@ class WindowCore(wiring.Component):
         w = p.patch_shape[1]
         lane_values = []
         for q in range(p.lanes):
-            m.submodules[f"lane{q}"] = lane = WindowLane(parameters=p)
+            m.submodules[f"lane{q}"] = lane = WindowLane(parameters=p, product=self._product)
             m.d.comb += [
                 lane.advance.eq(advance),
                 *(lane.sum_window[l].eq(window.columns[sums_port + q + l]) for l in range(w)),
@@ -361,6 +368,11 @@ class WindowCorrelator(wiring.Component):
         simulation) uses the register's own net. A device-specific choice, made by whoever builds for
         a device: the synthesis flow passes the ECP5's global buffer
         (:func:`lost.hdl.flow.harness.ecp5_global_buffer`).
+    product : ProductBlock
+        How each lane makes the multipliers of its value, ``product(a_bits, b_bits)``: a component of
+        :class:`~lost.hdl.blocks.RegisteredProduct`'s members and timing (the default, and every
+        simulation). Also a device's choice: the synthesis flow passes ECP5 multipliers that hold the
+        operands' registers (:class:`lost.hdl.flow.harness.ECP5RegisteredProduct`).
 
     Members
     -------
@@ -374,8 +386,9 @@ class WindowCorrelator(wiring.Component):
     """
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
-                 enable_buffer: EnableBuffer | None = None):
+                 enable_buffer: EnableBuffer | None = None, product: ProductBlock = RegisteredProduct):
         self._enable_buffer = _check_enable_buffer(enable_buffer)
+        self._product = _check_product(product)
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -397,7 +410,7 @@ class WindowCorrelator(wiring.Component):
 
         m.submodules.core = core = WindowCore(
             map_shape=p.map_shape, patch_shape=p.patch_shape, depth_bits=p.depth_bits, lanes=L,
-            exclusion_radius=p.exclusion_radius, enable_buffer=self._enable_buffer)
+            exclusion_radius=p.exclusion_radius, enable_buffer=self._enable_buffer, product=self._product)
         m.submodules.map_memory = map_memory = memory.Memory(
             shape=core.map_word, depth=core.map_depth, init=[])
         wiring.connect(m, core.map_read, map_memory.read_port())

@@ -29,7 +29,7 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import ceil_log2
 
-from lost.hdl.blocks import AdderTree, Replicas, enabled_delay, shape_for, tree_levels
+from lost.hdl.blocks import AdderTree, ProductBlock, RegisteredProduct, Replicas, enabled_delay, shape_for, tree_levels
 from lost.hdl.interface import CorrelatorParameters, checked_parameters
 from lost.model.cycles_window import QUOTIENT_STAGES, WindowTiming, window_timing
 
@@ -334,6 +334,9 @@ class WindowLane(wiring.Component):
     ----------
     parameters : CorrelatorParameters
         The correlator's sizes and widths (``lanes`` is not used).
+    product : ProductBlock
+        How the lane makes the multipliers of ``f * P'`` and ``K * N`` (:class:`RegisteredProduct`, or a
+        device's block of the same members and timing: the core's ``product`` option).
 
     Members
     -------
@@ -355,8 +358,9 @@ class WindowLane(wiring.Component):
         ``V``.
     """
 
-    def __init__(self, *, parameters: CorrelatorParameters):
+    def __init__(self, *, parameters: CorrelatorParameters, product: ProductBlock = RegisteredProduct):
         checked_parameters(parameters)
+        self._product = product
         self._parameters = p = parameters
         self.arithmetic = a = LaneArithmetic.of(p)
         self.stages = PipelineStages.of(window_timing(p.map_shape, p.patch_shape, p.lanes))
@@ -406,20 +410,19 @@ class WindowLane(wiring.Component):
                         for s in range(sources)]
 
         # The mode and f reach much of a lane: registers of their own for each of its parts (the
-        # dividend and the quotient, the reciprocal, the products).
+        # dividend and the quotient, the reciprocal; the products hold a copy of f of their own).
         m.submodules.mode = modes = Replicas(1, 2)
         m.d.comb += modes.i.eq(self.mean_compensation)
         mode, term_mode = modes.o[0], modes.o[1]
-        m.submodules.factor = factors = Replicas(a.count, 2)
+        m.submodules.factor = factors = Replicas(a.count, 1)
         m.d.comb += factors.i.eq(self.factor)
-        lane_factor = factors.o[1]
         m.submodules.reciprocal = reciprocal = SerialReciprocal(
             divisor_bits=a.count.width, shift=a.reciprocal_shift, per_clock=self.reciprocal_bits_per_clock)
         m.d.comb += reciprocal.divisor.eq(factors.o[0])
 
         quotients, carried_out = self._quotient(m, mode, reciprocal, source_valid)
         above_sum, above_count, carried_at = self._terms(m, quotients, carried_out, group_valid, per_source)
-        self._value(m, term_mode, lane_factor, above_sum, above_count, carried_at)
+        self._value(m, term_mode, above_sum, above_count, carried_at)
         return m
 
     def _quotient(self, m: Module, mode: Any, reciprocal: SerialReciprocal, source_valid: list) -> tuple[list, Any]:
@@ -496,6 +499,7 @@ class WindowLane(wiring.Component):
         above = Signal(data.ArrayLayout(a.lifted, nodes), name="above", reset_less=True)
         passed = Signal(nodes, name="passed", reset_less=True)  # not above the quotient (the complement of "chosen")
         lifted_bits = Shape.cast(a.lifted).width
+        above_next, passed_next = [], []
         for k in range(h):
             for l in range(w):
                 x = k * w + l
@@ -509,44 +513,62 @@ class WindowLane(wiring.Component):
                     m.d.sync += difference[x].eq(0)
                 with m.Else():
                     m.d.sync += difference[x].eq(self.term_window[l][k] + self.lifted_patch[x])
-                m.d.sync += [
-                    # A register's synchronous reset, driven by the carry itself: no LUT.
-                    above[x].eq(Mux(not_above, 0, difference[x])),
-                    passed[x].eq(not_above),
-                ]
+                # A register's synchronous reset, driven by the carry itself: no LUT.
+                above_next.append(Mux(not_above, 0, difference[x]))
+                passed_next.append(not_above)
+                m.d.sync += [above[x].eq(above_next[x]), passed[x].eq(not_above)]
+        return (*self._sums(m, above, passed, above_next, passed_next), carried_at)
+
+    def _sums(self, m: Module, above: Any, passed: Any, above_next: list, passed_next: list) -> tuple[Any, Any]:
+        """The chosen differences' sum and count, a clock before their last register: the products hold it
+        (:meth:`_partials`), so these are the values it loads."""
+        a, nodes = self.arithmetic, len(passed)
+        if nodes == 1:
+            # No tree: the node's own registers are the last, so the products load what they would.
+            return above_next[0], ~passed_next[0]
         m.submodules.above_sum = above_tree = AdderTree(count=nodes, leaf=(0, 2 * a.lift - 1), total=(0, a.lifted_sum_hi),
-                                                   adders_per_register=TREE_ADDERS_PER_REGISTER)
+                                                   adders_per_register=TREE_ADDERS_PER_REGISTER, registered_sum=False)
         m.submodules.above_count = count_tree = AdderTree(count=nodes, leaf=(0, 1), total=(0, nodes),
-                                                   adders_per_register=TREE_ADDERS_PER_REGISTER)
+                                                   adders_per_register=TREE_ADDERS_PER_REGISTER, registered_sum=False)
         m.d.comb += [above_tree.leaves[x].eq(above[x]) for x in range(nodes)]
         # The count's first level is LUTs (two 1-bit leaves a sum), which take the inversion in.
         m.d.comb += [count_tree.leaves[x].eq(~passed[x]) for x in range(nodes)]
-        return above_tree.sum, count_tree.sum, carried_at
+        return above_tree.sum, count_tree.sum
 
-    def _value(self, m: Module, term_mode: Any, lane_factor: Any, above_sum: Any, above_count: Any, carried_at: dict) -> None:
-        """V from the sums: the products as partial products of a multiplier's width, then their sums."""
+    def _value(self, m: Module, term_mode: Any, above_sum: Any, above_count: Any, carried_at: dict) -> None:
+        """V from the sums (given a clock before their last register, which the products hold): the products
+        as partial products of a multiplier's width, then their sums."""
         a, stages = self.arithmetic, self.stages
         # V = 2 * (f * P' - K * N) - correction, modulo 2**value_bits (V is below it, so exact): the
-        # dividend beside the sums' last level, then each product as two partial products of a
-        # multiplier's width, then their sums (with the correction), then V.
+        # dividend beside the sums' last level, then each product as partial products of a multiplier's
+        # width, then their sums (with the correction), then V. The products' operand registers are their
+        # own (:class:`RegisteredProduct`), so a device may keep them inside its multipliers.
         value_bits = a.value_bits
-        dividend = Signal(a.lifted_sum_hi.bit_length(), name="dividend", reset_less=True)
-        m.d.sync += dividend.eq(Mux(term_mode, carried_at[stages.sums - 1], a.lift))
+        dividend_bits = a.lifted_sum_hi.bit_length()
+        dividend = Mux(term_mode, carried_at[stages.sums - 1], a.lift)[:dividend_bits]
         correction = Signal(a.carried, name="correction", reset_less=True)
         m.d.sync += correction.eq(Mux(term_mode, 0, carried_at[stages.partials - 1]))
-        partials = Signal(data.ArrayLayout(unsigned(value_bits), 4), name="partials", reset_less=True)
-        m.d.sync += [
-            partials[0].eq(lane_factor * above_sum[:MULTIPLIER_BITS]),
-            partials[1].eq(lane_factor * above_sum[MULTIPLIER_BITS:]),
-            partials[2].eq(above_count * dividend[:MULTIPLIER_BITS]),
-            partials[3].eq(above_count * dividend[MULTIPLIER_BITS:]),
-        ]
+        sum_partials = self._partials(m, "sum", self.factor, above_sum)
+        count_partials = self._partials(m, "count", above_count, dividend)
         doubled_sum = Signal(value_bits, name="doubled_sum", reset_less=True)
         count_product = Signal(value_bits, name="count_product", reset_less=True)
         m.d.sync += [
-            doubled_sum.eq(((partials[0] + (partials[1] << MULTIPLIER_BITS)) << 1) - correction),
-            count_product.eq(partials[2] + (partials[3] << MULTIPLIER_BITS)),
+            doubled_sum.eq((sum(partial << low for low, partial in sum_partials) << 1) - correction),
+            count_product.eq(sum(partial << low for low, partial in count_partials)),
         ]
         value = Signal(unsigned(value_bits), name="value", reset_less=True)
         m.d.sync += value.eq(doubled_sum - (count_product << 1))
         m.d.comb += self.value.eq(value)
+
+    def _partials(self, m: Module, name: str, factor: Any, operand: Any) -> list[tuple[int, Signal]]:
+        """``factor * operand`` as ``(weight, register)`` partial products, one :class:`RegisteredProduct`
+        (the lane's ``product``) of :data:`MULTIPLIER_BITS` of the operand each: a clock to their operand
+        registers, a register after."""
+        partials = []
+        for k, (low, piece) in enumerate(_pieces(operand, len(operand))):
+            m.submodules[f"{name}_product{k}"] = product = self._product(len(factor), len(piece))
+            partial = Signal(self.arithmetic.value_bits, name=f"{name}_partial{k}", reset_less=True)
+            m.d.comb += [product.a.eq(factor), product.b.eq(piece)]
+            m.d.sync += partial.eq(product.p)
+            partials.append((low, partial))
+        return partials

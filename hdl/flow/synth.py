@@ -471,10 +471,11 @@ class Configuration:
 
     def core(self):
         """The gateware: the core alone (external) or the correlator with its map memory (on-chip)."""
-        from .harness import ecp5_global_buffer
+        from .harness import ECP5RegisteredProduct, ecp5_global_buffer
 
-        # The step enable reaches every step-synchronous register: on the ECP5, a global net.
-        options = {"enable_buffer": ecp5_global_buffer} if self.variant == "window" else {}
+        # The step enable reaches every step-synchronous register: on the ECP5, a global net; the lanes'
+        # products keep their operands' registers inside the multipliers.
+        options = {"enable_buffer": ecp5_global_buffer, "product": ECP5RegisteredProduct} if self.variant == "window" else {}
         return self._registered().build(map_shape=self.map_shape, patch_shape=self.patch_shape,
                                         memory=self.memory, **options)
 

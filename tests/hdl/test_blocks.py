@@ -3,10 +3,10 @@
 
 import numpy as np
 import pytest
-from amaranth.hdl import ClockDomain, Module
+from amaranth.hdl import ClockDomain, Module, unsigned
 from amaranth.sim import Simulator
 
-from lost.hdl.blocks import AdderTree, DelayLine, MinimumTree, Replicas, shape_for, tree_levels
+from lost.hdl.blocks import AdderTree, DelayLine, MinimumTree, RegisteredProduct, Replicas, shape_for, tree_levels
 
 
 def simulate(dut, bench):
@@ -88,6 +88,35 @@ def test_adder_tree_sums_after_its_levels(count, leaf, enable):
     check_adder_tree(dut, leaves, enables, enable)
 
 
+@pytest.mark.parametrize("count, adders_per_register", [(2, 1), (5, 1), (100, 2), (20, 2), (12, 3)])
+def test_adder_tree_may_leave_its_last_register_to_the_consumer(count, adders_per_register):
+    rng = np.random.default_rng(count)
+    leaves = rng.integers(0, 2**8, size=(40, count))
+    enables = (rng.random(40) < 0.6).tolist()
+    kept = AdderTree(count=count, leaf=(0, 2**8 - 1), total=(0, count * (2**8 - 1)), enable=True,
+                     adders_per_register=adders_per_register)
+    dut = AdderTree(count=count, leaf=(0, 2**8 - 1), total=(0, count * (2**8 - 1)), enable=True,
+                    adders_per_register=adders_per_register, registered_sum=False)
+    assert dut.latency == kept.latency - 1
+    check_adder_tree(dut, leaves, enables, enable=True)
+
+
+def test_registered_product_multiplies_its_operands_a_clock_later():
+    rng = np.random.default_rng(7)
+    a_values, b_values = rng.integers(0, 2**7, size=30).tolist(), rng.integers(0, 2**18, size=30).tolist()
+    a_values[:2], b_values[:2] = [2**7 - 1, 0], [2**18 - 1, 2**18 - 1]  # the largest product, and zero
+    dut = RegisteredProduct(7, 18)
+    assert dut.p.shape() == unsigned(25)
+
+    def drive(ctx, t):
+        ctx.set(dut.a, a_values[t])
+        ctx.set(dut.b, b_values[t])
+
+    # Sampled after the edge that loads the operands' registers: the product of the values driven before it.
+    seen = run(dut, len(a_values), drive, lambda ctx, t: ctx.get(dut.p))
+    assert seen == [a * b for a, b in zip(a_values, b_values)]
+
+
 def check_adder_tree(dut: AdderTree, leaves: np.ndarray, enables: list[bool], enable: bool) -> None:
     """The tree's sum, clock by clock, against the leaves' sums through its latency's enabled registers."""
     count = leaves.shape[1]
@@ -166,5 +195,9 @@ def test_reset_values_and_parameter_errors():
     sim.run()
     with pytest.raises(ValueError, match="count must be a positive integer"):
         AdderTree(count=0, leaf=(0, 1), total=(0, 0))
+    with pytest.raises(ValueError, match="no register to leave out"):
+        AdderTree(count=1, leaf=(0, 1), total=(0, 1), registered_sum=False)
+    with pytest.raises(ValueError, match="b_bits must be a positive integer"):
+        RegisteredProduct(4, 0)
     with pytest.raises(ValueError, match="depth must be a non-negative integer"):
         DelayLine(4, -1)
