@@ -305,15 +305,15 @@ class WindowCore(wiring.Component):
     def _output(self, m: Module, output_queue: CreditQueue, beats: BeatMetadata, lane_values: list) -> None:
         """Into the output queue; a credit comes back with each step leaving without a beat."""
         last_meta = beats.beat
-        last_valid = beats.fresh & last_meta.live
         beat = output_queue.write.payload
         m.d.comb += [
             beat.i.eq(last_meta.i),
             beat.j.eq(last_meta.j),
             beat.count.eq(last_meta.count),
             beat.last.eq(last_meta.last),
-            output_queue.write.valid.eq(last_valid & last_meta.emit),
-            output_queue.passed.eq(last_valid & ~last_meta.emit),
+            output_queue.write.valid.eq(beats.write),
+            output_queue.write_next.eq(beats.write_next),
+            output_queue.passed.eq(beats.passed),
         ]
         m.d.comb += [beat.values[q].eq(Mux(q < last_meta.count, lane_values[q], 0)) for q in range(self._parameters.lanes)]
 

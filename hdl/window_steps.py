@@ -177,6 +177,11 @@ class BeatMetadata(wiring.Component):
         The beat of the step at the value stage.
     fresh : ``Out(1)``
         ``beat`` is a step's that the last term edge carried, not a stale repeat.
+    write, passed : ``Out(1)``
+        ``fresh & beat.live & beat.emit`` and ``fresh & beat.live & ~beat.emit`` (the beat goes to the queue,
+        or its step passes without one), each a register equal to its expression on every cycle.
+    write_next : ``Out(1)``
+        The value ``write`` takes on the next edge.
 
     Attributes
     ----------
@@ -197,6 +202,9 @@ class BeatMetadata(wiring.Component):
             "group": Out(index_range(self._timing.groups)),
             "beat": Out(self.layout),
             "fresh": Out(1),
+            "write": Out(1),
+            "write_next": Out(1),
+            "passed": Out(1),
         })
 
     def elaborate(self, platform: Any) -> Module:
@@ -220,6 +228,14 @@ class BeatMetadata(wiring.Component):
             self.beat.eq(term_meta.o),
             self.fresh.eq(term_valid.o),
         ]
+        # The queue's write and a step's passing, as registers loaded from the stage before the last (value >= 3):
+        # each equals its expression of fresh and beat on every cycle, and the write's next value lets the
+        # queue keep copies of it near its storage.
+        before_meta, before_valid = term_meta.taps[stages.value - 2], term_valid.taps[stages.value - 2]
+        write, passed = Signal(), Signal()
+        m.d.comb += self.write_next.eq(before_valid & before_meta.live & before_meta.emit)
+        m.d.sync += [write.eq(self.write_next), passed.eq(before_valid & before_meta.live & ~before_meta.emit)]
+        m.d.comb += [self.write.eq(write), self.passed.eq(passed)]
         return m
 
     def _parts_of(self, row: Value, group: Value) -> list:

@@ -185,16 +185,18 @@ def test_credit_queue_keeps_order_and_counts_credits():
         await ctx.tick()
         ctx.set(dut.clear, 0)
         credits, queued, value = depth, 0, 0
+        write = False  # decided a cycle ahead: the queue takes the write's next value too (write_next)
         for _ in range(300):
             issue = bool(credits) and rng.random() < 0.7
             # A beat may be written only against a credit taken earlier and not yet returned.
             in_flight = depth - credits - queued
-            write = in_flight > 0 and rng.random() < 0.5
             passed = in_flight - write > 0 and not write and rng.random() < 0.2
+            write_next = in_flight + issue - write - passed > 0 and rng.random() < 0.5
             ready = rng.random() < 0.6
             assert ctx.get(dut.has_credit) == (credits != 0)
             ctx.set(dut.issue, issue)
             ctx.set(dut.write.valid, write)
+            ctx.set(dut.write_next, write_next)
             ctx.set(dut.write.payload, value)
             ctx.set(dut.passed, passed)
             ctx.set(dut.surface.ready, ready)
@@ -207,6 +209,7 @@ def test_credit_queue_keeps_order_and_counts_credits():
             await ctx.tick()
             credits += -issue + passed + leaving
             queued += write - leaving
+            write = write_next
 
     simulate(dut, bench)
     assert len(received) > 50 and received == sent[:len(received)]

@@ -189,7 +189,7 @@ def test_beat_metadata_carries_each_steps_beat_to_the_value_stage(map_shape, pat
     model = BeatCarryModel(p, dut.stages)
     steps = map_shape[0] * timing.groups + timing.flush_steps  # a run's
     rng = np.random.default_rng([map_shape[1], lanes])
-    emitted, stale = [], []
+    emitted, stale, writes = [], [], []
 
     async def edge(ctx, advance, clear):
         ctx.set(dut.advance, advance)
@@ -199,6 +199,11 @@ def test_beat_metadata_carries_each_steps_beat_to_the_value_stage(map_shape, pat
         model.edge(advance, clear)
         fresh, beat = model.term[-1]
         assert ctx.get(dut.fresh) == fresh
+        # The queue's write and a step's passing, registers, equal their expressions; the write's next value is
+        # the next cycle's write.
+        live = ctx.get(dut.fresh) and ctx.get(dut.beat.live)
+        assert (ctx.get(dut.write), ctx.get(dut.passed)) == (live and ctx.get(dut.beat.emit), live and not ctx.get(dut.beat.emit))
+        writes.append((ctx.get(dut.write), ctx.get(dut.write_next)))
         if not fresh:
             return
         assert ctx.get(dut.beat.live) == beat["live"]
@@ -228,6 +233,7 @@ def test_beat_metadata_carries_each_steps_beat_to_the_value_stage(map_shape, pat
         in_run = [b for b in emitted if b[0] == run]
         assert len(in_run) == len(set(in_run)) == beats
     assert len(stale) >= 3 * (dut.stages.quotient - 1)  # the cleared stages went out, not live
+    assert all(after[0] == before[1] for before, after in zip(writes, writes[1:])) and sum(w for w, _ in writes) > 0
 
 
 def test_beat_metadata_refuses_other_parameters():
