@@ -236,6 +236,12 @@ def _pieces(value: Any, width: int) -> list[tuple[int, Any]]:
     return [(low, value[low:min(low + MULTIPLIER_BITS, width)]) for low in range(0, width, MULTIPLIER_BITS)]
 
 
+def _weighted_sum(terms: list[tuple[int, Any]]) -> Any:
+    """The sum of ``(weight, value)`` terms, each shifted up by its weight."""
+    (first_weight, first), *rest = terms
+    return sum((value << weight for weight, value in rest), first << first_weight)
+
+
 def _trimmed(terms: list[tuple[int, Any]], low: int, top: int) -> list[tuple[int, Any]]:
     """Weighted terms with only what a sum's bits in ``[low, top)`` need.
 
@@ -553,8 +559,8 @@ class WindowLane(wiring.Component):
         doubled_sum = Signal(value_bits, name="doubled_sum", reset_less=True)
         count_product = Signal(value_bits, name="count_product", reset_less=True)
         m.d.sync += [
-            doubled_sum.eq((sum(partial << low for low, partial in sum_partials) << 1) - correction),
-            count_product.eq(sum(partial << low for low, partial in count_partials)),
+            doubled_sum.eq((_weighted_sum(sum_partials) << 1) - correction),
+            count_product.eq(_weighted_sum(count_partials)),
         ]
         value = Signal(unsigned(value_bits), name="value", reset_less=True)
         m.d.sync += value.eq(doubled_sum - (count_product << 1))
