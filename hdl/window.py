@@ -185,7 +185,7 @@ class WindowCore(wiring.Component):
         m.d.sync += clearing.eq(idle)
         m.submodules.beat_metadata = beats = BeatMetadata(parameters=self._parameters)
         m.d.comb += [beats.advance.eq(advance), beats.clear.eq(clearing)]
-        window, sums_port = self._window(m, stages, advance, sequencer, beats.group, steps.step_is_word)
+        window, sums_port = self._window(m, stages, advance, sequencer, beats, steps.step_is_word)
         lane_values = self._lanes(m, patch, window, sums_port, advance)
         self._output(m, output_queue, beats, lane_values)
 
@@ -256,7 +256,7 @@ class WindowCore(wiring.Component):
         ]
         return sequencer, output_queue, steps
 
-    def _window(self, m: Module, stages: PipelineStages, advance: Value, sequencer: MapSequencer, step_group: Signal,
+    def _window(self, m: Module, stages: PipelineStages, advance: Value, sequencer: MapSequencer, beats: BeatMetadata,
                 step_is_word: Signal) -> tuple[StepWindow, int]:
         """The step register, the line buffers and the window register; returns it and the sums' first port.
 
@@ -276,7 +276,8 @@ class WindowCore(wiring.Component):
         m.d.comb += [
             window.advance.eq(advance),
             window.word.eq(sequencer.response.payload.data),
-            window.group.eq(step_group),
+            window.group.eq(beats.group),
+            window.next_group.eq(beats.next_group),
             window.is_word.eq(step_is_word),
         ]
         return window, sums_port

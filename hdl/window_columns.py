@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from amaranth.hdl import Module, Mux, Signal, Value, signed
+from amaranth.hdl import Module, Signal, Value, signed
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -61,6 +61,9 @@ class StepWindow(wiring.Component):
         The step's memory row (its content is ignored for a flush step).
     group : ``In(range(groups))``
         The group (memory row within its map row) of the step being taken.
+    next_group : ``In(range(groups))``
+        ``(group + 1) mod groups``, the next step's group: the line buffers' read address (the builder's
+        register, :class:`~lost.hdl.window_steps.BeatMetadata`, so no adder lies before the block RAMs).
     is_word : ``In(1)``
         The step carries a map word (a flush step does not enter the line buffers).
     columns : ``Out(ArrayLayout(signed(depth_bits), rows)).array(span - len(stored) * lanes)``
@@ -88,6 +91,7 @@ class StepWindow(wiring.Component):
             "advance": In(1),
             "word": In(self.row_layout),
             "group": In(index_range(groups)),
+            "next_group": In(index_range(groups)),
             "is_word": In(1),
             # One signal per column (an array of ports, not one wide port): the Python simulator spells a
             # signal's mask as a decimal literal, which a span of 10-row columns would make too long.
@@ -114,7 +118,6 @@ class StepWindow(wiring.Component):
     def _line_buffers(self, m: Module, step_nodes: Signal, step_group: Signal, step_was_word: Signal) -> list[Signal]:
         """Rows r-1 .. r-h+1 of the group being taken: one line buffer a row, its output register last."""
         h, G, row_layout, advance = self._rows, self._groups, self.row_layout, self.advance
-        read_ahead = Mux(self.group == G - 1, 0, self.group + 1)
         buffer_rows = []
         for x in range(h - 1):
             entering = step_nodes if x == 0 else buffer_rows[x - 1]
@@ -134,7 +137,7 @@ class StepWindow(wiring.Component):
                 read = line.read_port(domain="comb")
                 fetched = Signal(row_layout, name=f"line_buffer_{x}_fetched", reset_less=True)
                 m.d.comb += [
-                    read.addr.eq(read_ahead),
+                    read.addr.eq(self.next_group),
                     write.addr.eq(step_group),
                     write.en.eq(advance & step_was_word),
                     write.data.eq(entering),

@@ -172,7 +172,11 @@ class BeatMetadata(wiring.Component):
         The next step is step 0: the counters go back to it and the step-synchronous stages' beats
         lose ``live`` (they may hold the last run's flush steps). Takes precedence over ``advance``.
     group : ``Out(range(G))``
-        The group (memory row within its map row) of the step being taken: the line buffers' address.
+        The group (memory row within its map row) of the step being taken: the line buffers' write address.
+    next_group : ``Out(range(G))``
+        ``(group + 1) mod G``, the group of the step after it, in every cycle:
+        the line buffers' read address, a register (formed from ``group`` by an adder and a compare, it
+        was the 4-lane build's critical path, on its way to 36 block RAMs).
     beat : ``Out(beat_layout(parameters))``
         The beat of the step at the value stage.
     fresh : ``Out(1)``
@@ -200,6 +204,7 @@ class BeatMetadata(wiring.Component):
             "advance": In(1),
             "clear": In(1),
             "group": Out(index_range(self._timing.groups)),
+            "next_group": Out(index_range(self._timing.groups)),
             "beat": Out(self.layout),
             "fresh": Out(1),
             "write": Out(1),
@@ -254,7 +259,8 @@ class BeatMetadata(wiring.Component):
         ]
 
     def _step_beat(self, m: Module) -> Signal:
-        """The beat of the step being taken, from ``parts`` loaded on the step before; drives ``group``."""
+        """The beat of the step being taken, from ``parts`` loaded on the step before; drives ``group`` and
+        ``next_group``."""
         p, t = self._parameters, self._timing
         H, L, G = p.map_shape[0], p.lanes, t.groups
         Wo = p.surface_shape[1]
@@ -264,7 +270,8 @@ class BeatMetadata(wiring.Component):
         })
         step_group = Signal(index_range(G))
         ahead_row = Signal(range(H + t.flush_steps + 3))
-        ahead_group = Signal(index_range(G))
+        second_group, second_row = (1, 0) if G > 1 else (0, 1)  # the second step's group and row
+        ahead_group = Signal(index_range(G), init=second_group)  # (step_group + 1) mod G from the reset on
         parts = Signal(parts_layout)
         with m.If(self.advance):
             m.d.sync += [step_group.eq(ahead_group),
@@ -274,10 +281,9 @@ class BeatMetadata(wiring.Component):
             with m.Else():
                 m.d.sync += ahead_group.eq(ahead_group + 1)
         with m.If(self.clear):
-            second_group, second_row = (1, 0) if G > 1 else (0, 1)  # the second step's group and row
             m.d.sync += [step_group.eq(0), ahead_group.eq(second_group), ahead_row.eq(second_row),
                          *(parts[name].eq(value) for name, value in self._parts_of(Const(0, 1), Const(0, 1)))]
-        m.d.comb += self.group.eq(step_group)
+        m.d.comb += [self.group.eq(step_group), self.next_group.eq(ahead_group)]
         step_beat = Signal(self.layout)
         m.d.comb += [
             step_beat.live.eq(1),

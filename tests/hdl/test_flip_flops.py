@@ -58,6 +58,7 @@ def test_step_window_with_stored_steps_holds_each_steps_columns(lanes, width, ro
         for q in range(lanes):
             ctx.set(dut.word[q], int(terrain[r % height, g * lanes + q]))
         ctx.set(dut.group, g)
+        ctx.set(dut.next_group, (g + 1) % groups)
         ctx.set(dut.is_word, 1)
         ctx.set(dut.advance, advance)
         drive.taken += advance

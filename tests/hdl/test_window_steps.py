@@ -195,6 +195,7 @@ def test_beat_metadata_carries_each_steps_beat_to_the_value_stage(map_shape, pat
         ctx.set(dut.advance, advance)
         ctx.set(dut.clear, clear)
         assert ctx.get(dut.group) == model.group  # the group of the step being taken
+        assert ctx.get(dut.next_group) == (model.group + 1) % model.groups  # the line buffers' read address
         await ctx.tick()
         model.edge(advance, clear)
         fresh, beat = model.term[-1]
