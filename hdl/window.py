@@ -98,16 +98,12 @@ __all__ = ["PipelineStages", "WindowCore", "WindowCorrelator"]
 EnableBuffer = Callable[[Module, Value], Value]
 
 
-def _check_enable_buffer(enable_buffer: Any) -> EnableBuffer | None:
-    if enable_buffer is not None and not callable(enable_buffer):
-        raise ValueError(f"enable_buffer must be None or a function (module, enable) -> Value, got {enable_buffer!r}")
-    return enable_buffer
-
-
-def _check_product(product: Any) -> ProductBlock:
-    if not callable(product):
-        raise ValueError(f"product must be a function (a_bits, b_bits) -> a RegisteredProduct's like, got {product!r}")
-    return product
+def _checked_choice(name: str, value: Any, signature: str, *, optional: bool = False) -> Any:
+    """A builder's device choice (``enable_buffer``, ``product``) if it is a function, or ``None`` where
+    ``optional``; else a ``ValueError`` naming it and what it must be."""
+    if (optional and value is None) or callable(value):
+        return value
+    raise ValueError(f"{name} must be {'None or ' if optional else ''}a function {signature}, got {value!r}")
 
 
 class WindowCore(wiring.Component):
@@ -142,8 +138,8 @@ class WindowCore(wiring.Component):
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
                  enable_buffer: EnableBuffer | None = None, product: ProductBlock = RegisteredProduct):
-        self._enable_buffer = _check_enable_buffer(enable_buffer)
-        self._product = _check_product(product)
+        self._enable_buffer = _checked_choice("enable_buffer", enable_buffer, "(module, enable) -> Value", optional=True)
+        self._product = _checked_choice("product", product, "(a_bits, b_bits) -> a RegisteredProduct's like")
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
@@ -388,8 +384,8 @@ class WindowCorrelator(wiring.Component):
 
     def __init__(self, *, map_shape, patch_shape, depth_bits: int = 16, lanes: int = 1, exclusion_radius: int = 1,
                  enable_buffer: EnableBuffer | None = None, product: ProductBlock = RegisteredProduct):
-        self._enable_buffer = _check_enable_buffer(enable_buffer)
-        self._product = _check_product(product)
+        self._enable_buffer = _checked_choice("enable_buffer", enable_buffer, "(module, enable) -> Value", optional=True)
+        self._product = _checked_choice("product", product, "(a_bits, b_bits) -> a RegisteredProduct's like")
         self._parameters = CorrelatorParameters(
             map_shape=map_shape, patch_shape=patch_shape, depth_bits=depth_bits, lanes=lanes,
             exclusion_radius=exclusion_radius)
