@@ -9,6 +9,7 @@
     lost track DETECTIONS.csv|SCENARIO [--out DIR]      sonar contact tracking
     lost usbl LOG.csv --svp CAST.csv | SCENARIO         INS+USBL positioning of the towfish
     lost campaign SPEC.toml [--out DIR]                 many simulated tows on Dask, a table of results
+    lost plan MAP [--route WAYPOINTS.csv]               where terrain navigation will work, and how well
 
 Every command that writes files writes them into a run folder (``--out``), whole or not at all
 (:mod:`lost.host.runfolder`): an earlier LOST run there is replaced only with ``--replace``.
@@ -43,7 +44,7 @@ __all__ = ["main", "build_parser", "COMMANDS", "UsageError", "EXIT_OK", "EXIT_ER
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: The subcommands, in the order ``lost --help`` lists them: each is the module of this package of that name.
-COMMANDS = ("run", "demo", "correlate", "track", "usbl", "campaign")
+COMMANDS = ("run", "demo", "correlate", "track", "usbl", "campaign", "plan")
 
 
 def build_parser() -> argparse.ArgumentParser:
