@@ -40,8 +40,8 @@ from lost.model.shapes import shape_argument
 from .correlator import BACKENDS, configure_backend, correlation
 from .errors import UsageError
 from .grid import Grid
+from .io.navlog import PATCH_CENTRES
 from .nav import ESTIMATORS, NavParameters, PreparedMap, navigate
-from .navlog import PATCH_CENTRES
 from .records import NavRecords
 from .runfolder import describe_untouched, run_folder
 from .usbl.cli import add_usbl_command
@@ -252,7 +252,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
     try:
         from .io import read_grid
-        from .navlog import check_against_map, read_navlog
+        from .io.navlog import check_against_map, read_navlog
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
     params = _parameters(args, {})

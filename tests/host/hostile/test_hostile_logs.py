@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from lost.host.grid import Grid
-from lost.host.navlog import check_against_map, read_navlog
+from lost.host.io.navlog import check_against_map, read_navlog
 from lost.host.records import SonarPatch
 
 COLUMNS = ["t_s", "x_m", "y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps", "cable_out_m"]
