@@ -22,6 +22,7 @@ from .survey import Ping
 __all__ = ["read_gsf_pings"]
 
 _SWATH_BATHYMETRY_PING = 2  # libgsf's GSF_RECORD_SWATH_BATHYMETRY_PING
+_END_OF_FILE = -23  # libgsf's GSF_READ_TO_END_OF_FILE: the file ended where a record could begin
 _NO_VALUE = 0.0  # GSF writes 0 where a ping attribute (the surface sound speed) was not recorded
 
 
@@ -45,6 +46,9 @@ def read_gsf_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Pin
         except GsfException as error:
             # libgsf stops at the first record it cannot read (a cut-off or damaged record): the rest is lost.
             skipped[f"{path.name}: the file's remainder after a record libgsf cannot read ({error})"] += 1
+        if gsf.gsf.gsfIntError() != _END_OF_FILE:
+            # The record iterator ends quietly on any error; libgsf's last error tells a cut-off record from the end.
+            skipped[f"{path.name}: the file's remainder after a record libgsf cannot read ({gsf.gsf.gsfStringError().decode(errors='replace')})"] += 1
 
 
 def _ping(path: Path, body: dict, skipped: Counter, notes: Counter) -> Ping | None:

@@ -50,9 +50,12 @@ _EARTH_RADIUS_M = 6_371_000.0  # a few seconds of dead reckoning: the sphere's e
 
 def read_all_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
     """Pings of one ``.all`` file, in file order; damaged datagrams counted in ``skipped``, dead-reckoned positions in ``notes``."""
-    positions, attitude = _navigation(path, skipped)
+    # The first pass sees every frame too: only what it alone reads (position and attitude) is counted from it.
+    first_pass: Counter = Counter()
+    positions, attitude = _navigation(path, first_pass)
+    skipped.update({reason: n for reason, n in first_pass.items() if any(word in reason for word in ("'P'", "'A'", "position", "attitude"))})
     pings = 0
-    for header, body in _datagrams(path, {_XYZ88}, Counter()):
+    for header, body in _datagrams(path, {_XYZ88}, skipped):
         ping = _xyz88_ping(path, header, body, positions, attitude, skipped, notes)
         if ping is not None:
             pings += 1

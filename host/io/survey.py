@@ -137,17 +137,26 @@ class Survey:
     def __iter__(self) -> Iterator[Ping]:
         self.skipped.clear()
         self.notes.clear()
-        latest: dict[int, float] = {}
+        earlier_files = -math.inf  # the latest ping of the files before
+        first_heads: set[int] | None = None
         for path in self.paths:
+            latest: dict[int, float] = {}
             for ping in self._raw_pings(path):
                 if not (math.isfinite(ping.lat_deg) and math.isfinite(ping.lon_deg)):
                     self.skipped[f"{path.name}: ping without a position at its time"] += 1
                     continue
-                if ping.time_s < latest.get(ping.head, -math.inf) - BACKWARDS_TOLERANCE_S:
+                if ping.time_s < max(latest.get(ping.head, -math.inf), earlier_files) - BACKWARDS_TOLERANCE_S:
                     self.skipped[f"{path.name}: ping time going backwards (more than {BACKWARDS_TOLERANCE_S:g} s before a ping read earlier)"] += 1
                     continue
                 latest[ping.head] = max(latest.get(ping.head, -math.inf), ping.time_s)
                 yield self._projected(ping)
+            if latest:
+                earlier_files = max(earlier_files, *latest.values())
+                if first_heads is None:
+                    first_heads = set(latest)
+                elif not set(latest) <= first_heads:
+                    heads = ", ".join(map(str, sorted(set(latest) - first_heads)))
+                    self.notes[f"{path.name}: pings of another sonar head or ship (serial {heads}) than the first file's"] += 1
 
     def _raw_pings(self, path: Path) -> Iterator[Ping]:
         if self.format == "kongsberg-all":
