@@ -182,7 +182,8 @@ def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time
         ratio = float(np.median(speed[moving] / logged[moving]))
         if not 1e-2 < ratio < 1e2:
             raise ValueError(_unit_suspect(ratio, float(np.median(dt)), time_column, geographic, path))
-    warnings = _check_time_gaps(t, rows, lines) + _check_heading_unit(records)
+        _refuse_unit_change(speed[moving] / logged[moving], rows[known[1:]][moving], lines, path)
+    warnings = _check_time_gaps(t, rows, lines, path, bare_clock=time_column == "time_utc") + _check_heading_unit(records)
     fast = np.flatnonzero(speed > MAX_SHIP_SPEED_MPS)
     if fast.size:
         k = int(fast[0])
@@ -193,11 +194,34 @@ def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time
     return warnings
 
 
+#: Runs of this many moving records whose position-to-velocity speed ratios differ by more than UNIT_CHANGE_FACTOR
+#: mean the log changes unit part-way (metres to kilometres or feet; seconds to milliseconds).
+UNIT_CHANGE_RUN = 10
+UNIT_CHANGE_FACTOR = 2.5
+
+
+def _refuse_unit_change(ratio: np.ndarray, rows: np.ndarray, lines, path: Path) -> None:
+    if ratio.size < 2 * UNIT_CHANGE_RUN:
+        return
+    # The median of each run of records: one bad fix does not move it, a unit change for the rest of the log does.
+    runs = ratio[: ratio.size // UNIT_CHANGE_RUN * UNIT_CHANGE_RUN].reshape(-1, UNIT_CHANGE_RUN)
+    medians = np.median(runs, axis=1)
+    change = np.flatnonzero(np.abs(np.log(medians / medians[0])) > np.log(UNIT_CHANGE_FACTOR))
+    if change.size:
+        k = int(change[0])
+        first = k * UNIT_CHANGE_RUN + int(np.argmax(np.abs(np.log(runs[k] / medians[0])) > np.log(UNIT_CHANGE_FACTOR)))
+        raise ValueError(
+            f"{path.name}: positions move {medians[k] / medians[0]:.3g} times as fast for the logged velocity from about "
+            f"{_where(int(rows[first]), lines)} on as before it: a change of unit part-way through the log (kilometres or feet "
+            "for metres, another time unit)? Give one unit throughout"
+        )
+
+
 #: A gap between records longer than this many typical steps (and a minute) is reported.
 GAP_STEPS = 60
 
 
-def _check_time_gaps(t: np.ndarray, rows: np.ndarray, lines) -> list[str]:
+def _check_time_gaps(t: np.ndarray, rows: np.ndarray, lines, path: Path, *, bare_clock: bool) -> list[str]:
     steps = np.diff(t)
     if steps.size < 2:
         return []
@@ -206,6 +230,14 @@ def _check_time_gaps(t: np.ndarray, rows: np.ndarray, lines) -> list[str]:
     if not gaps.size:
         return []
     k = int(gaps[0])
+    for g in gaps if bare_clock else ():
+        # In clock times, a gap of whole half hours, give or take two steps, is a clock moved to another zone (or daylight saving).
+        shift = round(float(steps[g]) / 1800.0) * 1800.0
+        if abs(steps[g] - shift) <= 2 * float(np.median(steps)):
+            raise ValueError(
+                f"{path.name}: time jumps by {steps[g]:g} s ({shift / 3600:g} h and {steps[g] - shift:+g} s) before {_where(int(rows[g + 1]), lines)}: "
+                "a change of time zone in bare times? Give times with their zone (e.g. 2024-05-01T12:00:00+02:00) or in UTC"
+            )
     return [f"{gaps.size} gap(s) in time longer than {limit:g} s, the first {steps[k]:g} s before {_where(int(rows[k + 1]), lines)}: "
             "the navigation dead-reckons across them"]
 

@@ -25,7 +25,10 @@ def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bound
     sep = "," if "," in first else ";" if ";" in first else r"\s+"
     tokens = [t for t in re.split(r"[\s,;]+", first.strip()) if t]
     has_header = not all(_is_number(t) for t in tokens)
-    table = pd.read_csv(path, sep=sep, comment="#", header=0 if has_header else None, skip_blank_lines=True)
+    try:
+        table = pd.read_csv(path, sep=sep, comment="#", header=0 if has_header else None, skip_blank_lines=True)
+    except pd.errors.ParserError as error:
+        raise ValueError(f"{path.name}: {_stray_line(path, str(error))}") from None
     if has_header:
         columns = {str(c).strip().lower(): c for c in table.columns}
         picked = []
@@ -107,3 +110,14 @@ def _is_number(token: str) -> bool:
     return True
 
 
+def _stray_line(path: Path, reason: str) -> str:
+    """pandas' "Expected 3 fields in line 302, saw 4" (a file line number) with that line's text."""
+    match = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", reason)
+    if match is None:
+        return f"not a table of soundings ({' '.join(reason.split())})"
+    expected, number, seen = (int(g) for g in match.groups())
+    with path.open("r", encoding="utf-8", errors="replace") as f:
+        for k, line in enumerate(f, start=1):
+            if k == number:
+                return f"line {number} has {seen} fields where the lines before it have {expected}: {line.strip()[:80]!r}"
+    return f"line {number} has {seen} fields where the lines before it have {expected}"

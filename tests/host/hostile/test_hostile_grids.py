@@ -327,3 +327,12 @@ def test_cdf2_and_cdf5_grids_are_read_whole_and_refused_cut(tmp_path, fmt, recor
     np.testing.assert_allclose(read_grid(path).depth_m, z.astype(np.float32))
     with pytest.raises(ValueError, match="g.nc is truncated"):
         read_grid(_cut(path, path.stat().st_size - 40))
+
+
+def test_an_xyz_stray_line_is_named_with_the_file_and_its_line(tmp_path):
+    path = tmp_path / "soundings.xyz"
+    lines = [f"{x} {y} {100 + x}" for x in range(20) for y in range(20)]
+    lines.insert(300, "3 4 5 6")
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=r"soundings.xyz: line 301 has 4 fields where the lines before it have 3: '3 4 5 6'"):
+        read_grid(path, source_crs="EPSG:32631")
