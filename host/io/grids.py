@@ -14,6 +14,8 @@ file                      how it is read
 ``.tif .tiff``            GeoTIFF through rasterio, band 1, with its CRS, transform and nodata.
 ``.asc``                  ESRI ASCII grid (EMODnet ships these) through rasterio, with a ``.prj``
                           beside it for the CRS.
+``.bag``                  BAG (HDF5) through GDAL's BAG driver: the elevation layer as depth;
+                          :func:`lost.host.io.bag.read_bag` reads its uncertainty layer too.
 GMT native (any name)     GMT's ``=bf``/``=bd`` binary grids (892-byte header, then the values,
                           north row first); the integer ones (``=bs``, ``=bi``, ``=bb``) and Surfer
                           grids are refused with the command that converts them (:mod:`~lost.host.io.filecheck`).
@@ -96,7 +98,8 @@ _XYZ_SUFFIXES = (".xyz", ".txt", ".csv")
 _NETCDF_SUFFIXES = (".nc", ".grd", ".nc4", ".cdf")
 _TIFF_SUFFIXES = (".tif", ".tiff")
 _ESRI_ASCII_SUFFIXES = (".asc",)
-GRID_SUFFIXES = _XYZ_SUFFIXES + _NETCDF_SUFFIXES + _TIFF_SUFFIXES + _ESRI_ASCII_SUFFIXES + (".npz",)
+_BAG_SUFFIXES = (".bag",)
+GRID_SUFFIXES = _XYZ_SUFFIXES + _NETCDF_SUFFIXES + _TIFF_SUFFIXES + _ESRI_ASCII_SUFFIXES + _BAG_SUFFIXES + (".npz",)
 
 
 def read_grid(
@@ -251,6 +254,9 @@ def write_npz(grid: Grid, path: str | os.PathLike) -> Path:
 def _format_of(path: Path) -> str:
     with path.open("rb") as f:
         magic = f.read(8)
+    if magic.startswith(b"\x89HDF") and path.suffix.lower() == ".bag":
+        check_whole(path)
+        return "raster"  # GDAL's BAG driver: band 1 is the elevation, named so (its sign follows)
     if magic.startswith(b"CDF") or magic.startswith(b"\x89HDF"):
         check_whole(path)
         return "netcdf"
@@ -276,7 +282,7 @@ def _format_of(path: Path) -> str:
         if not magic.lower().startswith(b"ncols"):
             raise ValueError(f"{path.name} has an .asc name but no ESRI ASCII grid header (it starts {magic!r})")
         return "raster"
-    if suffix in _NETCDF_SUFFIXES + _TIFF_SUFFIXES + (".npz",):
+    if suffix in _NETCDF_SUFFIXES + _TIFF_SUFFIXES + _BAG_SUFFIXES + (".npz",):
         hint = ""
         if suffix == ".grd" and path.stat().st_size > GMT_NATIVE_HEADER_BYTES:
             hint = "; a GMT native binary grid (=bf, =bs, ...) is recognised by its 892-byte header, which this file's is not either"
