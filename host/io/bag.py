@@ -49,7 +49,9 @@ def read_bag(path: str | os.PathLike, *, require_uncertainty: bool = True) -> Ba
                 raise SurveyFileError(f"{path.name} has no elevation layer (layers: {', '.join(layers) or 'none'})")
             t = src.transform
             if t.b != 0 or t.d != 0 or abs(t.a) != abs(t.e):
-                raise SurveyFileError(f"{path.name} has nodes of {abs(t.a):g} x {abs(t.e):g} (or a rotation); read_bag reads square nodes node for node, read_grid resamples")
+                raise SurveyFileError(
+                    f"{path.name} has nodes of {abs(t.a):g} x {abs(t.e):g} (or a rotation); read_bag reads square nodes node for node, read_grid resamples"
+                )
             if src.crs is None or not _projected(src.crs):
                 raise SurveyFileError(f"{path.name} is not in a projected CRS ({src.crs}); read its depth with read_grid, which projects it")
             elevation = src.read(layers.index("elevation") + 1, masked=True).astype(np.float64).filled(np.nan)
@@ -57,7 +59,9 @@ def read_bag(path: str | os.PathLike, *, require_uncertainty: bool = True) -> Ba
             if "uncertainty" in layers:
                 uncertainty = src.read(layers.index("uncertainty") + 1, masked=True).astype(np.float64).filled(np.nan)
             elif require_uncertainty:
-                raise MissingLayerError(f"{path.name} has no uncertainty layer (layers: {', '.join(layers)}); pass require_uncertainty=False to read the depth alone")
+                raise MissingLayerError(
+                    f"{path.name} has no uncertainty layer (layers: {', '.join(layers)}); pass require_uncertainty=False to read the depth alone"
+                )
             crs = _horizontal(src.crs)
             node = abs(t.a)
             x0, y_north = t.c + node / 2, t.f - node / 2  # the transform maps pixel corners; a value is its node's
