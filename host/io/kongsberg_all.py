@@ -9,22 +9,23 @@ attitude samples ('A'), small arrays (one sample per fix or per attitude reading
 :class:`~lost.host.io.survey.Ping` per XYZ88 ('X') datagram, reading one datagram at a time. Every
 datagram's frame is checked (start byte, end byte and, for the datagrams read, the checksum); a damaged
 or truncated one is counted in the skip counter, the reader resynchronises on the next good datagram,
-and the file's remainder is read.
+and the file's remainder is read. :func:`write_all_pings` writes pings back in the same three datagrams.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import math
+import os
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
 
 from .survey import Ping, interpolate_at
 
-__all__ = ["read_all_pings", "ALL_HEADER"]
+__all__ = ["read_all_pings", "write_all_pings", "ALL_HEADER"]
 
 _STX, _ETX = 0x02, 0x03
 _POSITION, _ATTITUDE, _XYZ88 = ord("P"), ord("A"), ord("X")
@@ -211,3 +212,83 @@ def _dead_reckoned(t: float, positions: dict) -> tuple[float, float]:
 def _or_nan(value) -> float:
     return math.nan if int(value) == 0xFFFF else float(value)
 
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+
+
+def write_all_pings(pings: Iterable[Ping], path: str | os.PathLike, *, model: int = 710) -> Path:
+    """Write pings as a Kongsberg ``.all`` file: per ping a position ('P'), an attitude ('A') and an XYZ88 ('X') datagram.
+
+    What :func:`read_all_pings` reads back: times to the millisecond, latitude to 1/20,000,000 degree,
+    longitude to 1/10,000,000, heading, roll and pitch to 0.01 degree, heave to 1 cm, sound speed to
+    0.1 m/s, per beam along, across and depth as float32, the valid flag (detection info bit 7). The
+    transducer depth is written as 0, so the depth below the water line is the XYZ88 depth. A ping without
+    roll, pitch or heave gets no attitude datagram (the reader interpolates those of pings within 1 s). Pings are
+    written as they come (one at a time); the file is written whole to ``NAME.partial``, then renamed.
+    Returns the path.
+    """
+    path = Path(path)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        with partial.open("wb") as out:
+            for counter, ping in enumerate(pings):
+                if not (math.isfinite(ping.lat_deg) and math.isfinite(ping.lon_deg) and math.isfinite(ping.heading_deg)):
+                    raise ValueError(f"ping {counter} at t={ping.time_s} has no position or heading; an .all ping needs both")
+                out.write(_position_datagram(ping, counter, model))
+                if all(math.isfinite(v) for v in (ping.roll_deg, ping.pitch_deg, ping.heave_m)):
+                    out.write(_attitude_datagram(ping, counter, model))
+                out.write(_xyz88_datagram(ping, counter, model))
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
+    return path
+
+
+def _framed(kind: int, ping: Ping, counter: int, model: int, body: bytes) -> bytes:
+    moment = dt.datetime.fromtimestamp(ping.time_s, dt.UTC)
+    midnight = moment.replace(hour=0, minute=0, second=0, microsecond=0)
+    header = np.zeros(1, ALL_HEADER)
+    if len(body) % 2:
+        body += b"\x00"  # Kongsberg datagrams have an even length
+    header["length"] = ALL_HEADER.itemsize - 4 + len(body) + 3
+    header["stx"], header["type"], header["model"] = _STX, kind, model
+    header["date"] = moment.year * 10000 + moment.month * 100 + moment.day
+    header["time_ms"] = round((ping.time_s - midnight.timestamp()) * 1000)
+    header["counter"], header["serial"] = counter & 0xFFFF, ping.head & 0xFFFF
+    framed = header.tobytes() + body
+    checksum = int(np.frombuffer(framed, np.uint8, len(framed) - 5, 5).sum()) & 0xFFFF
+    return framed + bytes([_ETX]) + checksum.to_bytes(2, "little")
+
+
+def _angle(value: float, scale: float, dtype: str) -> int:
+    info = np.iinfo(dtype)
+    return int(np.clip(round(value * scale), info.min, info.max)) if math.isfinite(value) else 0
+
+
+def _position_datagram(ping: Ping, counter: int, model: int) -> bytes:
+    body = np.zeros(1, _POSITION_BODY)
+    body["lat"], body["lon"] = round(ping.lat_deg * 2e7), round(ping.lon_deg * 1e7)
+    body["speed"] = body["course"] = 0xFFFF  # not available: the positions themselves are written, one per ping
+    body["heading"] = _angle(ping.heading_deg % 360.0, 100, "<u2")
+    body["system"] = _ACTIVE_POSITION_SYSTEM | 1
+    return _framed(_POSITION, ping, counter, model, body.tobytes())
+
+
+def _attitude_datagram(ping: Ping, counter: int, model: int) -> bytes:
+    sample = np.zeros(1, _ATTITUDE_SAMPLE)
+    sample["roll"], sample["pitch"] = _angle(ping.roll_deg, 100, "<i2"), _angle(ping.pitch_deg, 100, "<i2")
+    sample["heave"], sample["heading"] = _angle(ping.heave_m, 100, "<i2"), _angle(ping.heading_deg % 360.0, 100, "<u2")
+    return _framed(_ATTITUDE, ping, counter, model, np.uint16(1).tobytes() + sample.tobytes() + b"\x00")
+
+
+def _xyz88_datagram(ping: Ping, counter: int, model: int) -> bytes:
+    head = np.zeros(1, _XYZ88_HEAD)
+    head["heading"] = _angle(ping.heading_deg % 360.0, 100, "<u2")
+    head["sound_speed"] = _angle(ping.sound_speed_mps, 10, "<u2")
+    head["beams"], head["valid"] = ping.beams, int(ping.valid.sum())
+    beams = np.zeros(ping.beams, _XYZ88_BEAM)
+    beams["depth"], beams["across"], beams["along"] = ping.depth_m, ping.across_m, ping.along_m
+    beams["detection"] = np.where(ping.valid, 0, _INVALID_DETECTION)
+    return _framed(_XYZ88, ping, counter, model, head.tobytes() + beams.tobytes())
