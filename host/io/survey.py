@@ -30,6 +30,8 @@ from .errors import SurveyFileError
 __all__ = ["Ping", "Survey", "open_survey", "survey_format", "SURVEY_FORMATS"]
 
 SURVEY_FORMATS = ("kongsberg-all", "kmall", "gsf")
+# Kongsberg .all datagram types (EM Series datagram formats), enough to recognise a file by its first.
+_ALL_TYPES = frozenset(b"0123ABCDEFGHIJKLNOPRSTUWXYZfhijklnopqrstuvwxyz")
 #: A head's pings may come out of order by less than this; a ping earlier by more than any of the same head read
 #: before it is skipped and counted (a clock jump, files given out of order).
 BACKWARDS_TOLERANCE_S = 1.0
@@ -94,10 +96,6 @@ def survey_format(path: Path) -> str:
     raise SurveyFileError(
         f"{path.name} is not a Kongsberg .all, .kmall or GSF file (first bytes {head[:12]!r}); a bathymetry grid is read by read_grid"
     )
-
-
-# Kongsberg .all datagram types (EM Series datagram formats), enough to recognise a file by its first.
-_ALL_TYPES = frozenset(b"0123ABCDEFGHIJKLNOPRSTUWXYZfhiijklnopqrstuvwxyz")
 
 
 class Survey:
