@@ -130,3 +130,25 @@ def test_a_gsf_file_cut_inside_a_record_keeps_the_whole_pings_and_counts_the_cut
     s = summarize_survey(path)
     assert 0 < s["pings"] < 8
     assert any("cut.gsf" in reason for reason in s["skipped"]), s
+
+
+def test_garbage_inside_a_kmall_file_keeps_the_pings_before_it_and_counts_the_rest(tmp_path):
+    data = KMALL.read_bytes()
+    whole = summarize_survey(KMALL)
+    middle = len(data) // 2
+    at = data.index(b"#MRZ", middle) - 4  # the start of an MRZ past the middle
+    s = summarize_survey(_write(tmp_path, "junk.kmall", data[:at] + b"\x00" * 64 + data[at:]))
+    assert 0 < s["pings"] < whole["pings"]
+    assert s["skipped"] == {"junk.kmall: bytes that are no datagram where one should start (the file's remainder not read)": 1}
+
+
+def test_lost_grid_with_no_sounding_to_place_is_one_line_and_writes_nothing(tmp_path, capsys):
+    from lost.host.cli import main
+
+    data = GA.read_bytes()
+    kept = b"".join(data[a:a + n] for a, n, t in _datagrams(data) if t != "P")  # no position: nothing can be placed
+    path = _write(tmp_path, "nonav.all", kept)
+    assert main(["grid", str(path), "--node-m", "50", "--out", str(tmp_path / "g.nc")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "lost grid: nonav.all: no valid sounding to grid" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nonav.all"]
