@@ -148,4 +148,5 @@ def _ping(dg: dict, attitude: dict) -> Ping:
         along_m=np.asarray(sounding["x_reRefPoint_m"][:main], dtype=np.float64),
         across_m=np.asarray(sounding["y_reRefPoint_m"][:main], dtype=np.float64),
         depth_m=z - float(info["z_waterLevelReRefPoint_m"]), valid=valid, head=int(dg["cmnPart"]["rxTransducerInd"]),
+        origin_depth_m=-float(info["z_waterLevelReRefPoint_m"]),
     )

@@ -181,7 +181,7 @@ def _xyz88_ping(path: Path, header, data: bytes, positions: dict, attitude: dict
         sound_speed_mps=head["sound_speed"] / 10.0 if head["sound_speed"] else math.nan,
         along_m=beams["along"].astype(np.float64), across_m=beams["across"].astype(np.float64),
         depth_m=beams["depth"].astype(np.float64) + tx_depth,
-        valid=(beams["detection"] & _INVALID_DETECTION) == 0, head=int(header["serial"]),
+        valid=(beams["detection"] & _INVALID_DETECTION) == 0, head=int(header["serial"]), origin_depth_m=tx_depth,
     )
 
 
@@ -224,7 +224,7 @@ def write_all_pings(pings: Iterable[Ping], path: str | os.PathLike, *, model: in
     What :func:`read_all_pings` reads back: times to the millisecond, latitude to 1/20,000,000 degree,
     longitude to 1/10,000,000, heading, roll and pitch to 0.01 degree, heave to 1 cm, sound speed to
     0.1 m/s, per beam along, across and depth as float32, the valid flag (detection info bit 7). The
-    transducer depth is written as 0, so the depth below the water line is the XYZ88 depth. A ping without
+    transducer depth is the ping's ``origin_depth_m`` (0 when unknown) and the XYZ88 depths are re it. A ping without
     roll, pitch or heave gets no attitude datagram (the reader interpolates those of pings within 1 s). Pings are
     written as they come (one at a time); the file is written whole to ``NAME.partial``, then renamed.
     Returns the path.
@@ -285,10 +285,11 @@ def _attitude_datagram(ping: Ping, counter: int, model: int) -> bytes:
 
 def _xyz88_datagram(ping: Ping, counter: int, model: int) -> bytes:
     head = np.zeros(1, _XYZ88_HEAD)
-    head["heading"] = _angle(ping.heading_deg % 360.0, 100, "<u2")
+    origin = ping.origin_depth_m if math.isfinite(ping.origin_depth_m) else 0.0
+    head["heading"], head["tx_depth"] = _angle(ping.heading_deg % 360.0, 100, "<u2"), origin
     head["sound_speed"] = _angle(ping.sound_speed_mps, 10, "<u2")
     head["beams"], head["valid"] = ping.beams, int(ping.valid.sum())
     beams = np.zeros(ping.beams, _XYZ88_BEAM)
-    beams["depth"], beams["across"], beams["along"] = ping.depth_m, ping.across_m, ping.along_m
+    beams["depth"], beams["across"], beams["along"] = ping.depth_m - origin, ping.across_m, ping.along_m
     beams["detection"] = np.where(ping.valid, 0, _INVALID_DETECTION)
     return _framed(_XYZ88, ping, counter, model, head.tobytes() + beams.tobytes())

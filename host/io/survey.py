@@ -42,10 +42,14 @@ class Ping:
     """One multibeam ping; per-beam arrays share one length.
 
     ``head`` tells the heads of a dual-head sonar apart (the serial number in a Kongsberg file, 0 in GSF).
+    ``origin_depth_m`` is the depth below the water line of the point the file measures beam depths from
+    (the transmit transducer in ``.all``, the reference point in ``.kmall``; NaN in GSF, whose depths are
+    below the surface already): ``depth_m - origin_depth_m`` is the file's own relative depth.
     ``east_m``/``north_m`` are the reference point's projected position (NaN when the file has no position
-    for the ping's time; such pings are not yielded by :class:`Survey`). ``beam_east_m``/``beam_north_m``
-    place each beam: the offsets rotated by the heading (grid north = true north here: the convergence of
-    the projection is below the offsets' precision over a swath).
+    for the ping's time; such pings are not yielded by :class:`Survey`), ``convergence_deg`` the grid
+    bearing of true north there (the projection's meridian convergence, a few degrees in a UTM zone: 44 m
+    at the edge of a 5 km swath per degree). ``beam_east_m``/``beam_north_m`` place each beam: the offsets
+    turned by the heading plus the convergence.
     """
 
     time_s: float
@@ -61,8 +65,10 @@ class Ping:
     depth_m: np.ndarray
     valid: np.ndarray
     head: int = 0
+    origin_depth_m: float = math.nan
     east_m: float = math.nan
     north_m: float = math.nan
+    convergence_deg: float = 0.0
 
     @property
     def beams(self) -> int:
@@ -70,12 +76,12 @@ class Ping:
 
     @property
     def beam_east_m(self) -> np.ndarray:
-        h = math.radians(self.heading_deg)
+        h = math.radians(self.heading_deg + self.convergence_deg)
         return self.east_m + self.along_m * math.sin(h) + self.across_m * math.cos(h)
 
     @property
     def beam_north_m(self) -> np.ndarray:
-        h = math.radians(self.heading_deg)
+        h = math.radians(self.heading_deg + self.convergence_deg)
         return self.north_m + self.along_m * math.cos(h) - self.across_m * math.sin(h)
 
 
@@ -178,8 +184,10 @@ class Survey:
             elif not _crs(self.crs).is_projected:
                 raise ValueError(f"crs must be a projected (metric) CRS, got {self.crs!r}")
             self._transformer = _transformer("EPSG:4326", self.crs)
-        east, north = self._transformer.transform(ping.lon_deg, ping.lat_deg)
-        return Ping(**{**ping.__dict__, "east_m": float(east), "north_m": float(north)})
+        # True north's grid bearing: where a small step north lands on the map.
+        east, north = self._transformer.transform([ping.lon_deg, ping.lon_deg], [ping.lat_deg, min(ping.lat_deg + 1e-5, 90.0)])
+        convergence = math.degrees(math.atan2(east[1] - east[0], north[1] - north[0]))
+        return Ping(**{**ping.__dict__, "east_m": float(east[0]), "north_m": float(north[0]), "convergence_deg": convergence})
 
 
 def open_survey(paths: str | os.PathLike | Iterable[str | os.PathLike], *, crs: str | None = None) -> Survey:

@@ -95,7 +95,13 @@ def test_pings_are_projected_and_their_beams_placed_by_heading():
     assert survey.crs == "EPSG:32745"  # UTM 45 S (84-90 E)
     assert np.isfinite(ping.east_m) and np.isfinite(ping.north_m)
     across = ping.beam_east_m - ping.east_m, ping.beam_north_m - ping.north_m
-    h = np.radians(ping.heading_deg)  # starboard of a heading h points to (cos h, -sin h) in (east, north)
+    from pyproj import Proj
+
+    # The grid bearing of true north, checked against pyproj's own meridian convergence (sign: its angle is grid north's true bearing).
+    factors = Proj(survey.crs).get_factors(ping.lon_deg, ping.lat_deg)
+    assert ping.convergence_deg == pytest.approx(-factors.meridian_convergence, abs=1e-3)
+    assert 0.05 < abs(ping.convergence_deg) < 0.5  # 86.70 E is 0.3 degrees west of zone 45's central meridian, at 38.9 S
+    h = np.radians(ping.heading_deg + ping.convergence_deg)  # starboard of a grid heading h points to (cos h, -sin h)
     starboard = ping.across_m > 1000
     assert np.allclose(across[0][starboard] / ping.across_m[starboard], np.cos(h), atol=0.01)
     assert np.allclose(across[1][starboard] / ping.across_m[starboard], -np.sin(h), atol=0.01)
