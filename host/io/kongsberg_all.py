@@ -1,8 +1,9 @@
 """Kongsberg ``.all`` files: XYZ88 depth datagrams as pings, with position and attitude interpolated at each ping.
 
 A reader of its own on NumPy structured dtypes (the layout of Kongsberg's *EM Series datagram formats*,
-rev. W): the one Python package that reads ``.all`` (themachinethatgoesping) does not expose the XYZ88
-detection flags, which decide what is a valid sounding, and pulls in numba and Jupyter widgets.
+rev. W): the one Python package that reads ``.all`` (themachinethatgoesping 0.35, "in development") gives a
+ping's beams through an interface without the XYZ88 detection flags, which decide what is a valid sounding,
+counts a ping whose depth datagram is missing, and pulls in numba and Jupyter widgets.
 
 Two passes over the file: the first keeps only the active positioning system's positions ('P') and the
 attitude samples ('A'), small arrays (one sample per fix or per attitude reading); the second yields one
