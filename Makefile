@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-nav bench-nav-usbl bench-track bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-plan bench-nav bench-nav-usbl bench-track bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -35,6 +35,10 @@ check: setup
 
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+# The planner's speed on a 2000 x 2000 map (the bound alone, and the whole lost plan command).
+bench-plan: setup
+	$(BIN)/python benchmarks/plan_speed.py
 
 # The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
 # build/bench/nav_filters.json.
