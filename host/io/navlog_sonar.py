@@ -37,26 +37,7 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
     implausible = finite & ((v["depth_m"] < -SOUNDING_ABOVE_SURFACE_M) | (v["depth_m"] > DEEPEST_M))
     finite &= ~implausible
 
-    # Which kept record (index into record_times) each sounding belongs to; -1 none, -2 a skipped row.
-    owner = np.full(len(table), -1, dtype=np.int64)
-    if key == "record":
-        index = v["record"]
-        whole = finite & (index == np.round(index))
-        if np.any(finite & ~whole):
-            r = int(np.flatnonzero(finite & ~whole)[0])
-            raise ValueError(f"{path.name}: record must be a whole data-row index, got {index[r]} at {_where(r, lines)}")
-        position_of_row = np.full(rows, -2, dtype=np.int64)
-        position_of_row[kept_rows] = np.arange(kept_rows.size)
-        valid_index = whole & (index >= 0) & (index < rows)
-        owner[valid_index] = position_of_row[index[valid_index].astype(np.int64)]
-    elif record_times.size:
-        t = np.where(finite, v["t_s"], np.inf)
-        # The nearest record time on either side of each sounding's time.
-        after = np.clip(np.searchsorted(record_times, t), 0, record_times.size - 1)
-        before = np.clip(after - 1, 0, record_times.size - 1)
-        nearest = np.where(np.abs(t - record_times[before]) <= np.abs(t - record_times[after]), before, after)
-        matched = finite & (np.abs(t - record_times[nearest]) <= time_tolerance_s)
-        owner[matched] = nearest[matched]
+    owner = _owners(v, key, finite, record_times, kept_rows, rows, time_tolerance_s, path, lines)
 
     n_records = record_times.size
     patches: list[SonarPatch | None] = [None] * n_records
@@ -103,6 +84,30 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
     assert used + outside + sum(stats[k] for k in ("soundings_without_value", "soundings_implausible", "soundings_unmatched",
                                                    "soundings_of_skipped_records")) == len(table)
     return tuple(patches), stats
+
+
+def _owners(v, key, finite, record_times, kept_rows, rows, time_tolerance_s, path, lines) -> np.ndarray:
+    """Which kept record (index into ``record_times``) each sounding belongs to; -1 none, -2 a skipped row."""
+    owner = np.full(len(finite), -1, dtype=np.int64)
+    if key == "record":
+        index = v["record"]
+        whole = finite & (index == np.round(index))
+        if np.any(finite & ~whole):
+            r = int(np.flatnonzero(finite & ~whole)[0])
+            raise ValueError(f"{path.name}: record must be a whole data-row index, got {index[r]} at {_where(r, lines)}")
+        position_of_row = np.full(rows, -2, dtype=np.int64)
+        position_of_row[kept_rows] = np.arange(kept_rows.size)
+        valid_index = whole & (index >= 0) & (index < rows)
+        owner[valid_index] = position_of_row[index[valid_index].astype(np.int64)]
+    elif record_times.size:
+        t = np.where(finite, v["t_s"], np.inf)
+        # The nearest record time on either side of each sounding's time.
+        after = np.clip(np.searchsorted(record_times, t), 0, record_times.size - 1)
+        before = np.clip(after - 1, 0, record_times.size - 1)
+        nearest = np.where(np.abs(t - record_times[before]) <= np.abs(t - record_times[after]), before, after)
+        matched = finite & (np.abs(t - record_times[nearest]) <= time_tolerance_s)
+        owner[matched] = nearest[matched]
+    return owner
 
 
 # --------------------------------------------------------------------------------------------
