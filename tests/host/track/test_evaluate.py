@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from lost.host.track.baseline import run_gm_phd
+from lost.host.track.baseline import JPDAParameters, run_gm_phd, run_jpda
 from lost.host.track.estimates import Estimate
 from lost.host.track.evaluate import score
 from lost.host.track.simulate import Truth, builtin_scenario_path, load_scenario, simulate
@@ -58,3 +58,14 @@ def test_stone_soup_gm_phd_sees_the_diver_where_the_simulator_put_it():
     assert len(history) == len(sim.pings)
     late = [min(np.hypot(*(e.xy - sim.truth.xy[i, 0])) for e in history[i]) for i in range(30, len(history)) if history[i]]
     assert len(late) > 5 and np.median(late) < 10.0
+
+
+def test_stone_soup_jpda_confirms_the_diver_after_its_m_of_n_and_follows_it():
+    scenario = load_scenario(builtin_scenario_path("one_diver"))
+    scenario = dataclasses.replace(scenario, duration_s=40.0, sonar=dataclasses.replace(scenario.sonar, clutter_per_ping=1.0))
+    sim = simulate(scenario)
+    history = run_jpda(sim.pings, sonar=scenario.sonar.sonar, tracker=TrackerParameters(clutter_per_ping=1.0), jpda=JPDAParameters(min_points=4))
+    assert len(history) == len(sim.pings)
+    assert not any(history[:3])  # a track needs four updates before the initiator releases it
+    late = [min(np.hypot(*(e.xy - sim.truth.xy[i, 0])) for e in history[i]) for i in range(15, len(history)) if history[i]]
+    assert len(late) > 10 and np.median(late) < 10.0
