@@ -83,7 +83,7 @@ class TrackerParameters:
     confirm_existence: float = 0.9999
     delete_tentative_existence: float = 0.002
     delete_confirmed_existence: float = 0.01
-    merge_chi2: float = 2.0
+    merge_chi2: float = 0.5
     max_position_sigma_m: float = 60.0
     reach_radius_m: float = 10.0
     class_speed_sigma_mps: float = 0.15
