@@ -98,7 +98,7 @@ def shipped(name: str, seed: int, duration_s: float | None = None, **sonar) -> T
 def case_diver_free(args, results: dict, step_ms: list) -> None:
     for factor in (1, 2):
         rows = results["diver_free"][f"{factor}x"] = {t: [] for t in TRACKERS}
-        for seed in range(args.seeds):
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
             for tracker in args.trackers:
                 minutes = args.hours * 60 if tracker == "ours" else args.baseline_minutes
                 sim = simulate(shipped("clutter_hour", seed, minutes * 60.0, clutter_per_ping=5.0 * factor))
@@ -110,7 +110,7 @@ def case_diver_free(args, results: dict, step_ms: list) -> None:
 def case_separation(args, results: dict, step_ms: list) -> None:
     for separation in args.separations:
         rows = results["separation"][f"{separation:g}"] = {t: [] for t in TRACKERS}
-        for seed in range(args.seeds):
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
             sim = simulate(separated(separation, seed, args.separation_s))
             for tracker in args.trackers:
                 history, ms = run(tracker, sim, seed, step_ms)
@@ -120,7 +120,7 @@ def case_separation(args, results: dict, step_ms: list) -> None:
 
 def case_split(args, results: dict, step_ms: list) -> None:
     rows = results["split"] = []
-    for seed in range(args.seeds):
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         sim = simulate(splitting(seed))
         history, _ = run("ours", sim, seed, step_ms)
         held = holding(history, sim.truth)
@@ -136,7 +136,7 @@ def case_split(args, results: dict, step_ms: list) -> None:
 
 def case_pd06(args, results: dict, step_ms: list) -> None:
     rows = results["pd06"] = {t: [] for t in TRACKERS}
-    for seed in range(args.seeds):
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         sim = simulate(shipped("one_diver", seed, args.pd_s, pd=0.6))
         for tracker in args.trackers:
             history, ms = run(tracker, sim, seed, step_ms)
@@ -231,6 +231,7 @@ def goals(results: dict, ms: np.ndarray) -> list[tuple[str, str, bool | None]]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one (to add runs to earlier ones)")
     parser.add_argument("--hours", type=float, default=1.0, help="diver-free hours per seed and clutter level, our tracker")
     parser.add_argument("--baseline-minutes", type=float, default=5.0, help="diver-free minutes per seed and clutter level, the baselines")
     parser.add_argument("--separations", type=float, nargs="+", default=[15.0, 20.0, 30.0, 40.0])
@@ -267,15 +268,21 @@ def main(argv=None) -> int:
     return 0
 
 
+def _merge(a, b):
+    """Runs of one case from several files together: lists of runs joined, tables merged key by key."""
+    if isinstance(a, list):
+        return a + b
+    return {k: _merge(a[k], b[k]) if k in a and k in b else a.get(k, b.get(k)) for k in {**a, **b}}
+
+
 def report(paths: list[Path]) -> int:
     """Tables and goals of several runs' goals.json files taken together."""
     merged: dict = {"diver_free": {}, "separation": {}, "split": [], "pd06": {}}
     ms = []
     for path in paths:
         part = json.loads(path.read_text())
-        for key in ("diver_free", "separation", "pd06"):
-            merged[key].update(part.get(key, {}))
-        merged["split"] += part.get("split", [])
+        for key in ("diver_free", "separation", "pd06", "split"):
+            merged[key] = _merge(merged[key], part.get(key, type(merged[key])()))
         ms += part.get("step_ms", [])
     print("\n".join(tables(merged, TRACKERS)))
     print("\n| goal | figure | met |\n|---|---|---|")
