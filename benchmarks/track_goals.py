@@ -12,6 +12,7 @@ Cases, each over ``--seeds`` seeds (0, 1, ...); every figure is a distribution o
 - ``split``: two divers from one point on courses 11.5 degrees apart (they part at 0.1 m/s), for 300 s: the
   pings from when they are 20 m apart until both are held.
 - ``pd06``: the shipped ``one_diver`` with pd 0.6, for ``--pd-s`` seconds; all three trackers.
+- ``paper``: the paper's filter as stated (no clutter floor) on the shipped ``one_diver``.
 
 Metrics, the same code for every tracker (``lost.host.track.evaluate``): coverage, first lock, identity
 switches and the all-held share from the one-to-one holding within 25 m; false tracks per hour; Stone Soup's
@@ -35,6 +36,7 @@ import numpy as np
 
 from lost.host.track.baseline import run_gm_phd, run_jpda
 from lost.host.track.evaluate import contact_metrics, holding, score
+from lost.host.track.particle import DiverParticleFilter, PaperParameters
 from lost.host.track.run import run_tracker
 from lost.host.track.simulate import PlatformSpec, TargetSpec, TrackScenario, builtin_scenario_path, load_scenario, simulate
 from lost.host.track.tracker import TrackerParameters
@@ -144,6 +146,20 @@ def case_pd06(args, results: dict, step_ms: list) -> None:
         progress(f"pd 0.6 seed {seed}")
 
 
+def case_paper(args, results: dict, step_ms: list) -> None:
+    """The paper's filter as stated (no clutter floor) on the shipped one_diver: how soon and how often its mean is within 25 m."""
+    rows = results["paper"] = []
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        sim = simulate(shipped("one_diver", seed))
+        pf = DiverParticleFilter(sonar=sim.scenario.sonar.sonar, parameters=PaperParameters(), rng=np.random.default_rng(seed))
+        errors = np.hypot(*(np.array([e.mean_xy for e in pf.run(sim.pings)]) - sim.truth.xy[:, 0]).T)
+        valid = sim.truth.in_sector[:, 0]
+        within = np.flatnonzero(valid & (errors <= 25.0))
+        rows.append({"seed": seed, "first_within_25m": int(within[0]) + 1 if within.size else None,
+                     "share_within_25m": float(np.mean(errors[valid] <= 25.0))})
+    progress("paper's filter")
+
+
 _START = time.perf_counter()
 
 
@@ -194,6 +210,10 @@ def tables(results: dict, trackers: tuple[str, ...]) -> list[str]:
             lines.append(f"| {t} | {spread([x['coverage'][0] for x in r], low=True)} | {spread([x['first_lock'][0] for x in r])} | "
                          f"{spread([x['identity_switches'][0] for x in r])} | {spread([x['false_tracks'] for x in r])} | "
                          f"{spread([x['gospa_mean'] for x in r])} | {spread([x['gospa_p95'] for x in r])} |")
+    r = results.get("paper", [])
+    if r:
+        lines += ["", "### The paper's filter as stated (one_diver)", "", "| first within 25 m (pings) | share of pings within 25 m |",
+                  "|---|---|", f"| {spread([x['first_within_25m'] for x in r])} | {spread([x['share_within_25m'] for x in r], low=True)} |"]
     return lines
 
 
@@ -239,7 +259,7 @@ def main(argv=None) -> int:
     parser.add_argument("--pd-s", type=float, default=None, help="length of each pd 0.6 run, s (default one_diver's 400)")
     parser.add_argument("--trackers", nargs="+", default=list(TRACKERS), choices=TRACKERS)
     parser.add_argument("--cases", nargs="+", default=["diver_free", "separation", "split", "pd06"],
-                        choices=["diver_free", "separation", "split", "pd06"])
+                        choices=["diver_free", "separation", "split", "pd06", "paper"])
     parser.add_argument("--out", type=Path, default=Path("build/track"))
     parser.add_argument("--report", type=Path, nargs="+", default=None,
                         help="run nothing: merge these goals.json files (cases run apart) and print their tables and goals")
@@ -247,7 +267,7 @@ def main(argv=None) -> int:
     if args.report:
         return report(args.report)
     results: dict = {"arguments": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
-                     "diver_free": {}, "separation": {}, "split": [], "pd06": {}}
+                     "diver_free": {}, "separation": {}, "split": [], "pd06": {}, "paper": []}
     step_ms: list[np.ndarray] = []
     for case in args.cases:
         globals()[f"case_{case}"](args, results, step_ms)
@@ -277,11 +297,11 @@ def _merge(a, b):
 
 def report(paths: list[Path]) -> int:
     """Tables and goals of several runs' goals.json files taken together."""
-    merged: dict = {"diver_free": {}, "separation": {}, "split": [], "pd06": {}}
+    merged: dict = {"diver_free": {}, "separation": {}, "split": [], "pd06": {}, "paper": []}
     ms = []
     for path in paths:
         part = json.loads(path.read_text())
-        for key in ("diver_free", "separation", "pd06", "split"):
+        for key in ("diver_free", "separation", "pd06", "split", "paper"):
             merged[key] = _merge(merged[key], part.get(key, type(merged[key])()))
         ms += part.get("step_ms", [])
     print("\n".join(tables(merged, TRACKERS)))
