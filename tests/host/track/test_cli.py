@@ -41,7 +41,9 @@ def test_a_scenario_run_writes_every_output(scenario_run, capsys):
     assert summary["confirmed_tracks"] == 1 and summary["false_tracks"] == 0
     assert 0 <= summary["gospa_mean"] < 25 and summary["ms_per_ping"] > 0
     assert summary["tracks"][0]["class"] == "diver"
-    assert summary["baseline"]["tracker"].startswith("Stone Soup GM-PHD") and "gospa_mean" in summary["baseline"]
+    baselines = summary["baselines"]
+    assert baselines["gm_phd"]["tracker"].startswith("Stone Soup GM-PHD") and "gospa_mean" in baselines["gm_phd"]
+    assert baselines["jpda"]["tracker"].startswith("Stone Soup JPDA") and "gospa_mean" in baselines["jpda"]
     assert {"Completeness", "Spuriousness"} <= set(summary["siap"])
 
 
