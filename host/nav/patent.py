@@ -138,9 +138,9 @@ class _Matcher:
 
 
 class PatentEstimator:
-    """The patent pipeline behind the estimator interface; its per-record stage outputs in ``last``.
+    """The patent pipeline behind the estimator interface; its per-record stage outputs in ``Estimate.stages``.
 
-    ``last`` holds, after each record: ``predicted``, ``mle`` (or None), ``distinctness``, ``cat`` (or
+    After each record they are: ``predicted``, ``mle`` (or None), ``distinctness``, ``cat`` (or
     None), ``cross_velocity_mps``, ``slant_corrected`` and ``off_map``.
     """
 
@@ -270,4 +270,5 @@ class PatentEstimator:
 
     def estimate(self) -> Estimate:
         usable = self._t - self._last_update_t <= self._p.cat_restart_s and self._stage != "initialization"
-        return Estimate(position=self._position.copy(), covariance=np.full((2, 2), np.nan), usable=bool(usable), stage=self._stage)
+        return Estimate(position=self._position.copy(), covariance=np.full((2, 2), np.nan), usable=bool(usable), stage=self._stage,
+                        stages=dict(self.last))

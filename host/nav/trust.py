@@ -1,7 +1,7 @@
 """What makes a Bayesian filter's estimate trustworthy: error growth, tempering, gating, the usable flag, recovery.
 
 These rules are shared by the point-mass and the particle filter, and kept as named parameters of
-:class:`~lost.host.nav.pipeline.NavParameters`, as MB-System's TRN keeps its reinitialization rules.
+:class:`~lost.host.nav.parameters.NavParameters`, as MB-System's TRN keeps its reinitialization rules.
 
 - Error growth (Nygren section 6): between terrain updates the position error grows by the velocity
   noise of each step and by the INS error model of eqs. 6.1-6.2 over the time since the last update
