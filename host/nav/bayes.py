@@ -293,6 +293,7 @@ class BayesFilter:
     def _no_information(self, reason: str) -> None:
         self.counts[reason] += 1
         self._stage = "off_map"
+        self._trust.no_information()
 
     def _apply(self, log_likelihood: np.ndarray, *, terrain: bool, kind: str = "range") -> bool:
         """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used.

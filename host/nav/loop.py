@@ -81,7 +81,7 @@ class RecordLoop:
         if frame is not None and np.isfinite(distance):
             self.layback[n] = layback_position(frame, distance)
         fix = records.usbl_fix(n)
-        observation = Observation(t_s=float(records.t_s[n]), frame=frame, patch=self._sonar[n],
+        observation = Observation(t_s=float(records.t_s[n]), frame=frame, patch=self._plausible_patch(n),
                                   ocean_depth_m=depth + float(records.altitude_m[n]), vehicle_depth_m=self._last_depth,
                                   slant_range_m=self._slant_range(n), fix_position_m=None if fix is None else fix[0],
                                   fix_covariance_m2=None if fix is None else fix[1],
@@ -104,6 +104,17 @@ class RecordLoop:
             estimator.predict(motion)
             estimator.update(observation)
             self._record(n, estimator, (time.perf_counter() - begin) * 1e3)
+
+    def _plausible_patch(self, n: int):
+        """The record's sonar patch, unless its age is not a plausible one (see ``NavParameters.max_patch_age_s``)."""
+        patch = self._sonar[n]
+        if patch is None:
+            return None
+        age = float(patch.age_s)
+        if not (math.isfinite(age) and 0.0 <= age <= self._p.max_patch_age_s):
+            self.counts["patch_age_implausible"] += 1
+            return None
+        return patch
 
     def _slant_range(self, n: int) -> float:
         """The record's slant range: ray-traced from its USBL travel time when there is a profile, else the straight one."""

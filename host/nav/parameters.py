@@ -178,6 +178,16 @@ class NavParameters:
         seeds: -1 to -3 on a wrong lock, never below 0 at the true place).
     reinit_after : int
         Terrain updates refused in a row before the filter re-initializes. Default 10.
+    off_map_usable_s : float
+        Off the map (a patch or depth wholly off it, or a narrow density at its edge) a filter
+        dead-reckons; once it has had neither a terrain update nor a position fix for this long it is
+        no longer usable (counted ``unusable_off_map``). Default 10 s. Without it a tow leaving its map
+        was flagged usable for minutes while dead reckoning took it tens of metres off.
+    max_patch_age_s : float
+        The oldest plausible sonar patch, seconds: a patch reckoned back further than this, or to a
+        negative age, is not used (counted ``patch_age_implausible``). The misplacement a velocity-bias
+        error causes grows with the age squared; an age of 1e7 s in a log would blow a filter's density
+        to kilometres. Default 600 s (a real-time patch is built over tens of seconds).
     seed : int
         The particle filter's random stream.
 
@@ -240,6 +250,8 @@ class NavParameters:
     lookalike_margin: float = 0.15
     elsewhere_margin: float = 0.5
     reinit_after: int = 10
+    off_map_usable_s: float = 10.0
+    max_patch_age_s: float = 600.0
     seed: int = 0
     use_usbl_fix: bool = True
 
@@ -257,7 +269,8 @@ class NavParameters:
         if self.likelihood not in LIKELIHOODS:
             raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}.")
         for name in ("depth_noise_m", "likelihood_weight", "initial_sigma_m", "slant_range_sigma_m", "pmf_sigmas", "gate_nis",
-                     "misfit_gate", "usable_sigma_nodes", "lookalike_radius_m", "elsewhere_margin"):
+                     "misfit_gate", "usable_sigma_nodes", "lookalike_radius_m", "elsewhere_margin", "off_map_usable_s",
+                     "max_patch_age_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}.")

@@ -40,6 +40,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   candidates beside it on the map all fit it a little worse than the truth would; so while the
   density is narrow (under twice the usable width) and less than ``EDGE_MASS`` of it lies where the
   patch is wholly on the map, the patch is left out (``patch_at_map_edge``) and the filter dead-reckons.
+  Off the map or at its edge, the filter is no longer usable once it has had neither a terrain update
+  nor a position fix for ``off_map_usable_s`` (``unusable_off_map``): dead reckoning is not a terrain fix.
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
@@ -155,6 +157,14 @@ class Trust:
     def patch_weight(self, patch_length_m: float) -> float:
         """Tempering weight of the next patch: the share of it that is new, times ``likelihood_weight``."""
         return self._p.likelihood_weight * min(1.0, self.travelled_m / patch_length_m)
+
+    def no_information(self) -> None:
+        """A record whose terrain said nothing (off the map, at its edge): the flag drops after ``off_map_usable_s``
+        without a terrain update or a position fix."""
+        if self.usable and self.since_update_s > self._p.off_map_usable_s:
+            self.usable = False
+            self.good_in_row = 0
+            self.counts["unusable_off_map"] += 1
 
     def position_fixed(self) -> None:
         """A position fix (a USBL fix) was used: the INS error model's growth restarts from it.
