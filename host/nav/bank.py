@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from .estimator import Estimator
 from .likelihood import TerrainLikelihood, map_error_estimate
+from .maperror import node_variance, uniform_equivalent
 from .mapprep import PreparedMap
 from .parameters import NavParameters
 from .patent import PatentEstimator
@@ -92,12 +93,27 @@ class EstimatorBank:
         self.estimators: list[Estimator] = [_FACTORIES[name](context) for name in names]
 
     def likelihood(self) -> TerrainLikelihood:
-        """The terrain likelihood every Bayesian filter of the bank shares (made on first use)."""
+        """The terrain likelihood every Bayesian filter of the bank shares (made on first use).
+
+        With ``map_error_m`` given, one residual sigma ``hypot(depth_noise_m, map_error_m)``; else, with
+        ``map_error_model = "per_node"``, each placement's own (:mod:`lost.host.nav.maperror`: the grid's
+        uncertainty layer or ``survey_sigma_m``, plus slope and relief), the nominal sigma being their median;
+        with ``"uniform"``, ``likelihood.map_error_estimate``.
+        """
         if self._likelihood is None:
             params, prepared = self._params, self._prepared
-            map_error = params.map_error_m if params.map_error_m is not None else map_error_estimate(prepared.grid.depth_m)
+            node_var = None
+            if params.map_error_m is not None:
+                map_error = params.map_error_m
+            elif params.map_error_model == "per_node":
+                survey = prepared.node_sigma_m if prepared.node_sigma_m is not None else params.survey_sigma_m
+                node_var = node_variance(prepared.grid.depth_m, prepared.grid.node_m, survey)
+                map_error = uniform_equivalent(node_var)
+            else:
+                map_error = map_error_estimate(prepared.grid.depth_m)
             sigma = math.hypot(params.depth_noise_m, map_error)
-            self._likelihood = TerrainLikelihood(prepared, sigma_m=sigma, depth_sigma_m=sigma, form=params.likelihood, backend=params.backend)
+            self._likelihood = TerrainLikelihood(prepared, sigma_m=sigma, depth_sigma_m=sigma, form=params.likelihood, backend=params.backend,
+                                                 node_var_m2=node_var, depth_noise_m=params.depth_noise_m)
         return self._likelihood
 
     def __iter__(self):

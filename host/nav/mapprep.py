@@ -19,6 +19,7 @@ from lost.model.correlator import DEPTH_MAX, DEPTH_MIN
 from ..correlator import Area, Correlation, valid_placements
 from ..correlator.resident import ResidentCorrelator
 from ..grid import Grid
+from .maperror import check_node_sigma
 
 __all__ = ["PreparedMap", "LSB_CANDIDATES_M"]
 
@@ -33,6 +34,9 @@ class PreparedMap:
     ----------
     grid : Grid
         The bathymetry; NaN nodes are holes.
+    node_sigma_m : (H, W) array, optional
+        The grid's per-node standard deviation, metres (an uncertainty layer, as gridding tools and BAG
+        files carry); taken from the grid's ``sigma_m`` when it has one. NaN only on holes.
     lsb_m : float or None
         Metres per depth word. None picks the finest of :data:`LSB_CANDIDATES_M` that holds the map's
         depth range in half the word range, leaving the other half for sonar patches that deviate
@@ -41,10 +45,11 @@ class PreparedMap:
     Raises
     ------
     ValueError
-        A grid with no valid node, or a depth range that no candidate step holds.
+        A grid with no valid node, a depth range that no candidate step holds, an uncertainty layer of
+        another shape than the grid, negative, or NaN where the grid has a depth.
     """
 
-    def __init__(self, *, grid: Grid, lsb_m: float | None = None) -> None:
+    def __init__(self, *, grid: Grid, lsb_m: float | None = None, node_sigma_m: np.ndarray | None = None) -> None:
         depth = grid.depth_m
         holes = np.isnan(depth)
         if holes.all():
@@ -70,11 +75,19 @@ class PreparedMap:
         # Checked once: most maps have no hole, and then no placement needs the hole policy.
         self._holes_or_none = holes if holes.any() else None
         self._residents: dict[str, ResidentCorrelator] = {}
+        # The grid's own uncertainty layer (a ``sigma_m`` of the grid, or given here): checked once.
+        layer = node_sigma_m if node_sigma_m is not None else getattr(grid, "sigma_m", None)
+        self._node_sigma = None if layer is None else check_node_sigma(layer, grid.depth_m)
         self._last_patch: tuple[np.ndarray, bytes, tuple[np.ndarray, np.ndarray, int]] | None = None
 
     @property
     def grid(self) -> Grid:
         return self._grid
+
+    @property
+    def node_sigma_m(self) -> np.ndarray | None:
+        """The map's per-node survey standard deviation, metres, when the grid carries one (0 on holes)."""
+        return self._node_sigma
 
     @property
     def words(self) -> np.ndarray:

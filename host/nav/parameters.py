@@ -16,10 +16,11 @@ from ..correlator import BACKENDS
 from .likelihood import LIKELIHOODS
 from .stages import CrossTrackTracker
 
-__all__ = ["NavParameters", "navigation_parameters", "MATCHING", "LAYBACK_MODELS"]
+__all__ = ["NavParameters", "navigation_parameters", "MATCHING", "LAYBACK_MODELS", "MAP_ERROR_MODELS"]
 
 MATCHING = ("patch", "point")
 LAYBACK_MODELS = ("cable", "depth_ratio")
+MAP_ERROR_MODELS = ("per_node", "uniform")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -91,6 +92,14 @@ class NavParameters:
         1-sigma error of the map where a patch node samples it (survey noise and interpolation
         between nodes). None: estimated from the map (``likelihood.map_error_estimate``). The residual
         sigma of the likelihood is ``hypot(depth_noise_m, map_error_m)``.
+    map_error_model : {"per_node", "uniform"}
+        How the map's error enters the likelihood when ``map_error_m`` is None. ``"per_node"``: each node
+        carries its own (survey noise, the slope and the relief its spacing cannot show, from the map
+        itself; :mod:`lost.host.nav.maperror`), and each placement's sigma follows the nodes under the
+        patch. ``"uniform"``: one number for the whole map (``likelihood.map_error_estimate``).
+    survey_sigma_m : float
+        The survey noise of a map node, metres, where the grid carries no uncertainty layer of its own
+        (``PreparedMap(node_sigma_m=...)``); for ``map_error_model = "per_node"``. Default 0.5.
     likelihood : {"laplace", "gaussian"}
         The residual distribution: Laplace uses the correlator's sum of absolute differences as the
         hardware gives it; Gaussian is eq. 3.4 (a sum of squares on the host).
@@ -220,6 +229,8 @@ class NavParameters:
     backend: str = "software"
     depth_noise_m: float = 0.5
     map_error_m: float | None = None
+    map_error_model: str = "per_node"
+    survey_sigma_m: float = 0.5
     likelihood: str = "laplace"
     likelihood_weight: float = 1.0
     initial_sigma_m: float = 300.0
@@ -266,6 +277,8 @@ class NavParameters:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+        if self.map_error_model not in MAP_ERROR_MODELS:
+            raise ValueError(f"map_error_model must be one of {MAP_ERROR_MODELS}, got {self.map_error_model!r}.")
         if self.likelihood not in LIKELIHOODS:
             raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}.")
         for name in ("depth_noise_m", "likelihood_weight", "initial_sigma_m", "slant_range_sigma_m", "pmf_sigmas", "gate_nis",
@@ -275,7 +288,8 @@ class NavParameters:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
         for name in ("position_floor_nodes", "position_floor_m", "position_floor_tracking_m", "pf_floor_tracking_m", "velocity_noise_mps",
-                     "gyro_bias_rps", "accel_bias_mps2", "velocity_bias_sigma_mps", "velocity_bias_walk_mps", "depth_bias_sigma_m", "depth_bias_walk_m"):
+                     "gyro_bias_rps", "accel_bias_mps2", "velocity_bias_sigma_mps",
+                     "survey_sigma_m", "velocity_bias_walk_mps", "depth_bias_sigma_m", "depth_bias_walk_m"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number, at least 0, got {value!r}.")

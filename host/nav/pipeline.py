@@ -77,8 +77,8 @@ def navigate(
     Raises
     ------
     ValueError
-        Patch matching on a tow without sonar patches, a sonar patch on other nodes than the map, a
-        prepared map of another grid, an unknown estimator.
+        Patch matching on a tow without sonar patches, a sonar patch on other nodes than the map (a map
+        coarser than the patches named as such), a prepared map of another grid, an unknown estimator.
     """
     params = params or NavParameters()
     prepared = prepared or PreparedMap(grid=grid, lsb_m=params.lsb_m)
@@ -87,6 +87,10 @@ def navigate(
     if params.matching == "patch" and not any(patch is not None for patch in records.sonar):
         raise ValueError("the tow has no sonar patch, so patch matching has nothing to match; use matching='point'")
     other = sorted({float(p.node_m) for p in records.sonar if p is not None and not math.isclose(p.node_m, grid.node_m, rel_tol=1e-9)})
+    if other and other[0] < grid.node_m:
+        raise ValueError(f"the map's {grid.node_m} m nodes are coarser than the sonar patches' {other[0]} m: the map cannot show "
+                         "what the patches resolve; grid the patches on the map's nodes (block means of "
+                         f"{grid.node_m / other[0]:g} x {grid.node_m / other[0]:g} of theirs) or use a finer map")
     if other:
         raise ValueError(f"the sonar patches have {', '.join(str(v) for v in other)} m nodes but the map {grid.node_m} m; "
                          "grid the patches on the map's nodes")

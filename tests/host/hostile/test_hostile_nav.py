@@ -103,3 +103,54 @@ def test_a_diffusion_wider_than_the_grid_leaves_it_flat():
 def test_the_new_bounds_are_validated(field, value):
     with pytest.raises(ValueError, match=field):
         NavParameters(**{field: value})
+
+
+# ---- the map's own uncertainty -----------------------------------------------------------------------
+
+def _small_grid():
+    from lost.host.grid import Grid
+    from lost.host.terrain import synthetic_terrain
+
+    return Grid(synthetic_terrain((40, 50), seed=5, roughness_m=10.0, hurst=0.5), 0.0, 0.0, 10.0)
+
+
+BAD_LAYERS = {
+    "wrong_shape": (lambda d: np.ones((40, 49)), r"uncertainty layer is 40 x 49 nodes but its depth grid 40 x 50"),
+    "one_dimensional": (lambda d: np.ones(2000), r"must be 2-D like its depth grid"),
+    "negative": (lambda d: np.where(np.arange(d.size).reshape(d.shape) == 7, -0.3, 0.5),
+                 r"1 negative standard deviation\(s\) \(first -0.3 m at row 0, column 7\)"),
+    "nan_on_a_depth": (lambda d: np.where(np.arange(d.size).reshape(d.shape) == 60, np.nan, 0.5),
+                       r"1 NaN or infinite value\(s\) on nodes with a depth \(first at row 1, column 10\)"),
+    "text": (lambda d: np.full(d.shape, "0.5"), r"must hold numbers"),
+}
+
+
+@pytest.mark.parametrize("make, message", BAD_LAYERS.values(), ids=BAD_LAYERS.keys())
+def test_a_bad_uncertainty_layer_is_refused_by_name(make, message):
+    from lost.host.nav import PreparedMap
+
+    grid = _small_grid()
+    with pytest.raises(ValueError, match=message):
+        PreparedMap(grid=grid, node_sigma_m=make(grid.depth_m))
+
+
+def test_nan_sigma_on_a_hole_is_accepted():
+    from lost.host.grid import Grid
+    from lost.host.nav import PreparedMap
+
+    grid = _small_grid()
+    depth = grid.depth_m.copy()
+    depth[3, 4] = np.nan
+    sigma = np.full(depth.shape, 0.5)
+    sigma[3, 4] = np.nan
+    prepared = PreparedMap(grid=Grid(depth, 0.0, 0.0, 10.0), node_sigma_m=sigma)
+    assert prepared.node_sigma_m[3, 4] == 0.0 and prepared.node_sigma_m[0, 0] == 0.5
+
+
+def test_a_map_coarser_than_the_patches_is_named(edge_run):
+    from lost.host.grid import Grid
+
+    grid, records, _, _ = edge_run
+    coarse = Grid(grid.depth_m[::3, ::3], grid.x0_m, grid.y0_m, 3 * grid.node_m)
+    with pytest.raises(ValueError, match=r"the map's 30.0 m nodes are coarser than the sonar patches' 10.0 m.*block means of 3 x 3"):
+        navigate(records, coarse, NavParameters())
