@@ -350,4 +350,5 @@ class BayesFilter:
         bias = self.depth_bias_m[0] if self._p.matching == "point" else float("nan")
         return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected,
                         depth_bias_m=bias, velocity_bias_mps=tuple(self.velocity_bias_mps),
-                        velocity_bias_sigma_mps=tuple(self.velocity_bias_sigma_mps))
+                        velocity_bias_sigma_mps=tuple(self.velocity_bias_sigma_mps),
+                        reinitialized=self._trust.restart_cause if self._stage == "reinitialized" else "")

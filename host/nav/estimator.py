@@ -129,6 +129,8 @@ class Estimate:
     stages : mapping
         The estimator's own intermediate outputs at this record, by name (the patent pipeline's
         ``predicted``, ``mle``, ``cat``, ...; see :data:`lost.host.nav.loop.PATENT_OUTPUTS`); empty for the filters.
+    reinitialized : str
+        At a re-initialization (stage ``reinitialized``), its cause (:data:`lost.host.nav.trust.RESTART_CAUSES`); else "".
     """
 
     position: np.ndarray
@@ -141,6 +143,7 @@ class Estimate:
     velocity_bias_mps: tuple[float, float] = (float("nan"), float("nan"))
     velocity_bias_sigma_mps: tuple[float, float] = (float("nan"), float("nan"))
     stages: Mapping[str, Any] = field(default_factory=dict)
+    reinitialized: str = ""
 
 
 class Estimator(Protocol):

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..records import NavRecords
 from .estimator import Estimator, Motion, Observation
+from .guard import DeadReckoningGuard
 from .parameters import NavParameters
 from .results import FilterTrack, NavResult
 from .stages import TrackFrame, layback_position, state_update
@@ -61,6 +62,7 @@ class RecordLoop:
         self._dead: np.ndarray | None = None
         self.layback, self.dead_reckoning = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
         self.tracks = {e.name: FilterTrack.empty(n) for e in estimators}
+        self._guards = {e.name: DeadReckoningGuard(params) for e in estimators}
         self.patent = {"predicted": np.full((n, 2), np.nan), "mle": np.full((n, 2), np.nan), "cat": np.full((n, 2), np.nan),
                        "distinctness": np.full(n, np.nan), "cross_velocity_mps": np.full(n, np.nan),
                        "slant_corrected": np.zeros(n, bool), "off_map": np.zeros(n, bool), "mle_source": np.full(n, "", dtype="<U5")}
@@ -95,6 +97,7 @@ class RecordLoop:
             self.dead_reckoning[n] = start
             for estimator in self._estimators:
                 estimator.start(observation.t_s, start, observation)
+                self._guards[estimator.name].start(start)
                 self._record(n, estimator, 0.0)
             return
         motion = Motion(dt_s=observation.t_s - float(records.t_s[n - 1]), velocity_mps=self._velocity, held=held)
@@ -103,6 +106,7 @@ class RecordLoop:
             begin = time.perf_counter()
             estimator.predict(motion)
             estimator.update(observation)
+            self._guards[estimator.name].predict(self._velocity, motion.dt_s)
             self._record(n, estimator, (time.perf_counter() - begin) * 1e3)
 
     def _plausible_patch(self, n: int):
@@ -137,8 +141,12 @@ class RecordLoop:
         return slant
 
     def _record(self, n: int, estimator: Estimator, ms: float) -> None:
-        answer = estimator.estimate()
+        guard = self._guards[estimator.name]
+        answer = guard.shown(estimator.estimate())
         track = self.tracks[estimator.name]
+        track.held[n], track.reinitialized[n] = guard.held, answer.reinitialized
+        if guard.held:
+            estimator.counts["held_to_dead_reckoning"] += 1
         track.position[n], track.covariance[n], track.usable[n] = answer.position, answer.covariance, answer.usable
         track.stage[n], track.nis[n], track.rejected[n], track.ms[n] = answer.stage, answer.nis, answer.rejected, ms
         track.depth_bias_m[n] = answer.depth_bias_m

@@ -26,6 +26,8 @@ class FilterTrack:
     velocity_bias_mps, velocity_bias_sigma_mps : (N, 2) arrays, the velocity-bias estimate and its 1-sigma
         (east, north), m/s (NaN where the estimator has none)
     counts : dict, every skip, rejection and re-initialization the estimator made
+    held : (N,) bool array, the estimate was held within dead reckoning's 3 sigma (:mod:`lost.host.nav.guard`)
+    reinitialized : (N,) str array, the cause of a re-initialization at that record ("" when none)
     """
 
     position: np.ndarray
@@ -39,12 +41,14 @@ class FilterTrack:
     velocity_bias_mps: np.ndarray
     velocity_bias_sigma_mps: np.ndarray
     counts: dict[str, int] = field(default_factory=dict)
+    held: np.ndarray | None = None
+    reinitialized: np.ndarray | None = None
 
     @classmethod
     def empty(cls, n: int) -> FilterTrack:
         return cls(np.full((n, 2), np.nan), np.full((n, 2, 2), np.nan), np.zeros(n, bool), np.full(n, "uninitialized", dtype="<U14"),
                    np.full(n, np.nan), np.full(n, "", dtype="<U32"), np.full(n, np.nan), np.full(n, np.nan), np.full((n, 2), np.nan),
-                   np.full((n, 2), np.nan))
+                   np.full((n, 2), np.nan), held=np.zeros(n, bool), reinitialized=np.full(n, "", dtype="<U24"))
 
 
 @dataclass(frozen=True)

@@ -56,12 +56,19 @@ from collections import Counter, deque
 
 import numpy as np
 
-__all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "ins_position_sigma", "nis", "moments", "Trust"]
+__all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "RESTART_CAUSES", "ins_position_sigma", "nis", "moments", "Trust"]
 
 #: Accepted patches whose misfits set the running residual level.
 MISFIT_MEMORY = 50
 #: A narrow density with less than this share on the map straddles its edge.
 EDGE_MASS = 0.9
+
+#: Why a filter re-initialized (``Estimate.reinitialized``), by the count that names it.
+RESTART_CAUSES = {
+    None: "updates_refused",                            # reinit_after of the last 2 reinit_after terrain updates refused
+    "reinitialized_elsewhere": "fits_better_elsewhere",  # the patches fit better far from the estimate
+    "reinitialized_by_ranges": "ranges_refused",        # 2 reinit_after slant ranges refused in a row
+}
 
 #: Nygren section 6.1.
 SCHULER_PERIOD_S = 84.4 * 60.0
@@ -132,6 +139,7 @@ class Trust:
         self._misfits: deque[float] = deque(maxlen=MISFIT_MEMORY)
         self.misfit_level = 1.0
         self.settled = False
+        self.restart_cause = ""  # the last re-initialization's, one of RESTART_CAUSES' values
 
     def misfit_refused(self, misfit: float) -> bool:
         """Whether a patch's misfit is too large for the running residual level."""
@@ -256,6 +264,7 @@ class Trust:
         self.counts["reinitializations"] += 1
         if reason:
             self.counts[reason] += 1
+        self.restart_cause = RESTART_CAUSES[reason]
 
     def rejected(self, reason: str) -> bool:
         """A terrain update was refused; True when the filter should re-initialize now."""
