@@ -59,7 +59,6 @@ from ..grid import Grid
 from .bayes import BayesFilter
 from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
-from .trust import moments
 from .velocity_bias import VelocityBiasFilter
 
 __all__ = ["PointMassFilter", "PMF_CELLS_PER_NODE"]
@@ -166,9 +165,14 @@ class PointMassFilter(BayesFilter):
         return self._moments_of(self._p_grid)
 
     def _moments_of(self, density: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        x, y = np.broadcast_arrays(*self._cells())
-        mean, cov = moments(density, x, y)
-        return mean, cov + np.eye(2) * self._cell**2 / 12.0  # each cell's own spread
+        # The cells are a regular grid: the moments from the marginals and one product, without n x n coordinate arrays.
+        x, y = (c.ravel() for c in self._cells())
+        px, py = density.sum(axis=0), density.sum(axis=1)
+        mx, my = float(px @ x), float(py @ y)
+        dx, dy = x - mx, y - my
+        sxy = float(dy @ density @ dx)
+        cov = np.array([[float(px @ (dx * dx)), sxy], [sxy, float(py @ (dy * dy))]])
+        return np.array([mx, my]), cov + np.eye(2) * self._cell**2 / 12.0  # each cell's own spread
 
     # -- the estimator interface --------------------------------------------------------------------
 
