@@ -194,27 +194,49 @@ def _check_motion(records: NavRecords, rows: np.ndarray, lines, path: Path, time
     return warnings
 
 
-#: Runs of this many moving records whose position-to-velocity speed ratios differ by more than UNIT_CHANGE_FACTOR
-#: mean the log changes unit part-way (metres to kilometres or feet; seconds to milliseconds).
+#: Runs of this many moving records whose position-to-velocity speed ratio changes by a unit's factor (within
+#: UNIT_FACTOR_TOLERANCE) or by more than UNIT_CHANGE_GROSS mean the log changes unit part-way (metres to kilometres
+#: or feet or nautical miles; seconds to milliseconds or minutes). A towed vehicle's velocity against its ship's positions
+#: also changes in turns and while the cable settles, by factors of 2-3 that no unit has: those are not refused.
 UNIT_CHANGE_RUN = 10
-UNIT_CHANGE_FACTOR = 2.5
+UNIT_FACTORS = (1000.0, 3.28084, 1852.0, 60.0)
+UNIT_FACTOR_TOLERANCE = 0.1
+UNIT_CHANGE_GROSS = 20.0
+
+
+def _unit_factor(change: float) -> bool:
+    """Whether a change of the speed ratio by ``change`` is a change of unit."""
+    size = max(change, 1.0 / change)
+    return size > UNIT_CHANGE_GROSS or any(abs(size / f - 1.0) < UNIT_FACTOR_TOLERANCE for f in UNIT_FACTORS)
+
+
+#: Each side of a unit change holds steady: this share of its runs within UNIT_STEADY_FACTOR of the side's median.
+UNIT_STEADY_SHARE = 0.8
+UNIT_STEADY_FACTOR = 1.6
+
+
+def _steady(medians: np.ndarray) -> bool:
+    centre = np.median(medians)
+    return medians.size >= 2 and float(np.mean(np.abs(np.log(medians / centre)) < np.log(UNIT_STEADY_FACTOR))) >= UNIT_STEADY_SHARE
 
 
 def _refuse_unit_change(ratio: np.ndarray, rows: np.ndarray, lines, path: Path) -> None:
+    """Refuse a log whose speed ratio steps, and stays, by a unit's factor; a ramp (the cable settling) is no step."""
     if ratio.size < 2 * UNIT_CHANGE_RUN:
         return
     # The median of each run of records: one bad fix does not move it, a unit change for the rest of the log does.
     runs = ratio[: ratio.size // UNIT_CHANGE_RUN * UNIT_CHANGE_RUN].reshape(-1, UNIT_CHANGE_RUN)
     medians = np.median(runs, axis=1)
-    change = np.flatnonzero(np.abs(np.log(medians / medians[0])) > np.log(UNIT_CHANGE_FACTOR))
-    if change.size:
-        k = int(change[0])
-        first = k * UNIT_CHANGE_RUN + int(np.argmax(np.abs(np.log(runs[k] / medians[0])) > np.log(UNIT_CHANGE_FACTOR)))
-        raise ValueError(
-            f"{path.name}: positions move {medians[k] / medians[0]:.3g} times as fast for the logged velocity from about "
-            f"{_where(int(rows[first]), lines)} on as before it: a change of unit part-way through the log (kilometres or feet "
-            "for metres, another time unit)? Give one unit throughout"
-        )
+    for k in range(2, medians.size - 1):
+        before, after = medians[:k], medians[k:]
+        factor = float(np.median(after) / np.median(before))
+        if _unit_factor(factor) and _steady(before) and _steady(after):
+            first = k * UNIT_CHANGE_RUN + int(np.argmax(np.abs(np.log(runs[k] / np.median(before))) > 0.5 * abs(np.log(factor))))
+            raise ValueError(
+                f"{path.name}: positions move {factor:.3g} times as fast for the logged velocity from about "
+                f"{_where(int(rows[first]), lines)} on as before it: a change of unit part-way through the log (kilometres or feet "
+                "for metres, another time unit)? Give one unit throughout"
+            )
 
 
 #: A gap between records longer than this many typical steps (and a minute) is reported.

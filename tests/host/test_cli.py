@@ -112,7 +112,7 @@ def test_correlate_rejects_a_bad_patch_file(tmp_path, capsys):
     _, map_path = _map_file(tmp_path)
     (tmp_path / "patch.json").write_text("[]")
     assert main(["correlate", str(map_path), str(tmp_path / "patch.json")]) == 1
-    assert ".npy, .npz or .csv" in capsys.readouterr().err
+    assert "a patch must be .csv, .txt, .npy, .npz of depths in metres, got patch.json" in capsys.readouterr().err
 
 
 def test_demo_runs_into_its_folder(tmp_path, monkeypatch, capsys):
