@@ -11,11 +11,13 @@ import numpy as np
 import pandas as pd
 from scipy.stats import theilslopes
 
+from ..config import PositiveFloat
+from .checks import check_replies
 from .filter import FusionResult, InsUsblFilter, fuse
 from .fix import UsblArray, UsblFix, usbl_fix
 from .frames import LocalFrame, body_to_ned
 from .ins import EarthModel, ImuSamples, NavState, dead_reckon, strapdown
-from .scenario import DEG_PER_HOUR, MILLI_G, ImuSpec
+from .scenario import DEG_PER_HOUR, MILLI_G, ImuSpec, OpenFraction
 from .simulate import IMU_COLUMNS, LOG_COLUMNS
 from .sound import Cast, SoundSpeedProfile
 
@@ -30,8 +32,8 @@ class UsblConfig:
 
     array: UsblArray = field(default_factory=UsblArray)
     imu: ImuSpec = field(default_factory=ImuSpec)
-    gate_probability: float = 0.999
-    align_window_s: float = 40.0
+    gate_probability: OpenFraction = 0.999
+    align_window_s: PositiveFloat = 40.0
     earth_rotation: bool = True
 
 
@@ -106,6 +108,7 @@ def read_log(path: str | Path, *, turnaround_s: float = 0.0) -> pd.DataFrame:
     if len(travel) != 1:
         raise ValueError(f"{source}: needs exactly one of travel_time_s (one way) and two_way_travel_time_s; has {list(table.columns)}")
     table.attrs["direction_columns"] = pairs[0]
+    table.attrs["source"] = source
     optional_empty = {travel[0], *pairs[0]}
     for column in REQUIRED_LOG_COLUMNS + list(pairs[0]) + travel:
         table[column] = _numeric(table, column, source, allow_empty=column in optional_empty)
@@ -175,9 +178,7 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
 def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig) -> tuple[int, NavState, np.ndarray]:
     """Start state and covariance at the row time of the first fix: position and velocity from a robust line through
     the first ``align_window_s`` of fixes (at their epochs ``time``), attitude from the INS's columns of that row."""
-    valid = [i for i, f in enumerate(fixes) if f is not None]
-    if len(valid) < 5:
-        raise ValueError(f"alignment needs at least five USBL fixes, the log has {len(valid)}")
+    valid = [i for i, f in enumerate(fixes) if f is not None]  # five or more (_check_enough_fixes)
     first = valid[0]
     window = [i for i in valid if time[i] - time[first] <= config.align_window_s]
     if len(window) < 5:
@@ -214,6 +215,17 @@ def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFram
     return first, NavState(position, velocity, attitude), covariance
 
 
+def _check_enough_fixes(log: pd.DataFrame, fixes: list, failures: dict[int, str]) -> None:
+    """The alignment's five fixes, or an error that says why the replies gave none (the first failure's reason)."""
+    valid = sum(fix is not None for fix in fixes)
+    if valid >= 5:
+        return
+    replies = int(np.isfinite(log["travel_time_s"].to_numpy()).sum())
+    why = f"; {len(failures)} replies gave no fix, the first (row {min(failures) + 1}): {failures[min(failures)]}" if failures else ""
+    raise ValueError(f"{log.attrs.get('source', 'USBL log')}: the alignment needs at least five USBL fixes; {replies} of {len(log)} pings "
+                     f"have a reply and {valid} of them a fix{why}")
+
+
 def _trim(imu: ImuSamples, start_s: float) -> ImuSamples:
     """The IMU from the sample at or just before ``start_s`` (whose time becomes the start)."""
     first = max(int(np.searchsorted(imu.time_s, start_s, side="right")) - 1, 0)
@@ -231,6 +243,7 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         The IMU does not cover the log's pings after alignment, or too few fixes to align.
     """
     profile = SoundSpeedProfile.from_cast(cast, tolerance_m_s=0.05)
+    check_replies(log, profile, config.array)
     frame = LocalFrame(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0]))
     # A fix places the towfish when it replied, one travel time before the ship heard it.
     travel = log["travel_time_s"].to_numpy()
@@ -239,6 +252,7 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         row = int(np.flatnonzero(np.diff(time) <= 0.0)[0]) + 2
         raise ValueError(f"USBL log: the reply at row {row} ({time[row - 1]:.3f} s) does not come after the one before; pings overlap")
     fixes, failures, ship = _fixes(log, profile, config.array, frame)
+    _check_enough_fixes(log, fixes, failures)
     row_time = log["time_s"].to_numpy()
     first, state, covariance = _align(time, row_time, fixes, log, config)
     # The filter starts at the first fix's row time and reports from the next ping on.
