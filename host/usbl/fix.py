@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .frames import body_to_ned
-from .rays import solve_ray, trace_to_depth
+from .rays import ray_to_offset, solve_ray, trace_to_depth
 from .sound import SoundSpeedProfile
 
 __all__ = ["UsblArray", "UsblFix", "direction_cosines_from_phase", "phase_from_direction_cosines", "reply_from_geometry", "usbl_fix"]
@@ -174,7 +174,7 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     east = transducer[1] + horizontal * np.sin(azimuth)
 
     # Along the line of sight: the ray's angle at the towfish turns time and depth noise into horizontal range.
-    end_angle = trace_to_depth(profile, ray.launch_angle_rad, top, target_depth_m).angle_rad
+    end_angle = ray.arrival_angle_rad
     end_speed = float(profile.speed_at(target_depth_m))
     sine = max(np.sin(end_angle), 1e-3)
     along_var = (end_speed / sine * array.travel_time_noise_s) ** 2 + (np.cos(end_angle) / sine * array.depth_noise_m) ** 2
@@ -209,22 +209,16 @@ def reply_from_geometry(profile: SoundSpeedProfile, array: UsblArray, *, roll_ra
     """The noise-free reply a USBL measures of a target: one-way travel time and the two phase differences (rad).
 
     The inverse of :func:`usbl_fix`, for the simulator and the tests: the ray joining the transducer to the target
-    (its launch angle found by root finding on the traced horizontal offset), its arrival direction in the
+    (the direct one: :func:`lost.host.usbl.rays.ray_to_offset`), its arrival direction in the
     array's frame, and eq. 1.
     """
-    from scipy.optimize import brentq
-
     attitude = np.array([roll_rad, pitch_rad, heading_rad])
     rotation = body_to_ned(*attitude)
     transducer = np.array([antenna_north_m, antenna_east_m, -array.antenna_height_m]) + rotation @ np.asarray(array.lever_arm_m)
     top = max(transducer[2], 0.0)
     offset = np.array([target_north_m - transducer[0], target_east_m - transducer[1]])
     horizontal = float(np.hypot(*offset))
-    if horizontal < 1e-6:
-        angle = 0.0
-    else:
-        limit = np.arcsin(min(1.0, float(profile.speed_at(top) / profile.speed_m_s.max()))) - 1e-6
-        angle = brentq(lambda a: trace_to_depth(profile, a, top, target_depth_m).horizontal_m - horizontal, 0.0, limit, xtol=1e-13)
+    angle = ray_to_offset(profile, top, target_depth_m, horizontal) if horizontal >= 1e-6 else 0.0
     time = trace_to_depth(profile, angle, top, target_depth_m).time_s
     azimuth = np.arctan2(offset[1], offset[0])
     direction = rotation.T @ np.array([np.sin(angle) * np.cos(azimuth), np.sin(angle) * np.sin(azimuth), np.cos(angle)])

@@ -17,7 +17,7 @@ import pandas as pd
 from scipy.stats import chi2
 
 from .pipeline import UsblRun
-from .rays import trace_to_depth
+from .rays import NoRayError, ray_to_offset, trace_to_depth
 
 __all__ = ["summarize", "track_table", "write_outputs", "NEES_BAND_PROBABILITY"]
 
@@ -193,10 +193,13 @@ def _plots(out: Path, run: UsblRun) -> list[Path]:
     left.set(xlabel="sound speed (m/s)", ylabel="depth (m)", title="sound-speed layers")
     left.invert_yaxis()
     fixes = [f for f in run.fixes if f is not None]
-    if fixes:
-        fix = sorted(fixes, key=lambda f: f.slant_range_m)[len(fixes) // 2]
-        top = max(fix.depth_m - np.sqrt(max(fix.slant_range_m**2 - fix.horizontal_range_m**2, 0.0)), 0.0)
-        angle = _launch_angle(profile, top, fix)
+    fix = sorted(fixes, key=lambda f: f.slant_range_m)[len(fixes) // 2] if fixes else None
+    top = max(fix.depth_m - np.sqrt(max(fix.slant_range_m**2 - fix.horizontal_range_m**2, 0.0)), 0.0) if fix else 0.0
+    try:
+        angle = _launch_angle(profile, top, fix) if fix else None
+    except NoRayError:  # the median fix's ray turned under the towfish: the panels show the profile alone
+        angle = None
+    if angle is not None:
         depths = np.linspace(top, fix.depth_m, 60)[1:]
         offsets = [0.0] + [trace_to_depth(profile, angle, top, d).horizontal_m for d in depths]
         right.plot(offsets, np.concatenate(([top], depths)), color="tab:blue", label="ray (eq. 3)")
@@ -212,9 +215,7 @@ def _plots(out: Path, run: UsblRun) -> list[Path]:
 
 
 def _launch_angle(profile, top: float, fix) -> float:
-    from scipy.optimize import brentq
-
-    return brentq(lambda a: trace_to_depth(profile, a, top, fix.depth_m).horizontal_m - fix.horizontal_range_m, 0.0, 1.4)
+    return ray_to_offset(profile, top, fix.depth_m, fix.horizontal_range_m)
 
 
 def _save(fig, path: Path) -> Path:
