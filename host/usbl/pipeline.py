@@ -6,12 +6,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
 from scipy.stats import theilslopes
 
-from ..config import PositiveFloat
+from ..config import NonNegativeFloat, PositiveFloat
 from .checks import check_replies
 from .filter import FusionResult, InsUsblFilter, fuse
 from .fix import UsblArray, UsblFix, usbl_fix
@@ -19,7 +20,7 @@ from .frames import LocalFrame, body_to_ned
 from .ins import EarthModel, ImuSamples, NavState, dead_reckon, strapdown
 from .scenario import DEG_PER_HOUR, MILLI_G, ImuSpec, OpenFraction
 from .simulate import IMU_COLUMNS, LOG_COLUMNS
-from .sound import Cast, SoundSpeedProfile
+from .sound import Cast, CastError, SoundSpeedProfile, extend_cast
 
 __all__ = ["UsblConfig", "UsblRun", "read_log", "read_imu", "process"]
 
@@ -28,13 +29,20 @@ __all__ = ["UsblConfig", "UsblRun", "read_log", "read_imu", "process"]
 class UsblConfig:
     """What processing needs beyond the recordings: the USBL's array and noise, the IMU's error model, the gate,
     and the alignment window (the first ``align_window_s`` of fixes give the start position and velocity);
-    ``earth_rotation=False`` for an IMU whose rates have the Earth's rotation removed already."""
+    ``earth_rotation=False`` for an IMU whose rates have the Earth's rotation removed already.
+
+    A cast that stops above the towfish's transponder: with ``cast_below_vehicle = "extend"`` it is continued below its
+    last sample by :func:`lost.host.usbl.sound.extend_cast` (the last temperature and salinity held, TEOS-10), at most
+    ``cast_extension_limit_m`` below it, and the replies from below the cast are counted in the summary; with
+    ``"refuse"``, or deeper than the limit, the run stops with an error that names the cast."""
 
     array: UsblArray = field(default_factory=UsblArray)
     imu: ImuSpec = field(default_factory=ImuSpec)
     gate_probability: OpenFraction = 0.999
     align_window_s: PositiveFloat = 40.0
     earth_rotation: bool = True
+    cast_below_vehicle: Literal["extend", "refuse"] = "extend"
+    cast_extension_limit_m: NonNegativeFloat = 500.0
 
 
 @dataclass(frozen=True)
@@ -54,6 +62,7 @@ class UsblRun:
     injected: np.ndarray | None
     ship: np.ndarray
     usbl_position: np.ndarray  # each fix moved from the transponder to the INS by the logged attitude (NaN without one)
+    cast: dict[str, Any] = field(default_factory=dict)  # the cast's source and depth, and what was done below it
 
 
 def _read_table(path: str | Path, kind: str, required: list[str]) -> pd.DataFrame:
@@ -156,8 +165,7 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
     failures: dict[int, str] = {}
     first, second = log.attrs.get("direction_columns", DIRECTION_COLUMNS[0])
     # The ray ends at the transponder: the pressure depth plus the lever arm's vertical share at the towfish's attitude.
-    fish_attitude = body_to_ned(*np.radians(log[["fish_roll_deg", "fish_pitch_deg", "fish_heading_deg"]].to_numpy().T))
-    transponder_depth = log["fish_depth_m"].to_numpy() + fish_attitude[:, 2, :] @ np.asarray(array.transponder_lever_arm_m)
+    transponder_depth = _transponder_depths(log, array)
     for i, row in enumerate(log.itertuples(index=False)):
         if not np.isfinite(row.travel_time_s):
             fixes.append(None)
@@ -173,6 +181,38 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
             fixes.append(None)
             failures[i] = str(error)
     return fixes, failures, np.column_stack([north, east])
+
+
+def _transponder_depths(log: pd.DataFrame, array: UsblArray) -> np.ndarray:
+    # The ray ends at the transponder: the pressure depth plus the lever arm's vertical share at the towfish's attitude.
+    fish_attitude = body_to_ned(*np.radians(log[["fish_roll_deg", "fish_pitch_deg", "fish_heading_deg"]].to_numpy().T))
+    return log["fish_depth_m"].to_numpy() + fish_attitude[:, 2, :] @ np.asarray(array.transponder_lever_arm_m)
+
+
+#: How far below the deepest reply an extended cast reaches.
+_EXTENSION_MARGIN_M = 100.0
+
+
+def _cast_below_vehicle(cast: Cast, log: pd.DataFrame, config: UsblConfig) -> tuple[Cast, dict[str, Any]]:
+    """The cast the rays need (extended below its last sample by the policy of ``config``) and what was done, for the summary."""
+    bottom = float(cast.depth_m[-1])
+    depth = _transponder_depths(log, config.array)[np.isfinite(log["travel_time_s"].to_numpy())]
+    below = int(np.sum(depth > bottom))
+    report = {"source": cast.source, "bottom_m": bottom, "policy": config.cast_below_vehicle, "replies_below_cast": below,
+              "extended_to_m": None}
+    if below == 0:
+        return cast, report
+    deepest = float(depth.max())
+    if config.cast_below_vehicle == "refuse":
+        raise CastError(f"cast {cast.source} stops at {bottom:.1f} m, above the towfish: {below} of {depth.size} replies come from below it "
+                        f"(the deepest at {deepest:.1f} m); take a deeper cast, or set cast_below_vehicle = \"extend\"")
+    if deepest - bottom > config.cast_extension_limit_m:
+        raise CastError(f"cast {cast.source} stops at {bottom:.1f} m, {deepest - bottom:.1f} m above the deepest reply's transponder "
+                        f"({deepest:.1f} m; {below} of {depth.size} replies come from below the cast); extending a cast (its last "
+                        f"temperature and salinity held) is trusted to cast_extension_limit_m = {config.cast_extension_limit_m:g} m: take a deeper cast")
+    extended = extend_cast(cast, deepest + _EXTENSION_MARGIN_M)
+    report["extended_to_m"] = float(extended.depth_m[-1])
+    return extended, report
 
 
 def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig) -> tuple[int, NavState, np.ndarray]:
@@ -242,6 +282,7 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
     ValueError
         The IMU does not cover the log's pings after alignment, or too few fixes to align.
     """
+    cast, cast_report = _cast_below_vehicle(cast, log, config)
     profile = SoundSpeedProfile.from_cast(cast, tolerance_m_s=0.05)
     check_replies(log, profile, config.array)
     frame = LocalFrame(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0]))
@@ -277,7 +318,8 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         truth = np.column_stack([north, east, log["true_depth_m"].to_numpy()])
     if "injected" in log.columns:
         injected = log["injected"].to_numpy() != ""
-    return UsblRun(frame, profile, time, fixes, failures, fused, start, ins, dead, truth, injected, ship, _usbl_positions(fixes, log, config))
+    return UsblRun(frame, profile, time, fixes, failures, fused, start, ins, dead, truth, injected, ship, _usbl_positions(fixes, log, config),
+                   cast_report)
 
 
 def _usbl_positions(fixes: list, log: pd.DataFrame, config: UsblConfig) -> np.ndarray:

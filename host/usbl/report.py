@@ -85,7 +85,7 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
         "name": name, "pings": int(run.time_s.size), "duration_s": float(run.time_s[-1] - run.time_s[0]), "run_time_s": run_time_s,
         "fused_epochs": int(fused.time_s.size), "epochs_before_start": s,
         "epochs_without_fused_position": int(np.sum(~np.all(np.isfinite(fused.position), axis=1))),
-        "truth_known": run.truth is not None, "gate_chi2": fused.gate, "gating": counts,
+        "truth_known": run.truth is not None, "gate_chi2": fused.gate, "gating": counts, "cast": run.cast,
         "frame": {"origin_lat_deg": run.frame.latitude0_deg, "origin_lon_deg": run.frame.longitude0_deg, "utm_crs": run.frame.utm_crs.to_string()},
     }
     if run.fix_failures:

@@ -35,7 +35,7 @@ import gsw
 import numpy as np
 import pandas as pd
 
-__all__ = ["Cast", "CastError", "SoundSpeedProfile", "read_cast", "sound_speed_teos10", "cast_from_table"]
+__all__ = ["Cast", "CastError", "SoundSpeedProfile", "read_cast", "sound_speed_teos10", "cast_from_table", "extend_cast"]
 
 
 class CastError(ValueError):
@@ -213,6 +213,39 @@ def _salinity_from_conductivity(table: pd.DataFrame, temperature: np.ndarray, pr
                         f"practical salinity of {salinity.min():.2f} to {salinity.max():.2f}, as S/m {as_s_m.min():.2f} to {as_s_m.max():.2f}; "
                         "the values are S/m: name the column conductivity_s_m")
     return salinity
+
+
+#: Deep water where a cast gives no temperature and salinity (a sound-velocity probe's): its speed's growth with pressure.
+DEEP_WATER_SA_G_KG, DEEP_WATER_CT_C = 34.9, 2.0
+
+
+def extend_cast(cast: Cast, depth_m: float, step_m: float = 25.0) -> Cast:
+    """The cast continued from its last sample down to ``depth_m`` (a deep-ocean gradient from TEOS-10).
+
+    Below a cast's last sample the water is taken to keep that sample's temperature and salinity (deep water changes
+    slowly), so the speed grows with pressure alone: ``gsw.sound_speed`` at the last Absolute Salinity and
+    Conservative Temperature, about 0.017 m/s per metre. A sound-velocity probe's cast (no temperature or salinity)
+    gets the same pressure term of deep water (``DEEP_WATER_SA_G_KG``, ``DEEP_WATER_CT_C``) added to its last speed.
+    A cast already reaching ``depth_m`` is returned as it is.
+    """
+    bottom = float(cast.depth_m[-1])
+    if depth_m <= bottom:
+        return cast
+    added = np.append(np.arange(bottom + step_m, depth_m, step_m), depth_m)
+    pressure = gsw.p_from_z(-np.append(bottom, added), cast.latitude_deg)
+    if np.isfinite(cast.temperature_c[-1]) and np.isfinite(cast.salinity_psu[-1]):
+        sa = gsw.SA_from_SP(cast.salinity_psu[-1], pressure[0], cast.longitude_deg, cast.latitude_deg)
+        ct = gsw.CT_from_t(sa, cast.temperature_c[-1], pressure[0])
+        speed = np.asarray(gsw.sound_speed(sa, ct, pressure[1:]), dtype=float)
+        speed += cast.sound_speed_m_s[-1] - float(gsw.sound_speed(sa, ct, pressure[0]))  # continuous at the last sample
+        temperature = np.asarray(gsw.t_from_CT(sa, ct, pressure[1:]), dtype=float)
+        salinity = np.full(added.shape, cast.salinity_psu[-1])
+    else:
+        deep = np.asarray(gsw.sound_speed(DEEP_WATER_SA_G_KG, DEEP_WATER_CT_C, pressure), dtype=float)
+        speed = cast.sound_speed_m_s[-1] + deep[1:] - deep[0]
+        temperature = salinity = np.full(added.shape, np.nan)
+    return Cast(np.append(cast.depth_m, added), np.append(cast.sound_speed_m_s, speed), np.append(cast.temperature_c, temperature),
+                np.append(cast.salinity_psu, salinity), cast.latitude_deg, cast.longitude_deg, cast.source)
 
 
 def _check_range(source: str, name: str, values: np.ndarray, low: float, high: float) -> None:

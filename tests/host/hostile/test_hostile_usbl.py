@@ -158,3 +158,45 @@ def test_too_few_fixes_say_why(files, tow):
     with pytest.raises(ValueError, match=r"changed.csv: the alignment needs at least five USBL fixes; 8 of 60 pings have a reply and 4 of "
                                          r"them a fix; 4 replies gave no fix, the first \(row 2\): direction cosines .* no downward component"):
         _process(files, _rewrite(files, eight_replies_four_wrapped), tow[0])
+
+
+# ------------------------------------------------------------------ a cast that stops above the towfish
+
+
+def _truncated_cast(files: Path, bottom_m: float) -> Path:
+    lines = (files / "cast.csv").read_text().splitlines()
+    kept = [line for line in lines if line.startswith("#") or line.startswith("depth_m") or float(line.split(",")[0]) <= bottom_m]
+    return _write(files / "short_cast.csv", "\n".join(kept) + "\n")
+
+
+def _run(files: Path, cast: Path, scenario, **settings):
+    config = UsblConfig(array=scenario.usbl, imu=scenario.imu, **settings)
+    return process(read_log(files / "log.csv"), read_imu(files / "imu.csv"), read_cast(cast), config)
+
+
+def test_a_cast_that_stops_above_the_towfish_is_extended_and_counted(files, tow):
+    scenario, sim = tow
+    full = _run(files, files / "cast.csv", scenario)
+    extended = _run(files, _truncated_cast(files, 250.0), scenario)
+    assert full.cast["replies_below_cast"] == 0 and full.cast["extended_to_m"] is None
+    assert extended.cast["bottom_m"] == 250.0 and extended.cast["replies_below_cast"] == 60 and extended.cast["policy"] == "extend"
+    assert extended.cast["extended_to_m"] > 300.0 and extended.cast["source"].endswith("short_cast.csv")
+    # The deep-ocean gradient stands in for the missing 50 m: the fixes move by centimetres, not metres.
+    moved = np.hypot(*(extended.usbl_position - full.usbl_position)[:, :2].T)
+    assert np.nanmax(moved) < 0.5 and np.all(np.isfinite(extended.usbl_position[:, 0]))
+
+
+@pytest.mark.parametrize(("settings", "message"), [
+    ({"cast_below_vehicle": "refuse"}, r"cast .*short_cast.csv stops at 250.0 m, above the towfish: 60 of 60 replies come from below it "
+                                       r"\(the deepest at 30\d\.\d m\); take a deeper cast, or set cast_below_vehicle = \"extend\""),
+    ({"cast_extension_limit_m": 20.0}, r"cast .*short_cast.csv stops at 250.0 m, 5\d\.\d m above the deepest reply's transponder .* "
+                                       r"cast_extension_limit_m = 20 m: take a deeper cast"),
+])
+def test_a_cast_too_shallow_for_the_policy_is_refused_by_name(files, tow, settings, message):
+    with pytest.raises(CastError, match=message):
+        _run(files, _truncated_cast(files, 250.0), tow[0], **settings)
+
+
+def test_the_cast_policy_is_a_checked_setting(tmp_path):
+    with pytest.raises(ConfigError, match=r"cast_below_vehicle: Input should be 'extend' or 'refuse', got 'ignore'"):
+        load_processing_config(_write(tmp_path / "c.toml", 'cast_below_vehicle = "ignore"\n'))
