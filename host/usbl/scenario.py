@@ -15,6 +15,8 @@ Layout (every table and key optional except ``name``; the defaults are the datac
     [imu]     gyro_bias_deg_h, accel_bias_mg, angle_random_walk_deg_sqrt_h, velocity_random_walk_mg_sqrt_hz, ...
     [usbl]    frequency_hz, baseline_m, lever_arm_m, phase_noise_rad, travel_time_noise_s, ...
     [faults]  dropout_rate, dropout_rate_turning, bad_fix_rate, bad_fix_rate_turning, ...
+    [ocean]   fine_step_m, cast_age_h, surface_warming_c_per_h, warm_layer_m, internal_wave_m, internal_wave_period_s
+              (the simulator's truth beside the logged cast: lost.host.usbl.ocean)
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from ..shipped import shipped_names, shipped_path
 from .filter import ImuNoise
 from .fix import UsblArray
 
-__all__ = ["TowSpec", "ImuSpec", "FaultSpec", "UsblScenario", "load_usbl_scenario", "load_processing_config", "builtin_usbl_scenarios",
+__all__ = ["TowSpec", "ImuSpec", "FaultSpec", "OceanSpec", "UsblScenario", "load_usbl_scenario", "load_processing_config", "builtin_usbl_scenarios",
            "shipped_cast_path"]
 
 DEG_PER_HOUR = np.radians(1.0) / 3600.0
@@ -104,6 +106,24 @@ class FaultSpec:
 
 
 @dataclass(frozen=True)
+class OceanSpec:
+    """The simulator's truth ocean beside the logged cast (``lost.host.usbl.ocean``): the resolution it is traced at,
+    a surface layer that has warmed since the cast (``cast_age_h`` old at the start) and goes on warming, and internal
+    waves heaving the water column. All zero: the cast itself, at ``fine_step_m``."""
+
+    fine_step_m: PositiveFloat = 5.0
+    cast_age_h: NonNegativeFloat = 0.0
+    surface_warming_c_per_h: float = 0.0
+    warm_layer_m: PositiveFloat = 30.0
+    internal_wave_m: NonNegativeFloat = 0.0
+    internal_wave_period_s: PositiveFloat = 1200.0
+
+    def changes(self) -> bool:
+        """Whether the truth differs from the cast beyond its resolution."""
+        return self.surface_warming_c_per_h != 0.0 or self.internal_wave_m > 0.0
+
+
+@dataclass(frozen=True)
 class UsblScenario:
     name: str
     description: str = ""
@@ -118,6 +138,7 @@ class UsblScenario:
     imu: ImuSpec = field(default_factory=ImuSpec)
     usbl: UsblArray = field(default_factory=UsblArray)
     faults: FaultSpec = field(default_factory=FaultSpec)
+    ocean: OceanSpec = field(default_factory=OceanSpec)
     folder: Path | None = None
 
     def __post_init__(self) -> None:
@@ -180,7 +201,7 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
     if not path.exists() and path.suffix == "":
         path = shipped_path("lost.host.usbl", path.name, what="usbl scenario, nor a scenario file,")
     table = read_toml(path, "usbl scenario file")
-    parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": FaultSpec}
+    parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": FaultSpec, "ocean": OceanSpec}
     built = {key: _build(cls, table.pop(key), path, key) for key, cls in parts.items() if key in table}
     top = _build(UsblScenario, table, path)
     try:
