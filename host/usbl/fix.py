@@ -97,6 +97,10 @@ class UsblFix:
     ``covariance_ne`` is the 2 x 2 covariance of (north, east) in m^2; ``depth_variance_m2`` that of the depth;
     ``cross_ne_depth`` the covariances of north and east with the depth: the horizontal range comes from the ray to
     the measured depth, so a depth error moves the fix along the line of sight (by ``-cot(theta_end)`` per metre).
+    ``sound_speed_jacobian_m`` is how the fix moves (north, east, down; m) per unit of fractional error in the path-mean
+    sound speed: the slant range scales with it and, the depth being known, the horizontal range by ``slant^2 / horizontal``
+    times as much, along the line of sight. That error is common to successive fixes, so it is not in the covariance but
+    a state of the filter (:class:`lost.host.usbl.filter.SoundSpeedError`).
     """
 
     north_m: float
@@ -109,6 +113,7 @@ class UsblFix:
     azimuth_rad: float
     iterations: int
     cross_ne_depth: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    sound_speed_jacobian_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def covariance_ned(self) -> np.ndarray:
@@ -186,8 +191,9 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     across = np.array([-np.sin(azimuth), np.cos(azimuth)])
     covariance = along_var * np.outer(along, along) + horizontal**2 * azimuth_var * np.outer(across, across) + array.gnss_noise_m**2 * np.eye(2)
     cross = -np.cos(end_angle) / sine * array.depth_noise_m**2 * along
+    speed_jacobian = np.append(ray.slant_range_m**2 / max(horizontal, 1.0) * along, 0.0)
     return UsblFix(float(north), float(east), float(target_depth_m), covariance, array.depth_noise_m**2, ray.slant_range_m, horizontal,
-                  azimuth, ray.iterations, cross)
+                  azimuth, ray.iterations, cross, speed_jacobian)
 
 
 def _azimuth_jacobian(cos_x: float, cos_y: float, attitude: np.ndarray, step: float = 1e-6) -> np.ndarray:

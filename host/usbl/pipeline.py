@@ -14,7 +14,7 @@ from scipy.stats import theilslopes
 
 from ..config import NonNegativeFloat, PositiveFloat
 from .checks import check_replies
-from .filter import FusionResult, InsUsblFilter, fuse
+from .filter import SOUND, STATES, FusionResult, InsUsblFilter, SoundSpeedError, fuse
 from .fix import UsblArray, UsblFix, usbl_fix
 from .frames import LocalFrame, body_to_ned
 from .ins import EarthModel, ImuSamples, NavState, dead_reckon, strapdown
@@ -34,7 +34,12 @@ class UsblConfig:
     A cast that stops above the towfish's transponder: with ``cast_below_vehicle = "extend"`` it is continued below its
     last sample by :func:`lost.host.usbl.sound.extend_cast` (the last temperature and salinity held, TEOS-10), at most
     ``cast_extension_limit_m`` below it, and the replies from below the cast are counted in the summary; with
-    ``"refuse"``, or deeper than the limit, the run stops with an error that names the cast."""
+    ``"refuse"``, or deeper than the limit, the run stops with an error that names the cast.
+
+    The sound speed's uncertainty (a state of the filter, :class:`lost.host.usbl.filter.SoundSpeedError`): the
+    path-mean speed's error ``sound_speed_sigma_m_s`` (the cast's own, internal waves), and a surface layer drifting by
+    ``surface_speed_drift_m_s_per_h`` since the cast was taken (``cast_age_h`` before the log's first ping), seen through
+    its share of the path (e-folding depth ``surface_layer_m``); correlated over ``sound_speed_correlation_s``."""
 
     array: UsblArray = field(default_factory=UsblArray)
     imu: ImuSpec = field(default_factory=ImuSpec)
@@ -43,6 +48,11 @@ class UsblConfig:
     earth_rotation: bool = True
     cast_below_vehicle: Literal["extend", "refuse"] = "extend"
     cast_extension_limit_m: NonNegativeFloat = 500.0
+    sound_speed_sigma_m_s: NonNegativeFloat = 0.2
+    cast_age_h: NonNegativeFloat = 0.0
+    surface_speed_drift_m_s_per_h: NonNegativeFloat = 0.75
+    surface_layer_m: PositiveFloat = 30.0
+    sound_speed_correlation_s: PositiveFloat = 600.0
 
 
 @dataclass(frozen=True)
@@ -215,9 +225,22 @@ def _cast_below_vehicle(cast: Cast, log: pd.DataFrame, config: UsblConfig) -> tu
     return extended, report
 
 
-def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig) -> tuple[int, NavState, np.ndarray]:
+def _sound_speed_error(profile: SoundSpeedProfile, log: pd.DataFrame, config: UsblConfig) -> SoundSpeedError:
+    """The filter's model of the path-mean sound speed's error: the surface drift weighted by the surface layer's
+    share of the path to the towfish's median depth, ``(L / D)(1 - exp(-D / L))``."""
+    top = max(config.array.lever_arm_m[2] - config.array.antenna_height_m, 0.0)
+    depth = max(float(np.nanmedian(log["fish_depth_m"].to_numpy())) - top, 1.0)
+    share = config.surface_layer_m / depth * -np.expm1(-depth / config.surface_layer_m)
+    speed = profile.harmonic_mean_m_s(top, min(top + depth, profile.bottom_m))
+    return SoundSpeedError(config.sound_speed_sigma_m_s, config.surface_speed_drift_m_s_per_h * share, config.cast_age_h,
+                           config.sound_speed_correlation_s, speed)
+
+
+def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig,
+           sound_speed: SoundSpeedError) -> tuple[int, NavState, np.ndarray]:
     """Start state and covariance at the row time of the first fix: position and velocity from a robust line through
-    the first ``align_window_s`` of fixes (at their epochs ``time``), attitude from the INS's columns of that row."""
+    the first ``align_window_s`` of fixes (at their epochs ``time``), attitude from the INS's columns of that row. The
+    fixes share the sound speed's error, so the start position carries it: the covariance holds their correlation."""
     valid = [i for i, f in enumerate(fixes) if f is not None]  # five or more (_check_enough_fixes)
     first = valid[0]
     window = [i for i in valid if time[i] - time[first] <= config.align_window_s]
@@ -241,7 +264,7 @@ def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFram
     n, span = int(inliers.sum()), max(float(np.ptp(t[inliers])), 1.0)  # the fit's origin lies within a travel time of its first point
     # Line fit at its first point: intercept variance about 4 sigma^2 / n, slope variance 12 sigma^2 / (n span^2).
     variance = np.array([horizontal[0, 0], horizontal[1, 1], fixes[first].depth_variance_m2])
-    covariance = np.zeros((15, 15))
+    covariance = np.zeros((STATES, STATES))
     covariance[0:3, 0:3] = np.diag(4.0 * variance / n)
     covariance[0:2, 0:2] = 4.0 * horizontal / n
     covariance[3:6, 3:6] = np.diag(12.0 * variance / (n * span**2))
@@ -250,6 +273,12 @@ def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFram
     covariance[8, 8] = np.radians(spec.alignment_heading_deg) ** 2
     covariance[9:12, 9:12] = np.eye(3) * (spec.gyro_bias_deg_h * DEG_PER_HOUR) ** 2
     covariance[12:15, 12:15] = np.eye(3) * (spec.accel_bias_mg * MILLI_G) ** 2
+    # The fit's position is off by the fixes' mean sound-speed displacement J b; the error state is -b (the estimate is 0).
+    jacobian = np.mean([fixes[i].sound_speed_jacobian_m for i in window], axis=0)
+    sound_speed_variance = sound_speed.variance(row_time[first] - row_time[0])
+    covariance[SOUND, SOUND] = sound_speed_variance
+    covariance[0:3, 0:3] += np.outer(jacobian, jacobian) * sound_speed_variance
+    covariance[0:3, SOUND] = covariance[SOUND, 0:3] = -jacobian * sound_speed_variance
     row = log.iloc[first]
     attitude = body_to_ned(np.radians(row.fish_roll_deg), np.radians(row.fish_pitch_deg), np.radians(row.fish_heading_deg))
     return first, NavState(position, velocity, attitude), covariance
@@ -295,7 +324,8 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
     fixes, failures, ship = _fixes(log, profile, config.array, frame)
     _check_enough_fixes(log, fixes, failures)
     row_time = log["time_s"].to_numpy()
-    first, state, covariance = _align(time, row_time, fixes, log, config)
+    sound_speed = _sound_speed_error(profile, log, config)
+    first, state, covariance = _align(time, row_time, fixes, log, config, sound_speed)
     # The filter starts at the first fix's row time and reports from the next ping on.
     start, begin = first + 1, row_time[first]
     if start >= time.size:
@@ -305,7 +335,8 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
     earth = EarthModel.at(frame.latitude0_deg, rotating=config.earth_rotation)
     trimmed = _trim(imu, begin)
     filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), earth, config.gate_probability,
-                         transponder_lever_arm_m=np.asarray(config.array.transponder_lever_arm_m, dtype=float))
+                         transponder_lever_arm_m=np.asarray(config.array.transponder_lever_arm_m, dtype=float), sound_speed=sound_speed,
+                         elapsed_s=float(begin - log["time_s"].iloc[0]))
     fused = fuse(trimmed, time[start:], fixes[start:], filt, depths_m=log["fish_depth_m"].to_numpy()[start:],
                  depth_variance_m2=config.array.depth_noise_m**2)
     free_position, _, _ = strapdown(trimmed, state, earth)

@@ -17,6 +17,8 @@ Layout (every table and key optional except ``name``; the defaults are the datac
     [faults]  dropout_rate, dropout_rate_turning, bad_fix_rate, bad_fix_rate_turning, ...
     [ocean]   fine_step_m, cast_age_h, surface_warming_c_per_h, warm_layer_m, internal_wave_m, internal_wave_period_s
               (the simulator's truth beside the logged cast: lost.host.usbl.ocean)
+    [processing]  UsblConfig's settings for processing the simulated log (what the operator knows of the cast:
+              cast_age_h, sound_speed_sigma_m_s, ...; UsblScenario.processing_config())
 """
 
 from __future__ import annotations
@@ -139,6 +141,7 @@ class UsblScenario:
     usbl: UsblArray = field(default_factory=UsblArray)
     faults: FaultSpec = field(default_factory=FaultSpec)
     ocean: OceanSpec = field(default_factory=OceanSpec)
+    processing: dict[str, Any] = field(default_factory=dict)
     folder: Path | None = None
 
     def __post_init__(self) -> None:
@@ -155,6 +158,13 @@ class UsblScenario:
                              f"{self.tow.layback_m / self.tow.speed_m_s:.0f} s lead) is {samples:,.0f} IMU samples; the simulator holds at most "
                              f"{MAX_IMU_SAMPLES:,} in memory ({MAX_IMU_SAMPLES / self.imu_rate_hz / 3600:.1f} h at this rate): simulate the tow in parts")
 
+    def processing_config(self):
+        """The settings the processing of this scenario's simulated log uses (a :class:`lost.host.usbl.pipeline.UsblConfig`):
+        the scenario's array, IMU and gate, and its ``[processing]`` table (what an operator knows of the cast)."""
+        from .pipeline import UsblConfig  # the pipeline imports this module
+
+        return UsblConfig(array=self.usbl, imu=self.imu, **{"gate_probability": self.gate_probability, **self.processing})
+
     def cast_path(self) -> Path:
         if self.cast.endswith(".csv"):
             path = Path(self.cast)
@@ -166,8 +176,8 @@ def shipped_cast_path(name: str) -> Path:
     return shipped_path("lost.host.usbl", name, what="cast (give a CSV path instead)", folder="data", suffix=".csv")
 
 
-#: Fields the loader sets, never a file.
-_INTERNAL = {"folder"}
+#: Fields the loader sets, never a file (``processing`` is read as UsblConfig's settings).
+_INTERNAL = {"folder", "processing"}
 
 
 def _build(cls: type, table: Any, path: Path, section: str = "") -> Any:
@@ -203,6 +213,8 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
     table = read_toml(path, "usbl scenario file")
     parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": FaultSpec, "ocean": OceanSpec}
     built = {key: _build(cls, table.pop(key), path, key) for key, cls in parts.items() if key in table}
+    if "processing" in table:
+        built["processing"] = _processing_settings(table.pop("processing"), path, "processing")
     top = _build(UsblScenario, table, path)
     try:
         return replace(top, folder=path.parent, **built)
@@ -222,23 +234,33 @@ def load_processing_config(path: str | Path) -> dict[str, Any]:
         A key is unknown, or a value of the wrong type (``earth_rotation = "false"``) or out of range
         (``gate_probability = 1.5``); the message names the file and the key.
     """
-    from .pipeline import UsblConfig  # the pipeline imports this module
-
     path = Path(path)
     table = read_toml(path, "usbl processing config")
-    scalars = sorted(f.name for f in fields(UsblConfig) if f.name not in ("array", "imu"))
-    unknown = sorted(set(table) - {"usbl", "imu", *scalars})
-    if unknown:
-        raise ConfigError(f"config file {path}: unknown key(s) {unknown}; known: {', '.join(scalars)}, imu, usbl")
-    try:
-        settings: dict[str, Any] = validate_fields(UsblConfig, {k: table[k] for k in scalars if k in table}, "")
-    except ConfigError as error:
-        raise ConfigError(f"{path}: {error}") from None
+    tables = {key: table.pop(key) for key in ("usbl", "imu") if key in table}
+    settings = _processing_settings(table, path, "", also="imu, usbl")
+    table.update(tables)
     if "usbl" in table:
         settings["array"] = _build(UsblArray, table["usbl"], path, "usbl")
     if "imu" in table:
         settings["imu"] = _build(ImuSpec, table["imu"], path, "imu")
     return settings
+
+
+def _processing_settings(table: Any, path: Path, where: str, also: str = "") -> dict[str, Any]:
+    """The scalar settings of :class:`lost.host.usbl.pipeline.UsblConfig` in ``table``, strictly checked."""
+    from .pipeline import UsblConfig  # the pipeline imports this module
+
+    scalars = sorted(f.name for f in fields(UsblConfig) if f.name not in ("array", "imu"))
+    if not isinstance(table, dict):
+        raise ConfigError(f"{path}: [{where}] must be a table, got {table!r}")
+    unknown = sorted(set(table) - set(scalars))
+    if unknown:
+        raise ConfigError(f"config file {path}{f' [{where}]' if where else ''}: unknown key(s) {unknown}; known: {', '.join(scalars)}"
+                          f"{', ' + also if also else ''}")
+    try:
+        return validate_fields(UsblConfig, table, where)
+    except ConfigError as error:
+        raise ConfigError(f"{path}: {error}") from None
 
 
 def builtin_usbl_scenarios() -> list[str]:

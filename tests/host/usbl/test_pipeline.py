@@ -89,7 +89,7 @@ def test_loaders_refuse_unknown_keys(tmp_path):
     scenario.write_text('name = "x"\n[tow]\nspeed = 2.0\n')
     with pytest.raises(ValueError, match=r"\[tow\]: unknown key\(s\) \['speed'\]"):
         load_usbl_scenario(scenario)
-    with pytest.raises(ValueError, match="the shipped ones are \\['usbl_turns'\\]"):
+    with pytest.raises(ValueError, match="the shipped ones are \\['usbl_stale_cast', 'usbl_turns'\\]"):
         load_usbl_scenario("no_such_scenario")
 
 
