@@ -50,6 +50,7 @@ bench-usbl: setup
 	$(BIN)/python benchmarks/usbl_goals.py --seeds 20
 	$(BIN)/python benchmarks/usbl_table1.py
 	$(BIN)/python benchmarks/usbl_speed.py
+	$(BIN)/python benchmarks/usbl_truth.py --seeds 20
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

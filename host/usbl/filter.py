@@ -3,7 +3,9 @@
 State (eq. 8), 15 errors of the strapdown solution, each "estimate minus truth": position (north, east, down;
 m, on the local plane, where the paper writes latitude, longitude and height), velocity (north, east, down),
 attitude (the small rotation ``phi`` with ``C_estimate = (I - [phi x]) C_true``, rad), gyro drifts (rad/s) and
-accelerometer biases (m/s^2) in the body frame. The error dynamics (eq. 9) on the Earth-fixed local plane, with
+accelerometer biases (m/s^2) in the body frame; and a 16th, the fractional error ``b`` of the path-mean sound speed
+the fixes are computed with (:class:`SoundSpeedError`: first-order Gauss-Markov, its variance growing with the
+cast's age). The error dynamics (eq. 9) on the Earth-fixed local plane, with
 ``Omega`` the Earth's rate there:
 
     d(dp)/dt = dv
@@ -12,13 +14,14 @@ accelerometer biases (m/s^2) in the body frame. The error dynamics (eq. 9) on th
     d(db_g)/dt = w_bg,  d(db_a)/dt = w_ba                        (random walks)
 
 discretised as ``Phi = I + F dt + (F dt)^2 / 2`` and ``Q_d = Q dt`` at every IMU sample (eqs. 12, 13, 16).
-A USBL fix gives the measurement of eq. 11, INS minus USBL position, ``H = [I 0 0 0 0]``, with the fix's own
+A USBL fix gives the measurement of eq. 11, INS minus USBL position, ``H = [I 0 0 0 0 J]`` (``J`` the fix's
+displacement per unit of ``b``, ``UsblFix.sound_speed_jacobian_m``), with the fix's own
 covariance (3 x 3: its horizontal error and its depth are correlated) as ``R``; eqs. 14, 15 and 17 (in Joseph
 form) update. Before an update the innovation's normalised square ``nu' S^-1 nu`` is compared with the
 chi-square quantile of 3 degrees of freedom at ``gate_probability``; a fix beyond it is rejected and the INS
 carries on (as it does through dropouts), its depth still held by the towfish's pressure depth (a
 one-dimensional update gated at 1 dof). After an update the errors
-are fed back into the strapdown solution and the bias estimates, and reset to zero.
+are fed back into the strapdown solution, the bias estimates and the sound speed's, and reset to zero.
 """
 
 from __future__ import annotations
@@ -88,14 +91,14 @@ class SoundSpeedError:
 
 @dataclass
 class InsUsblFilter:
-    """Strapdown INS with the 15-state error Kalman filter.
+    """Strapdown INS with the 16-state error Kalman filter (15 of the INS, one of the sound speed).
 
     Parameters
     ----------
     state : NavState
         The INS solution at the start.
     covariance : numpy.ndarray
-        15 x 15 covariance of the starting errors.
+        16 x 16 covariance of the starting errors (15 x 15: the sound speed's starts at its model's variance, uncorrelated).
     noise : ImuNoise
         The IMU's noise model.
     earth : EarthModel
