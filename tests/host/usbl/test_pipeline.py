@@ -171,5 +171,7 @@ def test_a_step_in_the_cast_with_a_long_layback_loses_no_reply_and_writes_every_
     run = process(sim.log, imu_samples(sim.imu), sim.cast, scenario.processing_config())
     summary = summarize(run, name="step", run_time_s=0.0)
     assert summary["gating"]["failed"] == 0 and summary["gating"]["accepted"] >= 55
-    written = write_outputs(tmp_path / "out", run, summary)
-    assert {path.name for path in written} == {"track.csv", "track.png", "error.png", "profile.png", "summary.json"}
+    out, warnings = tmp_path / "out", []
+    out.mkdir()
+    write_outputs(out, run, summary, warnings)
+    assert warnings == [] and {path.name for path in out.iterdir()} == {"track.csv", "track.png", "error.png", "profile.png", "summary.json"}
