@@ -50,8 +50,8 @@ bench-nav: setup
 bench-nav-usbl: setup
 	$(BIN)/python benchmarks/nav_usbl.py --seeds 1414 1 2
 
-# Every goal of the contact-tracking issue on seeded simulated runs, the Stone Soup GM-PHD baseline
-# included (about 5 minutes here): a table on stdout and build/track/goals.json.
+# Every goal of the contact tracker over 10 seeds per case, beside Stone Soup's GM-PHD and JPDA (about an hour
+# of CPU at the defaults; TRACK_ARGS shortens it, see docs/track.md): tables on stdout, build/track/goals.json.
 bench-track: setup
 	$(BIN)/python benchmarks/track_goals.py --out build/track $(TRACK_ARGS)
 

@@ -154,17 +154,23 @@ def correlation(
         raise ValueError(f"exclusion_radius must be non-negative, got {exclusion_radius}")
     i0, j0, rows, cols = _check_area(area, (H - h + 1, W - w + 1))
     valid = valid_placements((H, W), (h, w), (i0, j0, rows, cols), holes)
-    surface = np.zeros((rows, cols), dtype=np.int64)
     # The in-map part of the area is what a backend computes.
     a0, a1 = max(i0, 0), min(i0 + rows, H - h + 1)
     b0, b1 = max(j0, 0), min(j0 + cols, W - w + 1)
     fit, cycles, best_from = None, None, "host"
+    surface = None
     if a0 < a1 and b0 < b1:
         outcome = chosen.run(terrain, patch, mask, bool(mean_compensation), (a0, b0, a1 - a0, b1 - b0), radius)
-        surface[a0 - i0 : a1 - i0, b0 - j0 : b1 - j0] = outcome.surface
+        if (a0, b0, a1 - a0, b1 - b0) == (i0, j0, rows, cols):
+            surface = outcome.surface  # the whole area is on the map: no second surface-sized copy
+        else:
+            surface = np.zeros((rows, cols), dtype=np.int64)
+            surface[a0 - i0 : a1 - i0, b0 - j0 : b1 - j0] = outcome.surface
         cycles = outcome.cycles
         if outcome.fit is not None and valid.all():
             fit, best_from = outcome.fit, "hardware"  # the device searched exactly these placements
+    if surface is None:
+        surface = np.zeros((rows, cols), dtype=np.int64)
     if fit is None:
         fit = choose_fit(surface, valid, radius)
     best = runner_up = None

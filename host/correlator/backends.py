@@ -31,8 +31,12 @@ class Backend:
     name: str = "?"
 
     def run(self, terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray, mean_compensation: bool, area: Area,
-            exclusion_radius: int) -> Outcome:
-        """V over the in-map ``area`` of validated inputs, and the hardware's best fit if it has one."""
+            exclusion_radius: int, *, map_key: object | None = None) -> Outcome:
+        """V over the in-map ``area`` of validated inputs, and the hardware's best fit if it has one.
+
+        ``map_key``: a caller holding the map unchanged between calls names it, so that a device need not
+        fingerprint the map to know its tile is still resident.
+        """
         raise NotImplementedError
 
     def close(self) -> None:
@@ -46,7 +50,7 @@ class FunctionBackend(Backend):
         self.name = name
         self._surface = surface
 
-    def run(self, terrain, patch, mask, mean_compensation, area, exclusion_radius) -> Outcome:
+    def run(self, terrain, patch, mask, mean_compensation, area, exclusion_radius, *, map_key=None) -> Outcome:
         return Outcome(self._surface(crop(terrain, patch.shape, area), patch, mask, mean_compensation))
 
     def __call__(self, terrain, patch, mask, mean_compensation) -> np.ndarray:
@@ -89,8 +93,9 @@ class DeviceBackend(Backend):
             self._driver = CorrelatorDriver(self._open_transport())
         return self._driver
 
-    def run(self, terrain, patch, mask, mean_compensation, area, exclusion_radius) -> Outcome:
-        return self.driver.correlate(terrain, patch, mask, mean_compensation, area=area, exclusion_radius=exclusion_radius)
+    def run(self, terrain, patch, mask, mean_compensation, area, exclusion_radius, *, map_key=None) -> Outcome:
+        return self.driver.correlate(terrain, patch, mask, mean_compensation, area=area, exclusion_radius=exclusion_radius,
+                                     map_key=map_key)
 
     def __call__(self, terrain, patch, mask, mean_compensation) -> np.ndarray:
         (H, W), (h, w) = terrain.shape, patch.shape

@@ -34,6 +34,7 @@ from lost.model.protocol import (
     encode_frame,
     patch_payload,
 )
+from lost.model.widths import correlator_widths
 
 from .result import Area, Outcome
 
@@ -41,8 +42,19 @@ __all__ = ["CorrelatorDriver", "DeviceError", "DeviceTimeout"]
 
 log = logging.getLogger(__name__)
 
+#: The depth word the host sends (int16).
+DEPTH_BITS = 16
+
 #: Device errors that mean the request arrived damaged: resend it.
 RETRIED_ERRORS = (ErrorCode.CRC, ErrorCode.TIMEOUT)
+
+
+#: The wait for one reply ends after this many transport timeouts in all, however many bytes trickle in.
+_REPLY_BUDGET_TIMEOUTS = 8
+#: ... or once this many of the largest frames' worth of bytes have come without the reply.
+_REPLY_BUDGET_FRAMES = 4
+#: The encoded size of the largest reply frame (its payload stuffed, header, CRC and delimiters).
+_LARGEST_FRAME = len(encode_frame(0, Command.READ_SURFACE, bytes(MAX_REPLY)))
 
 
 #: Unchanged words between two changed ones that are sent anyway rather than opening a new frame (its 11 bytes).
@@ -60,6 +72,24 @@ def _changed_runs(new: np.ndarray, old: np.ndarray | None) -> list[tuple[int, in
     firsts = np.concatenate(([changed[0]], changed[breaks + 1]))
     lasts = np.concatenate((changed[breaks], [changed[-1]]))
     return [(int(a), int(b) + 1) for a, b in zip(firsts, lasts)]
+
+
+def _check_device_sizes(info: DeviceInfo) -> None:
+    """Refuse a device whose reported sizes cannot serve this driver's requests (see ``identify``)."""
+    shapes = {"tile": info.tile_shape, "search area": info.area_shape, "patch": info.patch_shape}
+    for name, (rows, cols) in shapes.items():
+        if rows < 1 or cols < 1:
+            raise DeviceError(f"the device reports a {rows} x {cols} {name}: it has no node to correlate with")
+    (th, tw), (ah, aw), (ph, pw) = info.tile_shape, info.area_shape, info.patch_shape
+    if not (ph <= ah <= th and pw <= aw <= tw):
+        raise DeviceError(f"the device reports a {ph} x {pw} patch, a {ah} x {aw} search area and a {th} x {tw} tile; "
+                          "each must fit within the next")
+    if info.depth_bits != DEPTH_BITS:
+        raise DeviceError(f"the device takes {info.depth_bits}-bit depth words; this driver sends {DEPTH_BITS}-bit words")
+    needed = correlator_widths(ph, pw, DEPTH_BITS).accumulator.bits
+    if info.value_bits < needed:
+        raise DeviceError(f"the device's sums are {info.value_bits} bits wide but a {ph} x {pw} patch of {DEPTH_BITS}-bit words "
+                          f"needs {needed}: its surface would wrap")
 
 
 class DeviceError(RuntimeError):
@@ -87,7 +117,8 @@ class CorrelatorDriver:
     Attributes
     ----------
     stats : dict
-        Counters: ``requests``, ``retries``, ``stale_replies``, ``tile_loads``, ``bytes_out``, ``bytes_in``.
+        Counters: ``requests``, ``retries``, ``stale_replies``, ``noise_replies`` (waits ended by bytes that formed
+        no reply), ``tile_loads``, ``bytes_out``, ``bytes_in``.
     """
 
     def __init__(self, transport, *, retries: int = 3):
@@ -100,9 +131,9 @@ class CorrelatorDriver:
         self._info: DeviceInfo | None = None
         self._tile: np.ndarray | None = None  # what the device's tile holds, as far as the host knows
         self._tile_origin: tuple[int, int] | None = None  # its place in the map being searched
-        self._tile_map: bytes | None = None  # that map's fingerprint
+        self._tile_map: object | None = None  # that map's fingerprint or key
         self._patch_key: bytes | None = None
-        self.stats = dict.fromkeys(("requests", "retries", "stale_replies", "tile_loads", "bytes_out", "bytes_in"), 0)
+        self.stats = dict.fromkeys(("requests", "retries", "stale_replies", "noise_replies", "tile_loads", "bytes_out", "bytes_in"), 0)
 
     # ---- the request/reply exchange -------------------------------------------------------------
 
@@ -111,15 +142,29 @@ class CorrelatorDriver:
         return self._seq
 
     def _await_reply(self, seq: int):
-        """The first frame echoing ``seq``, a ``"damaged"`` marker, or None after the timeout without a byte."""
-        deadline = time.monotonic() + self._transport.timeout_s
+        """The first frame echoing ``seq``, a ``"damaged"`` marker, or None when no reply can be expected any more.
+
+        A reply still arriving is not late: each read that brings bytes pushes the quiet deadline back
+        by the transport's timeout. But bytes alone never keep the wait open: a port on which another
+        instrument talks, line noise or a slow drip never forms the reply, so the wait ends (None) once
+        ``_REPLY_BUDGET_FRAMES`` of the largest frames have arrived without it, or after
+        ``_REPLY_BUDGET_TIMEOUTS`` timeouts in all (counted ``noise_replies``).
+        """
+        start = time.monotonic()
+        quiet_deadline = start + self._transport.timeout_s
+        hard_deadline = start + _REPLY_BUDGET_TIMEOUTS * self._transport.timeout_s
+        received = 0
         while True:
-            remaining = deadline - time.monotonic()
+            now = time.monotonic()
+            remaining = min(quiet_deadline, hard_deadline) - now
             if remaining <= 0:
+                if now >= hard_deadline and received:
+                    self.stats["noise_replies"] += 1
                 return None
             data = self._transport.read(65536, remaining)
             if data:  # a reply still arriving is not late
-                deadline = time.monotonic() + self._transport.timeout_s
+                quiet_deadline = time.monotonic() + self._transport.timeout_s
+            received += len(data)
             self.stats["bytes_in"] += len(data)
             frames = self._decoder.feed(data)
             if self._decoder.errors:
@@ -129,6 +174,9 @@ class CorrelatorDriver:
                 if frame.seq == seq:
                     return frame
                 self.stats["stale_replies"] += 1
+            if received > _REPLY_BUDGET_FRAMES * _LARGEST_FRAME:
+                self.stats["noise_replies"] += 1
+                return None
 
     def transact(self, command: Command, payload: bytes = b"") -> bytes:
         """Send one request and return its reply's payload, retrying as the module says.
@@ -173,10 +221,20 @@ class CorrelatorDriver:
     # ---- commands ------------------------------------------------------------------------------
 
     def identify(self) -> DeviceInfo:
-        """What the device is; checked against the protocol version this driver speaks."""
+        """What the device is; checked against the protocol version this driver speaks and against what it will be sent.
+
+        Raises
+        ------
+        DeviceError
+            Another protocol version; a tile, search area or patch of no node, or nested the wrong way
+            (patch within area within tile); depth words other than the 16 bits the host sends; sums
+            narrower than a full patch of such words needs (the device would wrap V and return a wrong
+            surface).
+        """
         info = DeviceInfo.decode(self.transact(Command.IDENTIFY))
         if info.version != PROTOCOL_VERSION:
             raise DeviceError(f"the device speaks protocol version {info.version}; this driver speaks {PROTOCOL_VERSION}")
+        _check_device_sizes(info)
         self._info = info
         return info
 
@@ -275,8 +333,12 @@ class CorrelatorDriver:
         return 0, 0
 
     def correlate(self, terrain: np.ndarray, patch: np.ndarray, mask: np.ndarray, mean_compensation: bool, *,
-                  area: Area, exclusion_radius: int = 1) -> Outcome:
+                  area: Area, exclusion_radius: int = 1, map_key: object | None = None) -> Outcome:
         """V over the in-map ``area`` of validated inputs, in pieces of the device's search area.
+
+        ``map_key`` names the map for a caller that holds it unchanged between calls (a resident
+        correlator): the tile is known to be still on the device without reading the map. Without it the
+        map is fingerprinted at each call.
 
         A patch smaller than the device's is padded with invalid nodes (V is unchanged); a search
         larger than the device's area is done in pieces, the tile reloaded only when a piece leaves
@@ -286,7 +348,7 @@ class CorrelatorDriver:
         (h, w), (dh, dw) = patch.shape, info.patch_shape
         if h > dh or w > dw:
             raise ValueError(f"the device correlates patches up to {dh} x {dw}, got {h} x {w}")
-        fingerprint = hashlib.blake2b(np.ascontiguousarray(terrain).data, digest_size=16).digest()
+        fingerprint = map_key if map_key is not None else hashlib.blake2b(np.ascontiguousarray(terrain).data, digest_size=16).digest()
         if self._tile_map != fingerprint:
             self._tile_origin, self._tile_map = None, fingerprint  # another map: a tile's place in it means nothing
         padded_patch = np.zeros((dh, dw), dtype=np.int16)

@@ -6,9 +6,13 @@ Bayesian estimation over a tow's records and a bathymetric grid, with the lay-ba
 reckoning as baselines on the same data; :func:`run_lost` runs the patent pipeline alone.
 """
 
+from .bank import ESTIMATORS, EstimatorBank, register_estimator
 from .estimator import Estimate, Estimator, Motion, Observation
+from .loop import layback_distance
 from .mapprep import PreparedMap
-from .pipeline import ESTIMATORS, FilterTrack, NavParameters, NavResult, layback_distance, navigate, run_lost
+from .parameters import NavParameters, navigation_parameters
+from .pipeline import navigate, run_lost
+from .results import FilterTrack, NavResult
 from .stages import (
     CrossTrackTracker,
     TrackFrame,
@@ -23,6 +27,9 @@ from .stages import (
 __all__ = [
     "ESTIMATORS",
     "Estimate",
+    "EstimatorBank",
+    "register_estimator",
+    "navigation_parameters",
     "Estimator",
     "FilterTrack",
     "Motion",

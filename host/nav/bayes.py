@@ -293,6 +293,7 @@ class BayesFilter:
     def _no_information(self, reason: str) -> None:
         self.counts[reason] += 1
         self._stage = "off_map"
+        self._trust.no_information()
 
     def _apply(self, log_likelihood: np.ndarray, *, terrain: bool, kind: str = "range") -> bool:
         """Multiply a likelihood in, gated by its NIS; counts and stages follow. True when it was used.
@@ -349,4 +350,5 @@ class BayesFilter:
         bias = self.depth_bias_m[0] if self._p.matching == "point" else float("nan")
         return Estimate(position=mean, covariance=cov, usable=self._trust.usable, stage=self._stage, nis=self._nis, rejected=self._rejected,
                         depth_bias_m=bias, velocity_bias_mps=tuple(self.velocity_bias_mps),
-                        velocity_bias_sigma_mps=tuple(self.velocity_bias_sigma_mps))
+                        velocity_bias_sigma_mps=tuple(self.velocity_bias_sigma_mps),
+                        reinitialized=self._trust.restart_cause if self._stage == "reinitialized" else "")

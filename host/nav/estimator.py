@@ -1,6 +1,6 @@
 """The interface every position estimator of the record loop follows, and the values that cross it.
 
-The record loop (:mod:`lost.host.nav.pipeline`) turns each record into a :class:`Motion` (what the
+The record loop (:mod:`lost.host.nav.loop`) turns each record into a :class:`Motion` (what the
 vehicle did since the previous record) and an :class:`Observation` (what it measured now), and hands
 both to each estimator in turn: ``predict(motion)`` then ``update(observation)``, then reads an
 :class:`Estimate`. The shape follows MB-System's TRN (``motionUpdate``, ``measUpdate``,
@@ -10,8 +10,9 @@ both to each estimator in turn: ``predict(motion)`` then ``update(observation)``
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass
-from typing import Protocol
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -81,7 +82,7 @@ class Observation:
         The last measured vehicle depth (for the slant range's vertical leg).
     slant_range_m : float
         Ship to vehicle: ray-traced from the USBL's travel time when the loop has a sound-speed profile,
-        else the record's straight-line ``slant_range_m`` (see :mod:`lost.host.nav.pipeline`).
+        else the record's straight-line ``slant_range_m`` (see :mod:`lost.host.nav.loop`).
     fix_position_m : (2,) array or None
         The USBL fix of the vehicle (east, north), metres; None without one.
     fix_covariance_m2 : (2, 2) array or None
@@ -125,6 +126,11 @@ class Estimate:
     velocity_bias_mps, velocity_bias_sigma_mps : (east, north)
         The velocity-bias estimate (the measured velocity less the true, m/s) and its 1-sigma; NaN for an
         estimator that does not estimate one.
+    stages : mapping
+        The estimator's own intermediate outputs at this record, by name (the patent pipeline's
+        ``predicted``, ``mle``, ``cat``, ...; see :data:`lost.host.nav.loop.PATENT_OUTPUTS`); empty for the filters.
+    reinitialized : str
+        At a re-initialization (stage ``reinitialized``), its cause (:data:`lost.host.nav.trust.RESTART_CAUSES`); else "".
     """
 
     position: np.ndarray
@@ -136,6 +142,8 @@ class Estimate:
     depth_bias_m: float = float("nan")
     velocity_bias_mps: tuple[float, float] = (float("nan"), float("nan"))
     velocity_bias_sigma_mps: tuple[float, float] = (float("nan"), float("nan"))
+    stages: Mapping[str, Any] = field(default_factory=dict)
+    reinitialized: str = ""
 
 
 class Estimator(Protocol):

@@ -36,6 +36,7 @@ import numpy as np
 from scipy import ndimage, signal
 
 from ..records import SonarPatch
+from .maperror import window_variance
 from .mapprep import PreparedMap
 
 __all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "map_error_estimate"]
@@ -140,10 +141,17 @@ class TerrainLikelihood:
         Standard deviation of a single ocean-depth measurement against the map, metres.
     backend : str
         Correlator backend for the Laplace form.
+    node_var_m2 : (H, W) array, optional
+        The map's error variance at each node (:func:`lost.host.nav.maperror.node_variance`). With it, a
+        placement's residual sigma is ``sqrt(depth_noise_m**2 + mean of node_var_m2 under the patch)``,
+        and the log-likelihood carries its normalization (``-n log sigma``) so that rough places, with
+        their larger sigma, are not favoured for the residuals they excuse. Without it, ``sigma_m`` everywhere.
+    depth_noise_m : float
+        The sonar's own 1-sigma per patch node, with ``node_var_m2``.
     """
 
     def __init__(self, prepared: PreparedMap, *, sigma_m: float, depth_sigma_m: float | None = None, form: str = "laplace",
-                 backend: str = "software") -> None:
+                 backend: str = "software", node_var_m2: np.ndarray | None = None, depth_noise_m: float = 0.0) -> None:
         if form not in LIKELIHOODS:
             raise ValueError(f"the likelihood form must be one of {LIKELIHOODS}, got {form!r}")
         if not (math.isfinite(sigma_m) and sigma_m > 0):
@@ -154,6 +162,19 @@ class TerrainLikelihood:
         self.depth_sigma_m = float(sigma_m if depth_sigma_m is None else depth_sigma_m)
         self.form = form
         self._backend = backend
+        if node_var_m2 is not None and np.shape(node_var_m2) != prepared.grid.shape:
+            raise ValueError(f"the map's error variance layer is {np.shape(node_var_m2)} but the map {prepared.grid.shape}")
+        self._node_var = node_var_m2
+        self._depth_noise_var = float(depth_noise_m) ** 2
+        self._window_sigma: dict[tuple[int, int], np.ndarray] = {}
+
+    def _placement_sigma(self, patch_shape: tuple[int, int], i0: int, i1: int, j0: int, j1: int) -> np.ndarray | float:
+        """The residual sigma at placements i0..i1 x j0..j1: per placement with the map's node errors, else ``sigma_m``."""
+        if self._node_var is None:
+            return self.sigma_m
+        if patch_shape not in self._window_sigma:
+            self._window_sigma[patch_shape] = np.sqrt(self._depth_noise_var + window_variance(self._node_var, patch_shape))
+        return self._window_sigma[patch_shape][i0 : i1 + 1, j0 : j1 + 1]
 
     def patch(self, x_m: np.ndarray, y_m: np.ndarray, patch: SonarPatch, *, weight: float = 1.0,
               sigma_scale: float = 1.0, spacing_m: float = 0.0) -> PatchLikelihood | None:
@@ -191,18 +212,20 @@ class TerrainLikelihood:
             shape = np.shape(x)
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
         residual, valid = self._residuals(words, mask, i0, i1, j0, j1)
+        sigma = self._placement_sigma((h, w), i0, i1, j0, j1)
+        per_node = residual  # mean |r| (metres, Laplace) or mean r**2 (Gaussian) at each placement
         if self.form == "laplace":
-            per_node = residual  # mean |r| (metres) at each placement
-            ell = -math.sqrt(2.0) * n * per_node / (self.sigma_m * sigma_scale)
-            expected = self.sigma_m / math.sqrt(2.0) * (n - 1) / n
+            ell = -math.sqrt(2.0) * n * per_node / (sigma * sigma_scale)
+            expected = sigma / math.sqrt(2.0) * (n - 1) / n
         else:
-            per_node = residual  # mean r**2
-            ell = -n * per_node / (2.0 * (self.sigma_m * sigma_scale) ** 2)
-            expected = self.sigma_m**2 * (n - 1) / n
+            ell = -n * per_node / (2.0 * (sigma * sigma_scale) ** 2)
+            expected = sigma**2 * (n - 1) / n
+        if self._node_var is not None:
+            ell = ell - n * np.log(sigma)  # the normalization, which varies between placements
         if not valid.any():
             shape = np.shape(x)
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
-        misfit = float(per_node[valid].min() / expected)
+        misfit = float(np.min((per_node / expected)[valid]))
         if self.form == "gaussian" and math.isfinite(misfit):
             misfit = math.sqrt(misfit)  # in residual units, like the Laplace form's
         ell = weight * ell
@@ -243,7 +266,7 @@ class TerrainLikelihood:
         per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
         if self.form == "gaussian":
             per_node = np.sqrt(per_node)
-        score = -per_node / self.sigma_m  # per valid node, in nominal residual units
+        score = -per_node / self._placement_sigma((h, w), i0, i1, j0, j1)  # per valid node, in nominal residual units
         ii, jj = np.meshgrid(np.arange(i0, i1 + 1) - ci, np.arange(j0, j1 + 1) - cj, indexing="ij")
         near = valid & (np.maximum(np.abs(ii), np.abs(jj)) * grid.node_m <= exclusion_m)
         far = valid & ~near

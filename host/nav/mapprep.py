@@ -16,8 +16,10 @@ from scipy import ndimage
 from lost import model
 from lost.model.correlator import DEPTH_MAX, DEPTH_MIN
 
-from ..correlator import Area, Correlation, correlation, valid_placements
+from ..correlator import Area, Correlation, valid_placements
+from ..correlator.resident import ResidentCorrelator
 from ..grid import Grid
+from .maperror import check_node_sigma
 
 __all__ = ["PreparedMap", "LSB_CANDIDATES_M"]
 
@@ -32,6 +34,9 @@ class PreparedMap:
     ----------
     grid : Grid
         The bathymetry; NaN nodes are holes.
+    node_sigma_m : (H, W) array, optional
+        The grid's per-node standard deviation, metres (an uncertainty layer, as gridding tools and BAG
+        files carry); taken from the grid's ``sigma_m`` when it has one. NaN only on holes.
     lsb_m : float or None
         Metres per depth word. None picks the finest of :data:`LSB_CANDIDATES_M` that holds the map's
         depth range in half the word range, leaving the other half for sonar patches that deviate
@@ -40,10 +45,11 @@ class PreparedMap:
     Raises
     ------
     ValueError
-        A grid with no valid node, or a depth range that no candidate step holds.
+        A grid with no valid node, a depth range that no candidate step holds, an uncertainty layer of
+        another shape than the grid, negative, or NaN where the grid has a depth.
     """
 
-    def __init__(self, *, grid: Grid, lsb_m: float | None = None) -> None:
+    def __init__(self, *, grid: Grid, lsb_m: float | None = None, node_sigma_m: np.ndarray | None = None) -> None:
         depth = grid.depth_m
         holes = np.isnan(depth)
         if holes.all():
@@ -68,10 +74,20 @@ class PreparedMap:
         self._words = model.quantize(depth, self._lsb_m, offset_m=self._offset_m)
         # Checked once: most maps have no hole, and then no placement needs the hole policy.
         self._holes_or_none = holes if holes.any() else None
+        self._residents: dict[str, ResidentCorrelator] = {}
+        # The grid's own uncertainty layer (a ``sigma_m`` of the grid, or given here): checked once.
+        layer = node_sigma_m if node_sigma_m is not None else getattr(grid, "sigma_m", None)
+        self._node_sigma = None if layer is None else check_node_sigma(layer, grid.depth_m)
+        self._last_patch: tuple[np.ndarray, bytes, tuple[np.ndarray, np.ndarray, int]] | None = None
 
     @property
     def grid(self) -> Grid:
         return self._grid
+
+    @property
+    def node_sigma_m(self) -> np.ndarray | None:
+        """The map's per-node survey standard deviation, metres, when the grid carries one (0 on holes)."""
+        return self._node_sigma
 
     @property
     def words(self) -> np.ndarray:
@@ -106,10 +122,17 @@ class PreparedMap:
     def correlation(self, words: np.ndarray, mask: np.ndarray, area: tuple[int, int, int, int], *, backend: str) -> Correlation:
         """The patch's correlation over ``area`` = (i0, j0, rows, cols) of the map's placements, the map's holes applied.
 
-        The whole map goes to the backend (a hardware backend keeps a tile of it resident), and the
-        valid placements come back with the surface: the hole policy is the correlator's, in one place.
+        Served by the map's resident correlator for ``backend`` (:class:`~lost.host.correlator.resident.ResidentCorrelator`):
+        a record's patch is correlated once over the union of the areas its callers ask for, and each
+        gets its slice, identical to a correlation of its own area.
         """
-        return correlation(self._words, words, mask=mask, area=area, holes=self._holes_or_none, backend=backend)
+        return self.resident(backend).correlation(words, mask, area)
+
+    def resident(self, backend: str) -> ResidentCorrelator:
+        """The resident correlator of this map on ``backend`` (made on first use)."""
+        if backend not in self._residents:
+            self._residents[backend] = ResidentCorrelator(self._words, holes=self._holes_or_none, backend=backend)
+        return self._residents[backend]
 
     def quantize_patch(self, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """A sonar patch in the map's words, with its valid mask.
@@ -123,6 +146,8 @@ class PreparedMap:
         mask : bool array, True where a beam is used.
         out_of_range : int, how many finite soundings were dropped for not fitting a word.
         """
+        if self._last_patch is not None and self._last_patch[0] is depth_m and self._last_patch[1] == depth_m.tobytes():
+            return self._last_patch[2]  # the same record's patch again: quantized once
         depth = np.asarray(depth_m, dtype=np.float64)
         finite = np.isfinite(depth)
         low_m = self._offset_m + DEPTH_MIN * self._lsb_m
@@ -130,4 +155,8 @@ class PreparedMap:
         fits = finite & (depth >= low_m) & (depth <= high_m)
         words = np.zeros(depth.shape, dtype=np.int16)
         words[fits] = model.quantize(depth[fits], self._lsb_m, offset_m=self._offset_m)
-        return words, fits, int((finite & ~fits).sum())
+        quantized = words, fits, int((finite & ~fits).sum())
+        if isinstance(depth_m, np.ndarray):
+            words.flags.writeable = fits.flags.writeable = False  # shared by the record's callers
+            self._last_patch = (depth_m, depth_m.tobytes(), quantized)
+        return quantized

@@ -11,7 +11,10 @@ One record at a time, as in the patent's Figure 6 (US 09/599,868):
   have no MLE; the estimate goes on by dead reckoning until the next one. So does a prediction that
   leaves the map (flagged ``off_map``). A search area that reaches past the map's edge is cut there
   and counted (``search_area_off_map``); a best fit on such a cut side may really lie beyond it, so it
-  is not taken as a fix (``patch_edge_match``, ``point_edge_match``).
+  is not taken as a fix (``patch_edge_match``, ``point_edge_match``). A patch whose best placement in
+  the area fits worse than ``misfit_gate`` times the residual that sonar noise and map error leave
+  (``hypot(depth_noise_m, map_error_m)``) fits nowhere there: no fix (``patch_misfit``); where the
+  area was cut by the map's edge, it was sounded beyond the map (``off_map``).
 - CAT (eqs. 4-7) at each MLE, with dt the time since its previous update; along track the MLE.
 - SRC (eq. 8) whenever a slant range is measured and passes the gate (ray-traced from the USBL's travel
   time when the record loop has a sound-speed profile).
@@ -34,6 +37,7 @@ import numpy as np
 
 from ..records import SonarPatch
 from .estimator import Estimate, Motion, Observation
+from .likelihood import map_error_estimate
 from .mapprep import PreparedMap
 from .stages import patch_likelihood, point_likelihood, refine_minimum, slant_range_correct, state_update
 
@@ -51,6 +55,10 @@ class _Matcher:
         self._half_nodes = int(math.ceil(params.search_half_width_m / self._grid.node_m))
         self.distinctness = float("nan")  # of the last patch match: runner-up V over best V
         self.clipped_edges = (False, False, False, False)
+        self.misfit = float("nan")  # of the last patch: its best mean |residual| in the area over the expected
+        self.beyond_map = False  # the last patch fit nowhere in an area the map's edge cut: sounded off the map
+        map_error = params.map_error_m if params.map_error_m is not None else map_error_estimate(self._grid.depth_m)
+        self._residual_sigma_m = math.hypot(params.depth_noise_m, map_error)
 
     def _window(self, centre_row: float, centre_col: float, rows: int, cols: int) -> tuple[int, int, int, int] | None:
         """Inclusive index ranges of the search area around a (fractional) node, clipped to [0, rows/cols).
@@ -74,7 +82,8 @@ class _Matcher:
         return (low_r and i == 0) or (high_r and i == rows - 1) or (low_c and j == 0) or (high_c and j == cols - 1)
 
     def patch(self, predicted: np.ndarray, sonar: SonarPatch) -> np.ndarray | None:
-        self.distinctness = float("nan")
+        self.distinctness = self.misfit = float("nan")
+        self.beyond_map = False
         grid = self._grid
         if not math.isclose(sonar.node_m, grid.node_m, rel_tol=1e-9):
             raise ValueError(f"the sonar patch has {sonar.node_m} m nodes but the map {grid.node_m} m; grid the patch on the map's nodes")
@@ -99,6 +108,15 @@ class _Matcher:
         i0, i1, j0, j1 = area
         result = self._prep.correlation(words, mask, (i0, j0, i1 - i0 + 1, j1 - j0 + 1), backend=self._params.backend)
         surface = np.where(result.valid, result.surface, -1)
+        if result.best is not None:
+            # The best mean |residual| anywhere in the area, over what noise and map error leave at the true place.
+            expected = self._residual_sigma_m / math.sqrt(2.0) * (valid - 1) / valid
+            self.misfit = result.best.value * self._prep.lsb_m / valid**2 / max(expected, 1e-12)
+            if self.misfit > self._params.misfit_gate:
+                self._counts["patch_misfit"] += 1
+                # Near the map's edge a patch that fits nowhere on the map was sounded beyond it.
+                self.beyond_map = any(self.clipped_edges)
+                return None
         x, y = grid.xy(np.arange(i0, i1 + 1)[:, None] + (h - 1) / 2, np.arange(j0, j1 + 1)[None, :] + (w - 1) / 2)
         value = patch_likelihood(centre[0] - x, centre[1] - y, surface, valid_nodes=valid, lsb_m=self._prep.lsb_m, k=self._params.k)
         if not np.isfinite(value).any():
@@ -138,9 +156,9 @@ class _Matcher:
 
 
 class PatentEstimator:
-    """The patent pipeline behind the estimator interface; its per-record stage outputs in ``last``.
+    """The patent pipeline behind the estimator interface; its per-record stage outputs in ``Estimate.stages``.
 
-    ``last`` holds, after each record: ``predicted``, ``mle`` (or None), ``distinctness``, ``cat`` (or
+    After each record they are: ``predicted``, ``mle`` (or None), ``distinctness``, ``cat`` (or
     None), ``cross_velocity_mps``, ``slant_corrected`` and ``off_map``.
     """
 
@@ -189,6 +207,9 @@ class PatentEstimator:
                 self.last["distinctness"] = self._matcher.distinctness
                 if found is None:
                     counts["patch_no_estimate"] += 1
+                if self._matcher.beyond_map:
+                    self.last["off_map"] = True
+                    counts["off_map"] += 1
         elif np.isfinite(observation.ocean_depth_m):
             found = self._matcher.point(predicted, observation.ocean_depth_m)
         else:
@@ -270,4 +291,5 @@ class PatentEstimator:
 
     def estimate(self) -> Estimate:
         usable = self._t - self._last_update_t <= self._p.cat_restart_s and self._stage != "initialization"
-        return Estimate(position=self._position.copy(), covariance=np.full((2, 2), np.nan), usable=bool(usable), stage=self._stage)
+        return Estimate(position=self._position.copy(), covariance=np.full((2, 2), np.nan), usable=bool(usable), stage=self._stage,
+                        stages=dict(self.last))

@@ -1,7 +1,7 @@
 """What makes a Bayesian filter's estimate trustworthy: error growth, tempering, gating, the usable flag, recovery.
 
 These rules are shared by the point-mass and the particle filter, and kept as named parameters of
-:class:`~lost.host.nav.pipeline.NavParameters`, as MB-System's TRN keeps its reinitialization rules.
+:class:`~lost.host.nav.parameters.NavParameters`, as MB-System's TRN keeps its reinitialization rules.
 
 - Error growth (Nygren section 6): between terrain updates the position error grows by the velocity
   noise of each step and by the INS error model of eqs. 6.1-6.2 over the time since the last update
@@ -40,6 +40,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   candidates beside it on the map all fit it a little worse than the truth would; so while the
   density is narrow (under twice the usable width) and less than ``EDGE_MASS`` of it lies where the
   patch is wholly on the map, the patch is left out (``patch_at_map_edge``) and the filter dead-reckons.
+  Off the map or at its edge, the filter is no longer usable once it has had neither a terrain update
+  nor a position fix for ``off_map_usable_s`` (``unusable_off_map``): dead reckoning is not a terrain fix.
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
@@ -54,12 +56,19 @@ from collections import Counter, deque
 
 import numpy as np
 
-__all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "ins_position_sigma", "nis", "moments", "Trust"]
+__all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "RESTART_CAUSES", "ins_position_sigma", "nis", "moments", "Trust"]
 
 #: Accepted patches whose misfits set the running residual level.
 MISFIT_MEMORY = 50
 #: A narrow density with less than this share on the map straddles its edge.
 EDGE_MASS = 0.9
+
+#: Why a filter re-initialized (``Estimate.reinitialized``), by the count that names it.
+RESTART_CAUSES = {
+    None: "updates_refused",                            # reinit_after of the last 2 reinit_after terrain updates refused
+    "reinitialized_elsewhere": "fits_better_elsewhere",  # the patches fit better far from the estimate
+    "reinitialized_by_ranges": "ranges_refused",        # 2 reinit_after slant ranges refused in a row
+}
 
 #: Nygren section 6.1.
 SCHULER_PERIOD_S = 84.4 * 60.0
@@ -130,6 +139,7 @@ class Trust:
         self._misfits: deque[float] = deque(maxlen=MISFIT_MEMORY)
         self.misfit_level = 1.0
         self.settled = False
+        self.restart_cause = ""  # the last re-initialization's, one of RESTART_CAUSES' values
 
     def misfit_refused(self, misfit: float) -> bool:
         """Whether a patch's misfit is too large for the running residual level."""
@@ -155,6 +165,14 @@ class Trust:
     def patch_weight(self, patch_length_m: float) -> float:
         """Tempering weight of the next patch: the share of it that is new, times ``likelihood_weight``."""
         return self._p.likelihood_weight * min(1.0, self.travelled_m / patch_length_m)
+
+    def no_information(self) -> None:
+        """A record whose terrain said nothing (off the map, at its edge): the flag drops after ``off_map_usable_s``
+        without a terrain update or a position fix."""
+        if self.usable and self.since_update_s > self._p.off_map_usable_s:
+            self.usable = False
+            self.good_in_row = 0
+            self.counts["unusable_off_map"] += 1
 
     def position_fixed(self) -> None:
         """A position fix (a USBL fix) was used: the INS error model's growth restarts from it.
@@ -246,6 +264,7 @@ class Trust:
         self.counts["reinitializations"] += 1
         if reason:
             self.counts[reason] += 1
+        self.restart_cause = RESTART_CAUSES[reason]
 
     def rejected(self, reason: str) -> bool:
         """A terrain update was refused; True when the filter should re-initialize now."""

@@ -2,8 +2,9 @@
 
 One concept per module: ``geometry`` (the sector and its frames), ``detections`` (the CSV layout),
 ``particle`` (Guilmain & Sharma's filter, exactly), ``cluster`` (EM over the cloud), ``kalman`` (one
-contact's EKF with PDA), ``tracker`` (birth, confirmation, deletion, classes), ``simulate`` (divers in
-clutter, TOML scenarios), ``evaluate`` and ``baseline`` (Stone Soup's metrics and GM-PHD), ``run``,
+contact's EKF and its PDA update), ``association`` (joint integrated PDA: association and existence),
+``tracker`` (birth, confirmation and deletion by existence, classes), ``simulate`` (divers in
+clutter, TOML scenarios), ``evaluate`` and ``baseline`` (Stone Soup's metrics, its GM-PHD and JPDA), ``run``,
 ``output``, ``plots`` and ``cli`` (the ``lost track`` command). See docs/track.md.
 """
 

@@ -60,6 +60,8 @@ DETECTION_COLUMNS = ("ping", "t_s", *_POSITIONS[0], *_POSITIONS[1], "heading_deg
 #: The columns write_detections writes (metric positions).
 WRITTEN_COLUMNS = ("ping", "t_s", *_POSITIONS[0], "heading_deg", "range_m", "bearing_deg", *_OPTIONAL)
 _PER_PING = ("t_s", "x", "y", "heading_deg")
+#: The unit checks judge logs of at least this many detections (fewer cannot tell a unit from a narrow scene).
+UNIT_CHECK_MIN = 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,6 +219,25 @@ class _PingBuilder:
         return Ping(self.index, v["t_s"], (v["x"], v["y"]), v["heading_deg"], rows[:, 0], rows[:, 1], rows[:, 2])
 
 
+def _check_units(pings: Sequence[Ping], sonar: Sonar, path: Path) -> None:
+    """Refuse bearings in radians and ranges in kilometres (module docstring, Units)."""
+    bearings = np.concatenate([p.bearing_deg for p in pings])
+    ranges = np.concatenate([p.range_m for p in pings])
+    if bearings.size < UNIT_CHECK_MIN:
+        return
+    half_fov_rad = math.radians(sonar.half_fov_deg)
+    if np.max(np.abs(bearings)) <= half_fov_rad:
+        raise ValueError(
+            f"{path}: bearing_deg: all {bearings.size} bearings lie within +/-{half_fov_rad:.3g}, the sonar's +/-{sonar.half_fov_deg:g} deg "
+            "in radians: are the bearings in radians? give degrees (or, for a sector truly that narrow, its half field of view)"
+        )
+    if np.max(ranges) <= sonar.max_range_m / 1000.0:
+        raise ValueError(
+            f"{path}: range_m: all {ranges.size} ranges lie within {sonar.max_range_m / 1000.0:g}, the sonar's {sonar.max_range_m:g} m "
+            "in kilometres: are the ranges in kilometres? give metres (or, for a sonar truly that short, its maximum range)"
+        )
+
+
 def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None, crs: str | None = None) -> tuple[list[Ping], DetectionReport]:
     """Read a detection log (layout in the module docstring) into pings and a report.
 
@@ -240,7 +261,8 @@ def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None, crs:
     Raises
     ------
     ValueError
-        On a missing column, a bad cell, or pings out of order (see the module docstring).
+        On a missing column, a bad cell, pings out of order, or bearings in radians or ranges in kilometres
+        (see the module docstring).
     FileNotFoundError
         When the file does not exist.
     """
@@ -299,6 +321,7 @@ def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None, crs:
         pings.append(current.build())
     if not pings:
         raise ValueError(f"{path} holds a header but no ping")
+    _check_units(pings, sonar, path)
     projected_to = ""
     if geographic:
         pings, projected_to = _project(pings, crs, path)

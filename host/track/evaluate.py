@@ -10,6 +10,16 @@
   contact at each ping.
 - A false track is a reported identity that spent most of its reported life farther than ``cutoff_m`` from
   every target in the sector.
+- GOSPA per ping (:attr:`Score.gospa_per_ping`), so a mean and a percentile can be taken over the pings that
+  hold a contact rather than over a diver-free hour of zeros.
+
+Holding (:func:`holding`), the yardstick fair to every tracker, whatever its lock or confirmation rule: at
+each ping the reported contacts are assigned one to one to the targets in the sector (Hungarian, on the
+distance), an assignment within ``radius_m`` (25 m) *holding* that target. From it (:func:`contact_metrics`):
+a target's *coverage* (share of its in-sector pings held), its *first lock* (in-sector pings until it is
+first held, 1-based), its *identity switches* (changes of the identity holding it from one held ping to
+the next), and the share of pings at which every target in the sector is held at once (two divers, two
+tracks: one track between them holds only one).
 """
 
 from __future__ import annotations
@@ -25,7 +35,7 @@ from .estimates import Estimate
 from .metrics import LOCK_RADIUS_M, pings_to_lock
 from .simulate import Truth
 
-__all__ = ["Score", "score", "GOSPA_CUTOFF_M", "GOSPA_ORDER"]
+__all__ = ["Score", "score", "holding", "contact_metrics", "GOSPA_CUTOFF_M", "GOSPA_ORDER"]
 
 #: GOSPA's cutoff: a contact farther than this from a target is a miss and a false one (half the cutoff each, alpha = 2).
 GOSPA_CUTOFF_M = 50.0
@@ -47,6 +57,7 @@ class Score:
     gospa_false_mean: float  # the three parts are GOSPA's own (metres^p; missed and false cost cutoff^p / 2 each)
     ospa_mean: float
     siap: dict[str, float] = field(default_factory=dict)
+    gospa_per_ping: list[float] = field(default_factory=list, repr=False)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -139,4 +150,44 @@ def score(history: Sequence[Sequence[Estimate]], truth: Truth, *, cutoff_m: floa
         gospa_mean=float(parts[:, 0].mean()), gospa_localisation_mean=float(parts[:, 1].mean()),
         gospa_missed_mean=float(parts[:, 2].mean()), gospa_false_mean=float(parts[:, 3].mean()),
         ospa_mean=float(ospa_values.mean()), siap=_siap(history, truth, stamps) if siap else {},
+        gospa_per_ping=parts[:, 0].tolist(),
     )
+
+
+def holding(history: Sequence[Sequence[Estimate]], truth: Truth, *, radius_m: float = LOCK_RADIUS_M) -> np.ndarray:
+    """The identity holding each target at each ping, (pings, targets), -1 where none (module docstring)."""
+    from scipy.optimize import linear_sum_assignment
+
+    held = np.full(truth.in_sector.shape, -1)
+    for i, estimates in enumerate(history):
+        seen = np.flatnonzero(truth.in_sector[i])
+        if not estimates or not seen.size:
+            continue
+        xy = np.array([e.xy for e in estimates])
+        d = np.hypot(*(xy[:, None, :] - truth.xy[i, seen][None, :, :]).transpose(2, 0, 1))
+        rows, cols = linear_sum_assignment(np.where(d <= radius_m, d, 1e9))
+        for r, c in zip(rows, cols):
+            if d[r, c] <= radius_m:
+                held[i, seen[c]] = estimates[r].track_id
+    return held
+
+
+def contact_metrics(history: Sequence[Sequence[Estimate]], truth: Truth, *, radius_m: float = LOCK_RADIUS_M, after: int = 0) -> dict:
+    """Coverage, first lock and identity switches per target, and the share of pings all targets are held at once.
+
+    ``after`` leaves out each target's first so many in-sector pings from the coverage and the all-held share.
+    """
+    held = holding(history, truth, radius_m=radius_m)
+    coverage, first_lock, switches = [], [], []
+    judged_all = np.zeros(len(history), dtype=bool)
+    for k in range(truth.xy.shape[1]):
+        inside = np.flatnonzero(truth.in_sector[:, k])
+        ids = held[inside, k]
+        hit = np.flatnonzero(ids >= 0)
+        first_lock.append(int(hit[0]) + 1 if hit.size else None)
+        coverage.append(float(np.mean(ids[after:] >= 0)) if ids[after:].size else None)
+        switches.append(int(np.count_nonzero(np.diff(ids[hit]))))
+        judged_all[inside[after:]] = True
+    all_in = truth.in_sector.all(axis=1) & judged_all
+    together = float(np.mean((held[all_in] >= 0).all(axis=1))) if all_in.any() else None
+    return {"coverage": coverage, "first_lock": first_lock, "identity_switches": switches, "all_held": together}

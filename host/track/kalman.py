@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["GATE_CHI2", "ContactState", "predict", "measurement", "pda_update"]
+__all__ = ["GATE_CHI2", "ContactState", "Innovations", "predict", "measurement", "innovations", "pda_combine", "pda_update"]
 
 #: 99 % gate of a 2-D innovation (chi-square, 2 degrees of freedom).
 GATE_CHI2 = 9.21
@@ -69,6 +69,53 @@ class Association:
     distance2: np.ndarray  # squared Mahalanobis distance of every detection from the prediction
 
 
+@dataclass(frozen=True)
+class Innovations:
+    """A track's predicted measurement against a ping's detections: Jacobian, innovation covariance, residuals."""
+
+    H: np.ndarray  # (2, 4)
+    S: np.ndarray  # (2, 2)
+    nu: np.ndarray  # (n, 2): range m, bearing rad (wrapped)
+    distance2: np.ndarray  # (n,) squared Mahalanobis distance
+
+    @property
+    def gated(self) -> np.ndarray:
+        """Which detections lie in the 99 % gate."""
+        return self.distance2 < GATE_CHI2
+
+    @property
+    def density(self) -> np.ndarray:
+        """Gaussian density of each detection about the prediction, per metre-radian."""
+        return np.exp(-0.5 * self.distance2) / (2 * np.pi * np.sqrt(np.linalg.det(self.S)))
+
+
+def innovations(state: ContactState, z: np.ndarray, R: np.ndarray, platform_xy: np.ndarray, heading_deg: float) -> Innovations:
+    """The residuals of detections ``z`` (n, 2: range m, bearing rad) about ``state``'s predicted measurement."""
+    z_hat, H = measurement(state.x, platform_xy, heading_deg)
+    S = H @ state.P @ H.T + R
+    nu = z - z_hat
+    nu[:, 1] = (nu[:, 1] + np.pi) % (2 * np.pi) - np.pi
+    d2 = np.einsum("ni,ij,nj->n", nu, np.linalg.inv(S), nu)
+    return Innovations(H, S, nu, d2)
+
+
+def pda_combine(state: ContactState, inn: Innovations, beta: np.ndarray, beta_none: float) -> ContactState:
+    """The PDA update of ``state`` with association probabilities ``beta`` (one per detection) and ``beta_none``.
+
+    The mean moves by the gain times the probability-weighted innovation; the covariance is the missed
+    case's and the updated one's, mixed, plus the spread of the innovations (Bar-Shalom, Daum & Huang 2009).
+    """
+    used = np.flatnonzero(beta > 0)
+    if used.size == 0:
+        return state
+    K = state.P @ inn.H.T @ np.linalg.inv(inn.S)
+    nu, b = inn.nu[used], beta[used]
+    combined = b @ nu
+    spread = (nu * b[:, None]).T @ nu - np.outer(combined, combined)
+    P = state.P - (1 - beta_none) * K @ inn.S @ K.T + K @ spread @ K.T
+    return ContactState(state.x + K @ combined, 0.5 * (P + P.T))
+
+
 def pda_update(state: ContactState, z: np.ndarray, R: np.ndarray, platform_xy: np.ndarray, heading_deg: float,
                *, pd: float, clutter_density: float) -> tuple[ContactState, Association]:
     """Probabilistic data association of a ping's detections ``z`` (n, 2: range m, bearing rad) to one contact.
@@ -76,23 +123,14 @@ def pda_update(state: ContactState, z: np.ndarray, R: np.ndarray, platform_xy: n
     ``clutter_density`` is false alarms per metre-radian of range-bearing space; ``pd`` the probability the
     contact is detected at this ping (0 outside the sector).
     """
-    z_hat, H = measurement(state.x, platform_xy, heading_deg)
-    S = H @ state.P @ H.T + R
-    S_inv = np.linalg.inv(S)
-    nu = z - z_hat
-    nu[:, 1] = (nu[:, 1] + np.pi) % (2 * np.pi) - np.pi
-    d2 = np.einsum("ni,ij,nj->n", nu, S_inv, nu)
-    gated = np.flatnonzero(d2 < GATE_CHI2)
+    inn = innovations(state, z, R, platform_xy, heading_deg)
+    gated = np.flatnonzero(inn.gated)
     if gated.size == 0 or pd == 0:
-        return state, Association(np.empty(0, int), np.empty(0), 1.0, d2)
-    likelihood = np.exp(-0.5 * d2[gated]) / (2 * np.pi * np.sqrt(np.linalg.det(S)))
-    ratio = pd * likelihood / max(clutter_density, 1e-300)
+        return state, Association(np.empty(0, int), np.empty(0), 1.0, inn.distance2)
+    ratio = pd * inn.density[gated] / max(clutter_density, 1e-300)
     none = 1.0 - pd * GATE_PROBABILITY
     total = none + ratio.sum()
-    beta, beta_none = ratio / total, none / total
-    K = state.P @ H.T @ S_inv
-    nu_g = nu[gated]
-    combined = beta @ nu_g
-    spread = (nu_g * beta[:, None]).T @ nu_g - np.outer(combined, combined)
-    P = state.P - (1 - beta_none) * K @ S @ K.T + K @ spread @ K.T
-    return ContactState(state.x + K @ combined, 0.5 * (P + P.T)), Association(gated, beta, float(beta_none), d2)
+    beta = np.zeros(z.shape[0])
+    beta[gated] = ratio / total
+    updated = pda_combine(state, inn, beta, none / total)
+    return updated, Association(gated, beta[gated], float(none / total), inn.distance2)

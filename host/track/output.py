@@ -18,7 +18,7 @@ from .tracker import TrackReport
 
 __all__ = ["TRACK_COLUMNS", "write_tracks_csv", "track_table", "atomic_write"]
 
-TRACK_COLUMNS = ("ping", "t_s", "track_id", "status", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "speed_mps",
+TRACK_COLUMNS = ("ping", "t_s", "track_id", "status", "existence", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "speed_mps",
                  "heading_deg", "range_m", "bearing_deg", "class", "cpa_m", "t_cpa_s", "time_to_reach_s")
 
 
@@ -43,14 +43,14 @@ def _cell(value: float) -> str:
 
 
 def write_tracks_csv(path: Path, reports: Sequence[Sequence[TrackReport]]) -> Path:
-    """One row per ping and live track (tentative ones marked so); empty cells where a figure is undefined
+    """One row per ping and live track (status tentative, confirmed, or outside the sector; its existence probability); empty cells where a figure is undefined
     (``time_to_reach_s`` when the track passes wide of the sonar)."""
     def write(handle) -> None:
         writer = csv.writer(handle)
         writer.writerow(TRACK_COLUMNS)
         for ping in reports:
             for r in ping:
-                writer.writerow([r.ping, _cell(r.t_s), r.track_id, r.status, *(_cell(v) for v in (
+                writer.writerow([r.ping, _cell(r.t_s), r.track_id, r.status, f"{r.existence:.6f}", *(_cell(v) for v in (
                     r.x_m, r.y_m, r.vx_mps, r.vy_mps, r.sd_x_m, r.sd_y_m, r.speed_mps, r.heading_deg, r.range_m, r.bearing_deg)),
                     r.classification, _cell(r.cpa_m), _cell(r.t_cpa_s), _cell(r.time_to_reach_s)])
     return atomic_write(path, write)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,12 +29,15 @@ class TrackerRun:
         Wall time of each ping's step, milliseconds.
     tracks_born : int
         Tentative tracks started over the run.
+    step_cpu_ms : ndarray
+        CPU time of each ping's step (this thread's), milliseconds: the step's cost when the machine is shared.
     """
 
     reports: list[list[TrackReport]]
     clouds: list[np.ndarray]
     step_ms: np.ndarray
     tracks_born: int
+    step_cpu_ms: np.ndarray = field(default_factory=lambda: np.empty(0))
 
     @property
     def estimates(self) -> list[list[Estimate]]:
@@ -54,4 +57,4 @@ def run_tracker(pings: Sequence[Ping], *, sonar: Sonar, parameters: TrackerParam
     for ping in (progress or iter)(pings):
         reports.append(tracker.step(ping))
         clouds.append(tracker.cloud_sample(cloud_points).astype(np.float32) if cloud_points else np.empty((0, 2), np.float32))
-    return TrackerRun(reports, clouds, np.array(tracker.step_ms), tracker.tracks_born)
+    return TrackerRun(reports, clouds, np.array(tracker.step_ms), tracker.tracks_born, np.array(tracker.step_cpu_ms))

@@ -31,17 +31,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import Field
 
-from ..config import build, read_toml
+from ..config import ConfigError, NonNegativeFloat, NonNegativeInt, PositiveFloat, build, read_toml, validate_fields
 from ..shipped import shipped_names, shipped_path
 from .detections import Ping
 from .geometry import Sonar, polar_to_world, world_to_polar
 
 __all__ = ["SonarModel", "PlatformSpec", "TargetSpec", "TrackScenario", "Truth", "Simulation",
-           "load_scenario", "simulate", "builtin_scenarios", "builtin_scenario_path", "TARGET_KINDS"]
+           "load_scenario", "simulate", "builtin_scenarios", "builtin_scenario_path", "TARGET_KINDS",
+           "check_size", "MAX_SCENARIO_BYTES"]
 
 #: Truth labels of simulated targets (the tracker's classes, plus what a scenario means by them).
 TARGET_KINDS = ("diver", "drifting", "animal")
@@ -55,11 +57,11 @@ class SonarModel:
     sector; 5 per ping (Poisson mean) is our reading, with ``pd = 0.9``. Measurement noise 2 m and 1.5 degrees.
     """
 
-    max_range_m: float = 500.0
-    half_fov_deg: float = 45.0
-    ping_interval_s: float = 1.3
-    range_sigma_m: float = 2.0
-    bearing_sigma_deg: float = 1.5
+    max_range_m: PositiveFloat = 500.0
+    half_fov_deg: Annotated[float, Field(gt=0, le=180)] = 45.0
+    ping_interval_s: PositiveFloat = 1.3
+    range_sigma_m: NonNegativeFloat = 2.0
+    bearing_sigma_deg: NonNegativeFloat = 1.5
     pd: float = 0.9
     clutter_per_ping: float = 5.0
 
@@ -83,7 +85,7 @@ class PlatformSpec:
     speed_mps: float = 0.0
     turn_rate_dps: float = 0.0
     yaw_amplitude_deg: float = 0.0
-    yaw_period_s: float = 120.0
+    yaw_period_s: PositiveFloat = 120.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,12 +95,12 @@ class TargetSpec:
     to end_s (default: the whole run)."""
 
     kind: str = "diver"
-    start_range_m: float = 450.0
+    start_range_m: NonNegativeFloat = 450.0
     start_bearing_deg: float = 0.0
     speed_mps: float = 0.6
     course_deg: float | None = None
     accel_sigma: float = 0.005
-    start_s: float = 0.0
+    start_s: NonNegativeFloat = 0.0
     end_s: float | None = None
 
     def __post_init__(self) -> None:
@@ -114,8 +116,8 @@ class TrackScenario:
 
     name: str = "scenario"
     description: str = ""
-    seed: int = 0
-    duration_s: float = 300.0
+    seed: NonNegativeInt = 0
+    duration_s: PositiveFloat = 300.0
     sonar: SonarModel = field(default_factory=SonarModel)
     platform: PlatformSpec = field(default_factory=PlatformSpec)
     targets: tuple[TargetSpec, ...] = ()
@@ -144,29 +146,68 @@ class Simulation:
     false_alarms: int
 
 
+#: A scenario needing more memory than this (pings, their detections, the truth) is refused before it is simulated.
+MAX_SCENARIO_BYTES = 2e9
+#: Memory of one simulated ping beyond its detections (the Ping object and its arrays), and of one detection, bytes.
+_PING_BYTES, _DETECTION_BYTES = 600, 24
+
+
+def check_size(scenario: TrackScenario) -> None:
+    """Refuse a scenario no machine can hold before any of it is allocated (its pings from duration_s and ping_interval_s)."""
+    pings = scenario.duration_s / scenario.sonar.ping_interval_s + 1
+    per_ping = _PING_BYTES + _DETECTION_BYTES * (scenario.sonar.clutter_per_ping + len(scenario.targets)) + 64 * len(scenario.targets)
+    needed = pings * per_ping
+    if needed > MAX_SCENARIO_BYTES:
+        raise ConfigError(
+            f"this tracking scenario would need about {needed / 1e9:,.1f} GB of memory ({pings:,.0f} pings from duration_s = "
+            f"{scenario.duration_s:g} s and sonar.ping_interval_s = {scenario.sonar.ping_interval_s:g} s); the limit is "
+            f"{MAX_SCENARIO_BYTES / 1e9:g} GB: lower duration_s or run it in parts"
+        )
+
+
+_TOP_LEVEL = ("name", "description", "seed", "duration_s")
+_TABLES = {"sonar": SonarModel, "platform": PlatformSpec}
+
+
 def load_scenario(path: str | Path) -> TrackScenario:
-    """Read and validate a tracking scenario file.
+    """Read and validate a tracking scenario file (strict types, unknown fields refused, its size checked).
 
     Raises
     ------
-    ValueError
-        Invalid TOML, an unknown table or field, or a value out of range.
+    ConfigError
+        Invalid TOML, an unknown table or field, a value of the wrong type or out of range (named by its
+        path and unit, prefixed with the file's name), or a scenario too large to simulate.
     """
     path = Path(path)
     data = read_toml(path, "tracking scenario file")
-    top = {"name", "description", "seed", "duration_s", "sonar", "platform", "target", "tracker"}
+    top = {*_TOP_LEVEL, *_TABLES, "target", "tracker"}
     unknown = sorted(set(data) - top)
     if unknown:
-        raise ValueError(f"{path} has unknown top-level field(s) {unknown}; known ones are {sorted(top)}.")
-    kwargs: dict[str, Any] = {key: data[key] for key in ("name", "description", "seed", "duration_s") if key in data}
-    kwargs.setdefault("name", path.stem)
-    if "sonar" in data:
-        kwargs["sonar"] = build(SonarModel, data["sonar"], "sonar")
-    if "platform" in data:
-        kwargs["platform"] = build(PlatformSpec, data["platform"], "platform")
-    kwargs["targets"] = tuple(build(TargetSpec, t, f"target {n}") for n, t in enumerate(data.get("target", [])))
-    kwargs["tracker"] = dict(data.get("tracker", {}))
-    return TrackScenario(**kwargs)
+        raise ConfigError(f"{path.name} has unknown top-level field(s) {unknown}; known ones are {sorted(top)}.")
+    try:
+        kwargs: dict[str, Any] = validate_fields(TrackScenario, {key: data[key] for key in _TOP_LEVEL if key in data}, "")
+        for key, cls in _TABLES.items():
+            if key in data:
+                kwargs[key] = build(cls, data[key], key)
+        targets = data.get("target", [])
+        if not isinstance(targets, list):
+            raise ConfigError(f"target must be an array of tables ([[target]]), got {targets!r}")
+        kwargs["targets"] = tuple(build(TargetSpec, t, f"target.{n}") for n, t in enumerate(targets))
+        kwargs["tracker"] = _tracker_table(data.get("tracker", {}))
+        kwargs.setdefault("name", path.stem)
+        scenario = TrackScenario(**kwargs)
+        check_size(scenario)
+    except ValueError as error:
+        raise ConfigError(f"{path.name}: {error}") from None
+    return scenario
+
+
+def _tracker_table(table: Any) -> dict:
+    """``[tracker]``: overrides of TrackerParameters, checked here by the same strict schema the tracker is built with."""
+    from .tracker import TrackerParameters
+
+    validate_fields(TrackerParameters, table, "tracker")
+    return dict(table)
 
 
 def builtin_scenarios() -> list[str]:
@@ -215,6 +256,7 @@ def _target_paths(scenario: TrackScenario, t: np.ndarray, platform_xy: np.ndarra
 
 def simulate(scenario: TrackScenario) -> Simulation:
     """Run a scenario: every ping's detections (targets and clutter) and the truth, from its seed alone."""
+    check_size(scenario)
     rng = np.random.default_rng(scenario.seed)
     model, sonar = scenario.sonar, scenario.sonar.sonar
     t = np.arange(0.0, scenario.duration_s + 1e-9, model.ping_interval_s)

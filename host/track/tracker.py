@@ -2,10 +2,13 @@
 
 Each ping, in order:
 
-1. Every track is predicted to the ping (nearly constant velocity) and updated by probabilistic data
-   association with the detections in its gate (:mod:`.kalman`): clutter and ``pd < 1`` are in the filter.
-   A detection within ``claim_chi2`` (squared Mahalanobis distance, wider than the 99 % gate) of any
-   track's prediction is *claimed*.
+1. Every track is predicted to the ping (nearly constant velocity), its probability of existence ``r`` with
+   it (a contact stays with probability ``exp(-dt / track_lifetime_s)``). The tracks are then updated
+   together by joint integrated probabilistic data association (:mod:`.association`): for the tracks
+   whose gates share detections every joint assignment is weighed, so one detection never feeds two
+   tracks, and each track's existence follows from the detection probability ``pd`` (0 outside the
+   sector) and the Poisson clutter density. The probability that a detection is some track's is its
+   *claim*; a detection claimed with at least ``claim_probability`` is spared to the search cloud.
 2. The search cloud, the paper's filter (:class:`~.particle.DiverParticleFilter`) with the Poisson-clutter
    floor, steps on the *unclaimed* detections, so it hunts for contacts no track holds yet; a share of it
    (``reseed_fraction``) is drawn afresh over the sector each ping so that no corner goes unwatched.
@@ -13,16 +16,21 @@ Each ping, in order:
    detections. A cluster holding at least ``birth_share`` of the cloud and no wider than ``birth_spread_m``
    is a contact the cloud has followed over consecutive pings (one ping's clutter holds a few per cent; a
    repeated return holds most of it): a *tentative* track is born at the unclaimed detection nearest the
-   cluster's centre, with the measurement's covariance and an unknown velocity, unless it lies within an existing
-   track's gate or ``birth_exclusion_m`` of it (two contacts closer than that are seen as one).
-4. Track management: a tentative track is *confirmed* when it has had a detection in its gate at ``confirm_m``
-   of its first ``confirm_n`` pings (its birth ping counts), and deleted when it can no longer make that. A
-   confirmed track is deleted after ``delete_misses`` pings in a row without a detection in its gate, or when
-   its position is known worse than ``max_position_sigma_m``. Two tracks whose positions lie within each
-   other's 99 % gate follow one contact: the elder (confirmed first) keeps it, the other is deleted.
-   Identities are never reused.
+   cluster's centre, with the measurement's covariance, an unknown velocity and existence
+   ``birth_existence``, unless that detection lies within ``birth_exclusion_m`` of a track. A second contact
+   beside a track (a diver who splits from another) is born this way: its detections are the ones the
+   joint association leaves unclaimed.
+4. Track management from the existence alone: a tentative track is *confirmed* when its existence reaches
+   ``confirm_existence``, and deleted when it falls below ``delete_tentative_existence``; a confirmed track is
+   deleted below ``delete_confirmed_existence`` or when its position is known worse than
+   ``max_position_sigma_m``. How many missed pings that takes follows from ``pd`` and the clutter (a miss
+   weighs less against a contact seldom detected). Two tracks closer than ``merge_chi2`` (squared
+   Mahalanobis distance of their positions) follow one contact: the elder keeps it. Identities are
+   never reused.
 
-Each track carries its covariance; from it come the speed, heading, closest point of approach to the sonar
+A confirmed track whose prediction lies outside the sector (a contact the platform's swing has left
+behind) is kept, its existence decaying only by its lifetime, and reported with the status ``outside``
+rather than as a contact until it is seen again. Each track carries its covariance; from it come the speed, heading, closest point of approach to the sonar
 (relative to the platform's own motion from GPS), the time to come within ``reach_radius_m`` of it, and a
 class from the speed once it is known to ``class_speed_sigma_mps``: below ``drifting_below_mps`` a drifting
 object, above ``animal_above_mps`` a fast animal, between them a diver.
@@ -36,10 +44,11 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .association import associate
 from .cluster import fit_mixture
 from .detections import Ping
 from .geometry import Sonar, polar_to_world, world_to_polar
-from .kalman import GATE_CHI2, ContactState, pda_update, predict
+from .kalman import ContactState, innovations, pda_combine, predict
 from .particle import DiverParticleFilter, PaperParameters, clutter_floor
 
 __all__ = ["TrackerParameters", "Track", "TrackReport", "MultiTargetTracker", "CLASSES"]
@@ -67,11 +76,14 @@ class TrackerParameters:
     em_points: int = 1000
     birth_share: float = 0.25
     birth_spread_m: float = 25.0
-    birth_exclusion_m: float = 30.0
-    claim_chi2: float = 25.0
-    confirm_m: int = 4
-    confirm_n: int = 5
-    delete_misses: int = 6
+    birth_exclusion_m: float = 10.0
+    claim_probability: float = 0.5
+    track_lifetime_s: float = 600.0
+    birth_existence: float = 0.05
+    confirm_existence: float = 0.9999
+    delete_tentative_existence: float = 0.002
+    delete_confirmed_existence: float = 0.01
+    merge_chi2: float = 0.5
     max_position_sigma_m: float = 60.0
     reach_radius_m: float = 10.0
     class_speed_sigma_mps: float = 0.15
@@ -81,8 +93,14 @@ class TrackerParameters:
     def __post_init__(self) -> None:
         if not (0 < self.pd <= 1) or self.clutter_per_ping <= 0:
             raise ValueError(f"The tracker needs pd in (0, 1] and a positive clutter rate, got {self.pd!r} and {self.clutter_per_ping!r}.")
-        if not (1 <= self.confirm_m <= self.confirm_n):
-            raise ValueError(f"Confirmation needs 1 <= M <= N, got M={self.confirm_m!r}, N={self.confirm_n!r}.")
+        if not (0 < self.delete_tentative_existence < self.birth_existence < self.confirm_existence < 1
+                and 0 < self.delete_confirmed_existence < self.confirm_existence):
+            raise ValueError(
+                "Existence thresholds need 0 < delete_tentative_existence < birth_existence < confirm_existence < 1 and "
+                f"0 < delete_confirmed_existence < confirm_existence, got {self.delete_tentative_existence!r}, {self.birth_existence!r}, "
+                f"{self.confirm_existence!r}, {self.delete_confirmed_existence!r}.")
+        if not (0 < self.claim_probability <= 1) or self.track_lifetime_s <= 0:
+            raise ValueError(f"claim_probability must be in (0, 1] and track_lifetime_s positive, got {self.claim_probability!r}, {self.track_lifetime_s!r}.")
         if not (0 <= self.reseed_fraction < 1) or self.particles < 10:
             raise ValueError(f"reseed_fraction must be in [0, 1) and particles at least 10, got {self.reseed_fraction!r}, {self.particles!r}.")
 
@@ -97,10 +115,9 @@ class Track:
     id: int
     state: ContactState
     born_ping: int
-    hits: list[bool] = field(default_factory=list)
+    existence: float
     confirmed: bool = False
     confirmed_ping: int | None = None
-    misses: int = 0
 
 
 @dataclass(frozen=True)
@@ -125,6 +142,7 @@ class TrackReport:
     cpa_m: float
     t_cpa_s: float
     time_to_reach_s: float
+    existence: float
     covariance: np.ndarray = field(repr=False, compare=False)
 
 
@@ -169,6 +187,7 @@ class MultiTargetTracker:
         self._next_id = 1
         self._last: Ping | None = None
         self.step_ms: list[float] = []
+        self.step_cpu_ms: list[float] = []  # this thread's CPU time: the step's cost on a machine shared with other work
 
     @property
     def parameters(self) -> TrackerParameters:
@@ -184,47 +203,55 @@ class MultiTargetTracker:
         return bool(self._sonar.inside(r, b)[0])
 
     def _update_tracks(self, ping: Ping, dt: float) -> np.ndarray:
-        """Predict and PDA-update every track; the detections claimed by some track's gate."""
+        """Predict every track and update them jointly (JIPDA); each detection's claim by the tracks."""
         z = np.column_stack((ping.range_m, np.radians(ping.bearing_deg)))
-        claimed = np.zeros(ping.detections, dtype=bool)
         p = self._p
+        survival = math.exp(-dt / p.track_lifetime_s)
+        innovations_ = []
         for track in self.tracks:
-            state = predict(track.state, dt, p.accel_sigma) if dt > 0 else track.state
-            pd = p.pd if self._in_sector(state.x, ping) else 0.0
-            track.state, association = pda_update(state, z, self._R, ping.platform_xy, ping.heading_deg,
-                                                  pd=pd, clutter_density=self._clutter_density)
-            hit = association.gated.size > 0
-            claimed |= association.distance2 < p.claim_chi2
-            track.hits.append(hit)
-            track.misses = 0 if hit else track.misses + 1
-        return claimed
+            if dt > 0:
+                track.state = predict(track.state, dt, p.accel_sigma)
+                track.existence *= survival
+            innovations_.append(innovations(track.state, z, self._R, ping.platform_xy, ping.heading_deg))
+        if not self.tracks:
+            return np.zeros(ping.detections)
+        joint = associate(
+            np.array([inn.density for inn in innovations_]).reshape(len(self.tracks), ping.detections),
+            np.array([inn.gated for inn in innovations_]).reshape(len(self.tracks), ping.detections),
+            np.array([t.existence for t in self.tracks]),
+            np.array([p.pd if self._in_sector(t.state.x, ping) else 0.0 for t in self.tracks]),
+            self._clutter_density)
+        for k, (track, inn) in enumerate(zip(self.tracks, innovations_)):
+            track.state = pda_combine(track.state, inn, joint.beta[k], float(joint.beta_none[k]))
+            track.existence = float(joint.existence[k])
+        return joint.claimed
 
     def _manage(self, ping: Ping) -> None:
         p, kept = self._p, []
         for track in self.tracks:
-            if not track.confirmed and sum(track.hits[: p.confirm_n]) >= p.confirm_m:
+            if not track.confirmed and track.existence >= p.confirm_existence:
                 track.confirmed, track.confirmed_ping = True, ping.index
             sigma = math.sqrt(max(np.linalg.eigvalsh(track.state.P[:2, :2])))
-            hopeless = not track.confirmed and len(track.hits) >= p.confirm_n
-            lost = track.misses >= p.delete_misses or sigma > p.max_position_sigma_m
-            (self.deleted if hopeless or lost else kept).append(track)
+            floor = p.delete_confirmed_existence if track.confirmed else p.delete_tentative_existence
+            lost = track.existence < floor or sigma > p.max_position_sigma_m
+            (self.deleted if lost else kept).append(track)
         self.tracks = self._merge(kept)
 
     def _merge(self, tracks: list[Track]) -> list[Track]:
-        """Two tracks on one contact (their positions one within the other's gate): the elder keeps it."""
+        """Two tracks on one contact (positions within ``merge_chi2`` of each other): the elder keeps it."""
         kept: list[Track] = []
         # Confirmed before tentative, then by age, so the identity that survives is the one already reported.
         for track in sorted(tracks, key=lambda t: (not t.confirmed, t.born_ping, t.id)):
-            if any(self._same_contact(track, other) for other in kept):
+            if any(self._same_contact(track, other, self._p.merge_chi2) for other in kept):
                 self.deleted.append(track)
             else:
                 kept.append(track)
         return sorted(kept, key=lambda t: t.id)
 
     @staticmethod
-    def _same_contact(a: Track, b: Track) -> bool:
+    def _same_contact(a: Track, b: Track, chi2: float) -> bool:
         d = a.state.x[:2] - b.state.x[:2]
-        return float(d @ np.linalg.solve(a.state.P[:2, :2] + b.state.P[:2, :2], d)) < GATE_CHI2
+        return float(d @ np.linalg.solve(a.state.P[:2, :2] + b.state.P[:2, :2], d)) < chi2
 
     def _births(self, ping: Ping, unclaimed: np.ndarray) -> None:
         p = self._p
@@ -238,11 +265,11 @@ class MultiTargetTracker:
         for share, mean, cov in zip(mixture.shares, mixture.means, mixture.covariances):
             if share < p.birth_share or math.sqrt(max(np.linalg.eigvalsh(cov))) > p.birth_spread_m:
                 continue
-            if any(self._too_close(track, mean, cov) for track in self.tracks):
-                continue
             # The cluster says a contact is there; the detection that fed it says where, to the sensor's accuracy.
-            nearest = candidates[np.argmin(np.hypot(*(detections_xy - mean).T))]
-            track = Track(self._next_id, self._newborn(ping, nearest), ping.index, hits=[True])
+            k = int(np.argmin(np.hypot(*(detections_xy - mean).T)))
+            if any(np.hypot(*(detections_xy[k] - track.state.x[:2])) < p.birth_exclusion_m for track in self.tracks):
+                continue
+            track = Track(self._next_id, self._newborn(ping, candidates[k]), ping.index, p.birth_existence)
             self._next_id += 1
             self.tracks.append(track)
 
@@ -257,13 +284,6 @@ class MultiTargetTracker:
         P[2:, 2:] = self._p.initial_speed_sigma_mps**2 * np.eye(2)
         return ContactState(x, P)
 
-    def _too_close(self, track: Track, mean: np.ndarray, cov: np.ndarray) -> bool:
-        """Whether a cluster at ``mean`` is more likely an existing track's contact than a new one."""
-        d = mean - track.state.x[:2]
-        if float(np.hypot(*d)) < self._p.birth_exclusion_m:
-            return True
-        return float(d @ np.linalg.solve(track.state.P[:2, :2] + cov, d)) < GATE_CHI2
-
     def _reseed(self, ping: Ping) -> None:
         n = int(self._p.reseed_fraction * self.cloud.xy.shape[0])
         if n:
@@ -272,11 +292,11 @@ class MultiTargetTracker:
 
     def step(self, ping: Ping) -> list[TrackReport]:
         """One ping through the tracker; a report of every live track (tentative ones included)."""
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         dt = 0.0 if self._last is None else ping.t_s - self._last.t_s
         if self._last is not None and dt <= 0:
             raise ValueError(f"Ping {ping.index} at t = {ping.t_s!r} s does not come after ping {self._last.index} at {self._last.t_s!r} s.")
-        claimed = self._update_tracks(ping, dt)
+        claimed = self._update_tracks(ping, dt) >= self._p.claim_probability
         self.cloud.step(ping, range_m=ping.range_m[~claimed], bearing_deg=ping.bearing_deg[~claimed])
         self._births(ping, ~claimed)
         self._manage(ping)
@@ -285,6 +305,7 @@ class MultiTargetTracker:
         self._last = ping
         reports = [self._report(track, ping, platform_velocity) for track in self.tracks]
         self.step_ms.append((time.perf_counter() - start) * 1e3)
+        self.step_cpu_ms.append((time.thread_time() - start_cpu) * 1e3)
         return reports
 
     def _classify(self, v: np.ndarray, P: np.ndarray) -> str:
@@ -304,11 +325,17 @@ class MultiTargetTracker:
         cpa, t_cpa, reach = _cpa(rel, x[2:] - platform_velocity, self._p.reach_radius_m)
         bearing = (math.degrees(math.atan2(rel[0], rel[1])) - ping.heading_deg + 180) % 360 - 180
         return TrackReport(
-            ping.index, ping.t_s, track.id, "confirmed" if track.confirmed else "tentative",
+            ping.index, ping.t_s, track.id, self._status(track, ping),
             float(x[0]), float(x[1]), float(x[2]), float(x[3]), math.sqrt(P[0, 0]), math.sqrt(P[1, 1]),
             float(np.hypot(x[2], x[3])), math.degrees(math.atan2(x[2], x[3])) % 360.0,
-            float(np.hypot(*rel)), bearing, self._classify(x[2:], P), cpa, t_cpa, reach, P.copy(),
+            float(np.hypot(*rel)), bearing, self._classify(x[2:], P), cpa, t_cpa, reach, track.existence, P.copy(),
         )
+
+    def _status(self, track: Track, ping: Ping) -> str:
+        """tentative; confirmed; or outside: confirmed but predicted outside the sector, kept without being reported as a contact."""
+        if not track.confirmed:
+            return "tentative"
+        return "confirmed" if self._in_sector(track.state.x, ping) else "outside"
 
     def cloud_sample(self, n: int = 1000) -> np.ndarray:
         """Up to ``n`` of the search cloud's particles (for plots)."""

@@ -95,3 +95,26 @@ def test_valid_placements_matches_a_window_by_window_check_over_areas_reaching_o
         want = np.array([[0 <= i <= H - h and 0 <= j <= W - w and not holes[i : i + h, j : j + w].any()
                           for j in range(j0, j0 + cols)] for i in range(i0, i0 + rows)])
         assert np.array_equal(valid_placements((H, W), (h, w), (i0, j0, rows, cols), holes), want)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_choose_fit_block_by_block_is_the_models_best_fit_on_the_masked_surface(seed, monkeypatch):
+    """Ties, invalid placements and block edges: the same best fit and runner-up as the golden model's."""
+    from lost.host.correlator import result as result_module
+    from lost.host.correlator.result import choose_fit
+
+    monkeypatch.setattr(result_module, "_FIT_BLOCK_ROWS", 3)  # many block edges on a small surface
+    rng = np.random.default_rng(seed)
+    shape = tuple(int(v) for v in rng.integers(1, 14, 2))
+    surface = rng.integers(0, 6, shape).astype(np.int64)  # few values: many ties
+    valid = rng.random(shape) > 0.3
+    radius = int(rng.integers(0, 4))
+    got = choose_fit(surface, valid, radius)
+    if not valid.any():
+        assert got is None
+        return
+    ceiling = np.iinfo(np.int64).max
+    want = model.best_fit(np.where(valid, surface, ceiling), exclusion_radius=radius)
+    assert (got.i, got.j, got.value) == (want.i, want.j, want.value)
+    ru = want.runner_up if want.runner_up is not None and valid[want.runner_up.i, want.runner_up.j] else None
+    assert got.runner_up == ru

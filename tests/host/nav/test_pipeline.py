@@ -176,8 +176,11 @@ def test_point_matching_finds_the_unique_depth():
 def test_a_patch_on_other_nodes_is_an_error():
     grid, records, _ = _tow(n=3)
     sonar = tuple(SonarPatch(p.depth_m, 5.0) for p in records.sonar)
-    with pytest.raises(ValueError, match="5.0 m nodes"):
+    with pytest.raises(ValueError, match="coarser than the sonar patches' 5.0 m"):
         run_lost(_replace(records, sonar=sonar), grid, NavParameters())
+    finer = tuple(SonarPatch(p.depth_m, 20.0) for p in records.sonar)
+    with pytest.raises(ValueError, match="20.0 m nodes but the map 10.0 m"):
+        run_lost(_replace(records, sonar=finer), grid, NavParameters())
 
 
 @pytest.mark.parametrize(

@@ -12,10 +12,10 @@ from lost.host.grid import Grid
 from lost.host.nav import NavParameters, navigate
 from lost.host.nav.estimator import Estimate, Motion, Observation
 from lost.host.nav.likelihood import TerrainLikelihood
+from lost.host.nav.loop import RecordLoop
 from lost.host.nav.mapprep import PreparedMap
 from lost.host.nav.patent import PatentEstimator
 from lost.host.nav.pf import ParticleFilter
-from lost.host.nav.pipeline import _RecordLoop
 from lost.host.nav.pmf import PointMassFilter
 from lost.host.nav.stages import TrackFrame
 from lost.host.records import NavRecords
@@ -144,7 +144,7 @@ def _records(travel, straight, depth=800.0, **usbl):
 
 def _loop(records, profile, **changes):
     recorder, counts = _Recorder(), Counter()
-    loop = _RecordLoop(records, NavParameters(reference_depth_m=5.0, **changes), [recorder], counts, profile)
+    loop = RecordLoop(records, NavParameters(reference_depth_m=5.0, **changes), [recorder], counts, profile)
     for n in range(len(records)):
         loop.step(n)
     return [o.slant_range_m for o in recorder.seen], counts
@@ -173,7 +173,7 @@ def test_a_travel_time_too_short_for_the_depth_falls_back_and_is_counted():
 def test_the_loop_hands_the_fix_with_its_covariance():
     fix = dict(usbl_x_m=[-700.0, np.nan], usbl_y_m=[10.0, np.nan], usbl_sxx=[25.0, np.nan], usbl_syy=[100.0, np.nan], usbl_sxy=[5.0, np.nan])
     recorder, counts = _Recorder(), Counter()
-    loop = _RecordLoop(_records([np.nan, np.nan], [np.nan, np.nan], **{k: np.array(v) for k, v in fix.items()}), NavParameters(), [recorder],
+    loop = RecordLoop(_records([np.nan, np.nan], [np.nan, np.nan], **{k: np.array(v) for k, v in fix.items()}), NavParameters(), [recorder],
                        counts)
     loop.step(0)
     loop.step(1)

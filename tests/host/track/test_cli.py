@@ -41,7 +41,9 @@ def test_a_scenario_run_writes_every_output(scenario_run, capsys):
     assert summary["confirmed_tracks"] == 1 and summary["false_tracks"] == 0
     assert 0 <= summary["gospa_mean"] < 25 and summary["ms_per_ping"] > 0
     assert summary["tracks"][0]["class"] == "diver"
-    assert summary["baseline"]["tracker"].startswith("Stone Soup GM-PHD") and "gospa_mean" in summary["baseline"]
+    baselines = summary["baselines"]
+    assert baselines["gm_phd"]["tracker"].startswith("Stone Soup GM-PHD") and "gospa_mean" in baselines["gm_phd"]
+    assert baselines["jpda"]["tracker"].startswith("Stone Soup JPDA") and "gospa_mean" in baselines["jpda"]
     assert {"Completeness", "Spuriousness"} <= set(summary["siap"])
 
 
@@ -81,16 +83,16 @@ def test_unknown_scenario_name_exits_1(tmp_path, capsys):
 def test_set_reaches_the_tracker_and_unknown_names_are_refused(scenario_run, tmp_path, capsys):
     out = tmp_path / "strict"
     detections = str(scenario_run / "detections.csv")
-    assert main(["track", detections, "--out", str(out), "--particles", "2000", "--no-animation", "--set", "confirm_m=5",
-                 "--set", "confirm_n=5", "--max-range", "600"]) == 0
+    assert main(["track", detections, "--out", str(out), "--particles", "2000", "--no-animation", "--set", "confirm_existence=0.999",
+                 "--set", "em_points=500", "--max-range", "600"]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert (summary["tracker"]["confirm_m"], summary["tracker"]["confirm_n"]) == (5, 5)
+    assert (summary["tracker"]["confirm_existence"], summary["tracker"]["em_points"]) == (0.999, 500)
     assert main(["track", detections, "--out", str(out), "--set", "confirm=3"]) == 2
     assert "--set names no tracker parameter: confirm" in capsys.readouterr().err
     # Types are the strict schema's, as for lost run's --set: no string, None or fraction where a number or count goes.
     for value, message in (("pd=abc", "tracker.pd: Input should be a valid number, got 'abc' (str)"),
                            ("pd=none", "tracker.pd: Input should be a valid number, got None (NoneType)"),
-                           ("confirm_m=4.5", "tracker.confirm_m: Input should be a valid integer, got 4.5")):  # a count: no unit
+                           ("em_points=4.5", "tracker.em_points: Input should be a valid integer, got 4.5")):  # a count: no unit
         assert main(["track", detections, "--out", str(out), "--set", value]) == 2
         assert message in capsys.readouterr().err
 

@@ -34,6 +34,7 @@ def test_documented_layout_reads_every_value(tmp_path):
 def test_written_log_reads_back_value_for_value(tmp_path):
     pings, _ = read_detections(write(tmp_path, [HEADER, *ROWS]))
     again, _ = read_detections(write_detections(tmp_path / "again.csv", pings))
+    assert len(again) == len(pings) == 3
     for a, b in zip(pings, again):
         assert (a.index, a.t_s, a.heading_deg) == (b.index, b.t_s, b.heading_deg)
         for name in ("platform_xy", "range_m", "bearing_deg", "strength_db"):

@@ -5,9 +5,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from lost.host.track.baseline import run_gm_phd
+from lost.host.track.baseline import JPDAParameters, run_gm_phd, run_jpda
 from lost.host.track.estimates import Estimate
-from lost.host.track.evaluate import score
+from lost.host.track.evaluate import contact_metrics, holding, score
 from lost.host.track.simulate import Truth, builtin_scenario_path, load_scenario, simulate
 from lost.host.track.tracker import TrackerParameters
 
@@ -58,3 +58,40 @@ def test_stone_soup_gm_phd_sees_the_diver_where_the_simulator_put_it():
     assert len(history) == len(sim.pings)
     late = [min(np.hypot(*(e.xy - sim.truth.xy[i, 0])) for e in history[i]) for i in range(30, len(history)) if history[i]]
     assert len(late) > 5 and np.median(late) < 10.0
+
+
+def test_stone_soup_jpda_confirms_the_diver_after_its_m_of_n_and_follows_it():
+    scenario = load_scenario(builtin_scenario_path("one_diver"))
+    scenario = dataclasses.replace(scenario, duration_s=40.0, sonar=dataclasses.replace(scenario.sonar, clutter_per_ping=1.0))
+    sim = simulate(scenario)
+    history = run_jpda(sim.pings, sonar=scenario.sonar.sonar, tracker=TrackerParameters(clutter_per_ping=1.0), jpda=JPDAParameters(min_points=4))
+    assert len(history) == len(sim.pings)
+    assert not any(history[:3])  # a track needs four updates before the initiator releases it
+    late = [min(np.hypot(*(e.xy - sim.truth.xy[i, 0])) for e in history[i]) for i in range(15, len(history)) if history[i]]
+    assert len(late) > 10 and np.median(late) < 10.0
+
+
+def two_truths(pings=6, apart=20.0):
+    t = np.arange(pings) * 1.3
+    xy = np.zeros((pings, 2, 2))
+    xy[:, :, 1] = 300.0
+    xy[:, 1, 0] = apart
+    return Truth(t, xy, np.zeros_like(xy), ("diver", "diver"), np.ones((pings, 2), bool))
+
+
+def test_one_track_between_two_divers_holds_only_one_and_switches_are_counted():
+    truth = two_truths()
+    between = [[Estimate(1, 10.0, 300.0, 0.0, 0.0)] for _ in range(6)]  # within 25 m of both
+    m = contact_metrics(between, truth)
+    assert sorted(m["coverage"]) == [0.0, 1.0] and m["all_held"] == 0.0
+    assert gospa_per_ping_of(between, truth) == pytest.approx([10.0 + 25.0] * 6)
+    two = [[Estimate(1 if i < 3 else 3, 0.0, 300.0, 0, 0), Estimate(2, 20.0, 301.0, 0, 0)] for i in range(6)]
+    two[0] = []
+    m = contact_metrics(two, truth, after=1)
+    assert m["coverage"] == [1.0, 1.0] and m["all_held"] == 1.0
+    assert m["first_lock"] == [2, 2] and m["identity_switches"] == [1, 0]
+    np.testing.assert_array_equal(holding(two, truth)[:, 0], [-1, 1, 1, 3, 3, 3])
+
+
+def gospa_per_ping_of(history, truth):
+    return score(history, truth, siap=False).gospa_per_ping

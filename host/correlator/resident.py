@@ -1,0 +1,155 @@
+"""A correlator that holds one map for a whole run and correlates each record's patch once.
+
+A navigation run asks for the same patch's surface several times per record: the patent pipeline over
+its search area, each Bayesian filter over the placements its candidates span, each look-alike check
+over a wider area around its estimate. :class:`ResidentCorrelator` holds the map (its words and holes,
+validated once; for a device backend, its tile stays resident under a fixed key, so the map is never
+hashed again), takes each record's patch once, and correlates it once over the union of the areas the
+record's callers ask for. Every request is then a slice of that one surface, with the same integers,
+valid placements and best fit as :func:`~lost.host.correlator.correlation` over the request alone.
+
+The union is not known before the first request of a record comes, so the first request is widened to
+the union of the previous record's requests, moved with it (the callers' areas follow the vehicle); a request that still
+falls outside widens the surface once more (counted in ``stats["correlations"]``).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from lost import model
+
+from . import _backend
+from .backends import Backend
+from .result import Area, Correlation, choose_fit, valid_placements
+
+__all__ = ["ResidentCorrelator"]
+
+_KEYS = itertools.count()
+
+
+def _union(a: Area, b: Area) -> Area:
+    top, left = min(a[0], b[0]), min(a[1], b[1])
+    bottom, right = max(a[0] + a[2], b[0] + b[2]), max(a[1] + a[3], b[1] + b[3])
+    return top, left, bottom - top, right - left
+
+
+def _inside(inner: Area, outer: Area) -> bool:
+    return (outer[0] <= inner[0] and inner[0] + inner[2] <= outer[0] + outer[2]
+            and outer[1] <= inner[1] and inner[1] + inner[3] <= outer[1] + outer[3])
+
+
+class ResidentCorrelator:
+    """One map, held for a run; one correlation per patch over the union of the areas asked for.
+
+    Parameters
+    ----------
+    words : (H, W) int16 array
+        The map image (validated once here).
+    holes : (H, W) bool array, optional
+        Map nodes without a depth (placements touching one are not valid).
+    backend : str or Backend
+    mean_compensation : bool
+
+    Attributes
+    ----------
+    stats : dict
+        ``patches`` (distinct patches loaded), ``correlations`` (backend calls), ``requests`` (areas served).
+    """
+
+    def __init__(self, words: np.ndarray, *, holes: np.ndarray | None = None, backend: str | Backend = "software",
+                 mean_compensation: bool = True) -> None:
+        self._backend = _backend(backend)
+        probe = np.zeros((1, 1), np.int16)
+        self._words, _, _ = model.check_inputs(words, probe, None, mean_compensation)
+        self._holes = holes if holes is not None and holes.any() else None
+        if self._holes is not None:
+            valid_placements(self._words.shape, (1, 1), (0, 0, 1, 1), self._holes)  # refuses a mask of another shape
+        self._mean_compensation = bool(mean_compensation)
+        self._key = ("resident", next(_KEYS))  # the device's tile belongs to this map as long as this object lives
+        self._patch_key: bytes | None = None
+        self._patch: tuple[np.ndarray, np.ndarray] | None = None
+        self._area: Area | None = None
+        self._surface: np.ndarray | None = None
+        self._first: Area | None = None  # this patch's first request (in-map part)
+        self._asked: Area | None = None  # the union of this patch's requests (in-map parts)
+        self._previous: tuple[Area, Area] | None = None  # the previous patch's first request and union of requests
+        self.stats = dict.fromkeys(("patches", "correlations", "requests"), 0)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._words.shape
+
+    def correlation(self, patch: np.ndarray, mask: np.ndarray, area: Area, *, exclusion_radius: int | None = None) -> Correlation:
+        """The patch's correlation over ``area`` (which may reach past the map), as :func:`correlation` gives it.
+
+        Raises
+        ------
+        ValueError
+            Bad patch words or mask, an area without placements.
+        """
+        self._load(patch, mask)
+        words, mask = self._patch
+        (H, W), (h, w) = self._words.shape, words.shape
+        i0, j0, rows, cols = (int(v) for v in area)
+        if rows < 1 or cols < 1:
+            raise ValueError(f"area must have at least one placement, got rows={rows}, cols={cols}")
+        self.stats["requests"] += 1
+        on_map = (max(i0, 0), max(j0, 0), min(i0 + rows, H - h + 1) - max(i0, 0), min(j0 + cols, W - w + 1) - max(j0, 0))
+        if on_map[2] > 0 and on_map[3] > 0:
+            self._cover(on_map)
+        surface = np.zeros((rows, cols), dtype=np.int64)
+        if on_map[2] > 0 and on_map[3] > 0:
+            a0, b0, n_rows, n_cols = on_map
+            s0, t0 = a0 - self._area[0], b0 - self._area[1]
+            surface[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = self._surface[s0 : s0 + n_rows, t0 : t0 + n_cols]
+        valid = valid_placements((H, W), (h, w), (i0, j0, rows, cols), self._holes)
+        radius = max(h, w) // 2 if exclusion_radius is None else int(exclusion_radius)
+        fit = choose_fit(surface, valid, radius)
+        best = runner_up = None
+        if fit is not None:
+            best = model.Placement(fit.i + i0, fit.j + j0, fit.value)
+            ru = fit.runner_up
+            runner_up = None if ru is None else model.Placement(ru.i + i0, ru.j + j0, ru.value)
+        return Correlation(surface, valid, best, runner_up, radius, (i0, j0), self._backend.name, "host", None)
+
+    def _load(self, patch: np.ndarray, mask: np.ndarray) -> None:
+        """Make ``patch`` the held one: validated and its surface forgotten, unless it is the same patch again."""
+        key = patch.tobytes() + np.asarray(mask).tobytes() + str(patch.shape).encode()
+        if key == self._patch_key:
+            return
+        # The patch checked against itself (its words, its mask); against the map only by shape: the map was checked once.
+        _, words, checked = model.check_inputs(patch, patch, mask, self._mean_compensation)
+        if words.shape[0] > self._words.shape[0] or words.shape[1] > self._words.shape[1]:
+            raise ValueError(f"patch of shape {words.shape} is larger than the terrain map of shape {self._words.shape}")
+        if self._first is not None and self._asked is not None:
+            self._previous = (self._first, self._asked)
+        self._patch_key, self._patch = key, (words, checked)
+        self._area = self._surface = self._first = self._asked = None
+        self.stats["patches"] += 1
+
+    def _cover(self, area: Area) -> None:
+        """Make the held surface cover the in-map ``area`` (one backend call when it does not yet)."""
+        self._asked = area if self._asked is None else _union(self._asked, area)
+        if self._area is not None and _inside(area, self._area):
+            return
+        if self._area is None:
+            self._first = area
+            wanted = area
+            if self._previous is not None:
+                # What the previous patch was asked over, moved as its first request moved to this one.
+                (p_first, p_union) = self._previous
+                di, dj = area[0] - p_first[0], area[1] - p_first[1]
+                wanted = _union(area, (p_union[0] + di, p_union[1] + dj, p_union[2], p_union[3]))
+        else:
+            wanted = _union(self._area, area)
+        words, mask = self._patch
+        (H, W), (h, w) = self._words.shape, words.shape
+        top, left = max(wanted[0], 0), max(wanted[1], 0)
+        bottom, right = min(wanted[0] + wanted[2], H - h + 1), min(wanted[1] + wanted[3], W - w + 1)
+        clipped = (top, left, bottom - top, right - left)
+        outcome = self._backend.run(self._words, words, mask, self._mean_compensation, clipped, max(h, w) // 2, map_key=self._key)
+        self._area, self._surface = clipped, outcome.surface
+        self.stats["correlations"] += 1
