@@ -200,3 +200,21 @@ def test_a_cast_too_shallow_for_the_policy_is_refused_by_name(files, tow, settin
 def test_the_cast_policy_is_a_checked_setting(tmp_path):
     with pytest.raises(ConfigError, match=r"cast_below_vehicle: Input should be 'extend' or 'refuse', got 'ignore'"):
         load_processing_config(_write(tmp_path / "c.toml", 'cast_below_vehicle = "ignore"\n'))
+
+
+@pytest.mark.parametrize("problem", ["latin1_cast", "log_in_milliseconds", "cast_refused"])
+def test_the_command_reports_bad_input_in_one_line_and_writes_no_summary(files, run_cli, problem):
+    cast, log, extra = files / "cast.csv", files / "log.csv", []
+    if problem == "latin1_cast":
+        cast = files / "latin.csv"
+        cast.write_bytes(("# temperature in \xb0C\n" + (files / "cast.csv").read_text()).encode("latin-1"))
+    elif problem == "log_in_milliseconds":
+        log = files / _rewrite(files, lambda t: t.__setitem__("travel_time_s", t.travel_time_s * 1000.0))
+    else:
+        cast = _truncated_cast(files, 250.0)
+        (files / "refuse.toml").write_text('cast_below_vehicle = "refuse"\n')
+        extra = ["--config", files / "refuse.toml"]
+    code, _, err = run_cli("usbl", log, "--svp", cast, "--imu", files / "imu.csv", "--out", files / "out", *extra)
+    named = log if problem == "log_in_milliseconds" else cast
+    assert code == 1 and named.name in err
+    assert not (files / "out" / "summary.json").exists()
