@@ -108,7 +108,7 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
 
 
 def _goals(summary: dict[str, Any]) -> dict[str, bool]:
-    """Issue #14's goals on a simulated run, each met or not."""
+    """The goals on a simulated run, each met or not."""
     methods, gating = summary["methods"], summary["gating"]
     caught, good_rejected = gating["injected_bad_caught_fraction"], gating["good_rejected_fraction"]
     return {
