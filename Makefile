@@ -60,6 +60,7 @@ bench-usbl: setup
 	$(BIN)/python benchmarks/usbl_goals.py --seeds 20
 	$(BIN)/python benchmarks/usbl_table1.py
 	$(BIN)/python benchmarks/usbl_speed.py
+	$(BIN)/python benchmarks/usbl_truth.py --seeds 20
 
 # The survey readers: soundings per second per format on the real files, and the peak memory of reading a
 # 1 GB .all (about 3 minutes here): a table on stdout and build/bench/read_speed.json.

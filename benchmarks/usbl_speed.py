@@ -47,7 +47,7 @@ def main() -> None:
     print(f"usbl_fix (1000 m, thinned profile, with covariance): {fix_time * 1e3:.2f} ms")
     filt = InsUsblFilter(NavState(np.zeros(3), np.zeros(3), np.eye(3)), np.eye(15) * 1e-4, ImuNoise(), EarthModel.at(18.0))
     force, rate = np.array([0.0, 0.0, -9.785]), np.zeros(3)
-    print(f"filter predict (strapdown + 15x15 covariance): {best(lambda: filt.predict(force, rate, 0.1), number=2000) * 1e6:.1f} us")
+    print(f"filter predict (strapdown + 16x16 covariance): {best(lambda: filt.predict(force, rate, 0.1), number=2000) * 1e6:.1f} us")
     sim_time = best(lambda: simulate_tow(scenario), repeats=2)
     sim = simulate_tow(scenario)
     imu = ImuSamples(sim.imu.time_s.to_numpy(), sim.imu[["fx_m_s2", "fy_m_s2", "fz_m_s2"]].to_numpy(), sim.imu[["wx_rad_s", "wy_rad_s", "wz_rad_s"]].to_numpy())

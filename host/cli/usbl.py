@@ -56,7 +56,7 @@ def run_usbl(args: argparse.Namespace) -> int:
             raise UsageError("--svp, --imu and --config are for a recorded log; a scenario names its own cast and settings")
         scenario = load_usbl_scenario(args.source)
         name = scenario.name
-        config = UsblConfig(array=scenario.usbl, imu=scenario.imu, gate_probability=scenario.gate_probability)
+        config = scenario.processing_config()  # the scenario's array, IMU, gate and [processing] table
     out = args.out = args.out or Path("runs") / f"usbl-{name}"
     with run_folder(out, replace=args.replace, command="usbl") as folder, warnings_collected() as warnings:
         log_path, imu_path, cast_path = _inputs(args, scenario, folder)

@@ -3,7 +3,9 @@
 State (eq. 8), 15 errors of the strapdown solution, each "estimate minus truth": position (north, east, down;
 m, on the local plane, where the paper writes latitude, longitude and height), velocity (north, east, down),
 attitude (the small rotation ``phi`` with ``C_estimate = (I - [phi x]) C_true``, rad), gyro drifts (rad/s) and
-accelerometer biases (m/s^2) in the body frame. The error dynamics (eq. 9) on the Earth-fixed local plane, with
+accelerometer biases (m/s^2) in the body frame; and a 16th, the fractional error ``b`` of the path-mean sound speed
+the fixes are computed with (:class:`SoundSpeedError`: first-order Gauss-Markov, its variance growing with the
+cast's age). The error dynamics (eq. 9) on the Earth-fixed local plane, with
 ``Omega`` the Earth's rate there:
 
     d(dp)/dt = dv
@@ -12,13 +14,14 @@ accelerometer biases (m/s^2) in the body frame. The error dynamics (eq. 9) on th
     d(db_g)/dt = w_bg,  d(db_a)/dt = w_ba                        (random walks)
 
 discretised as ``Phi = I + F dt + (F dt)^2 / 2`` and ``Q_d = Q dt`` at every IMU sample (eqs. 12, 13, 16).
-A USBL fix gives the measurement of eq. 11, INS minus USBL position, ``H = [I 0 0 0 0]``, with the fix's own
+A USBL fix gives the measurement of eq. 11, INS minus USBL position, ``H = [I 0 0 0 0 J]`` (``J`` the fix's
+displacement per unit of ``b``, ``UsblFix.sound_speed_jacobian_m``), with the fix's own
 covariance (3 x 3: its horizontal error and its depth are correlated) as ``R``; eqs. 14, 15 and 17 (in Joseph
 form) update. Before an update the innovation's normalised square ``nu' S^-1 nu`` is compared with the
 chi-square quantile of 3 degrees of freedom at ``gate_probability``; a fix beyond it is rejected and the INS
 carries on (as it does through dropouts), its depth still held by the towfish's pressure depth (a
 one-dimensional update gated at 1 dof). After an update the errors
-are fed back into the strapdown solution and the bias estimates, and reset to zero.
+are fed back into the strapdown solution, the bias estimates and the sound speed's, and reset to zero.
 """
 
 from __future__ import annotations
@@ -35,6 +38,9 @@ from .ins import EarthModel, ImuSamples, NavState, strapdown_step
 __all__ = ["ImuNoise", "InsUsblFilter", "FusionResult", "fuse"]
 
 POSITION, VELOCITY, ATTITUDE, GYRO, ACCEL = (slice(3 * k, 3 * k + 3) for k in range(5))
+#: The 16th state: the processing's error in the path-mean sound speed, as a fraction (its speed over the truth's, less 1).
+SOUND = 15
+STATES = 16
 
 
 @dataclass(frozen=True)
@@ -59,21 +65,40 @@ class ImuNoise:
     accel_bias_walk: float = 1e-6
 
     def density(self) -> np.ndarray:
-        """Diagonal of the continuous process noise for the 15 states."""
+        """Diagonal of the continuous process noise for the 16 states (the sound speed's is :class:`SoundSpeedError`'s)."""
         return np.concatenate([np.zeros(3), np.full(3, self.velocity_random_walk**2), np.full(3, self.angle_random_walk**2),
-                               np.full(3, self.gyro_bias_walk**2), np.full(3, self.accel_bias_walk**2)])
+                               np.full(3, self.gyro_bias_walk**2), np.full(3, self.accel_bias_walk**2), [0.0]])
+
+
+@dataclass(frozen=True)
+class SoundSpeedError:
+    """The error of the path-mean sound speed the fixes are computed with, as the filter models it: a first-order
+    Gauss-Markov fraction whose variance at time ``t`` after the start is
+    ``((sigma_m_s)^2 + (drift_m_s_per_h (age_h + t / 3600))^2) / speed_m_s^2`` (the cast's own error and internal waves,
+    and a surface layer drifting since the cast, seen through its share of the path), correlated over ``correlation_s``.
+    """
+
+    sigma_m_s: float = 0.0
+    drift_m_s_per_h: float = 0.0
+    age_h: float = 0.0
+    correlation_s: float = 600.0
+    speed_m_s: float = 1500.0
+
+    def variance(self, time_s: float) -> float:
+        drift = self.drift_m_s_per_h * (self.age_h + time_s / 3600.0)
+        return (self.sigma_m_s**2 + drift**2) / self.speed_m_s**2
 
 
 @dataclass
 class InsUsblFilter:
-    """Strapdown INS with the 15-state error Kalman filter.
+    """Strapdown INS with the 16-state error Kalman filter (15 of the INS, one of the sound speed).
 
     Parameters
     ----------
     state : NavState
         The INS solution at the start.
     covariance : numpy.ndarray
-        15 x 15 covariance of the starting errors.
+        16 x 16 covariance of the starting errors (15 x 15: the sound speed's starts at its model's variance, uncorrelated).
     noise : ImuNoise
         The IMU's noise model.
     earth : EarthModel
@@ -90,12 +115,20 @@ class InsUsblFilter:
     earth: EarthModel
     gate_probability: float = 0.999
     transponder_lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    sound_speed: SoundSpeedError = field(default_factory=SoundSpeedError)
     gyro_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    sound_speed_fraction: float = 0.0
+    elapsed_s: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.covariance.shape != (15, 15):
-            raise ValueError(f"the filter's covariance must be 15 x 15, got {self.covariance.shape}")
+        if self.covariance.shape == (15, 15):  # no sound-speed state given: it starts at its own prior
+            covariance = np.zeros((STATES, STATES))
+            covariance[:15, :15] = self.covariance
+            covariance[SOUND, SOUND] = self.sound_speed.variance(0.0)
+            self.covariance = covariance
+        if self.covariance.shape != (STATES, STATES):
+            raise ValueError(f"the filter's covariance must be {STATES} x {STATES} (or 15 x 15 without the sound speed's), got {self.covariance.shape}")
         self.transponder_lever_arm_m = np.asarray(self.transponder_lever_arm_m, dtype=float)
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must lie in (0, 1), got {self.gate_probability}")
@@ -115,7 +148,7 @@ class InsUsblFilter:
         attitude = self.state.attitude
         self.state = strapdown_step(self.state, force, rate, dt, self.earth)
         earth = skew(self.earth.rate_ned)
-        dynamics = np.zeros((15, 15))
+        dynamics = np.zeros((STATES, STATES))
         dynamics[POSITION, VELOCITY] = np.eye(3)
         dynamics[VELOCITY, VELOCITY] = -2.0 * earth
         dynamics[VELOCITY, ATTITUDE] = skew(attitude @ force)
@@ -123,8 +156,15 @@ class InsUsblFilter:
         dynamics[ATTITUDE, ATTITUDE] = -earth
         dynamics[ATTITUDE, GYRO] = attitude
         step = dynamics * dt
-        transition = np.eye(15) + step + step @ step / 2.0
-        self.covariance = transition @ self.covariance @ transition.T + np.diag(self._density * dt)
+        transition = np.eye(STATES) + step + step @ step / 2.0
+        decay = np.exp(-dt / self.sound_speed.correlation_s)
+        transition[SOUND, SOUND] = decay
+        noise = self._density * dt
+        # The Gauss-Markov fraction keeps the variance the model gives at every time (growing as the cast ages).
+        noise[SOUND] = max(self.sound_speed.variance(self.elapsed_s + dt) - decay**2 * self.sound_speed.variance(self.elapsed_s), 0.0)
+        self.covariance = transition @ self.covariance @ transition.T + np.diag(noise)
+        self.sound_speed_fraction *= decay
+        self.elapsed_s += dt
 
     def update(self, fix: UsblFix) -> tuple[bool, float]:
         """Eqs. 14, 15, 17 with a USBL fix, after the chi-square gate; returns (accepted, normalised innovation squared).
@@ -134,10 +174,12 @@ class InsUsblFilter:
         """
         lever = self.state.attitude @ self.transponder_lever_arm_m
         measured = np.array([fix.north_m, fix.east_m, fix.depth_m])
-        innovation = self.state.position + lever - measured  # eq. 11: INS minus USBL; the predicted error state is zero
-        observation = np.zeros((3, 15))
+        # Eq. 11, INS minus USBL (the predicted error state is zero), the fix moved by the sound-speed error estimated so far.
+        innovation = self.state.position + lever + fix.sound_speed_jacobian_m * self.sound_speed_fraction - measured
+        observation = np.zeros((3, STATES))
         observation[:, POSITION] = np.eye(3)
         observation[:, ATTITUDE] = skew(lever)
+        observation[:, SOUND] = fix.sound_speed_jacobian_m
         noise = fix.covariance_ned
         projected = observation @ self.covariance
         innovation_cov = projected @ observation.T + noise
@@ -146,7 +188,7 @@ class InsUsblFilter:
             return False, nis
         gain = np.linalg.solve(innovation_cov, projected).T  # eq. 15 (S symmetric)
         error = gain @ innovation  # eq. 14
-        keep = np.eye(15) - gain @ observation
+        keep = np.eye(STATES) - gain @ observation
         self.covariance = keep @ self.covariance @ keep.T + gain @ noise @ gain.T  # eq. 17, Joseph form
         self._feed_back(error)
         return True, nis
@@ -160,7 +202,7 @@ class InsUsblFilter:
         if nis > self._depth_gate:
             return False, float(nis)
         gain = self.covariance[:, 2] / innovation_var
-        keep = np.eye(15)
+        keep = np.eye(STATES)
         keep[:, 2] -= gain
         self.covariance = keep @ self.covariance @ keep.T + variance_m2 * np.outer(gain, gain)
         self._feed_back(gain * innovation)
@@ -171,6 +213,7 @@ class InsUsblFilter:
                               rotation_from_vector(error[ATTITUDE]) @ self.state.attitude)
         self.gyro_bias = self.gyro_bias - error[GYRO]
         self.accel_bias = self.accel_bias - error[ACCEL]
+        self.sound_speed_fraction -= float(error[SOUND])
 
     def position_covariance(self) -> np.ndarray:
         return self.covariance[POSITION, POSITION].copy()

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .frames import body_to_ned
-from .rays import solve_ray, trace_to_depth
+from .rays import ray_to_offset, solve_ray, trace_to_depth
 from .sound import SoundSpeedProfile
 
 __all__ = ["UsblArray", "UsblFix", "direction_cosines_from_phase", "phase_from_direction_cosines", "reply_from_geometry", "usbl_fix"]
@@ -97,6 +97,10 @@ class UsblFix:
     ``covariance_ne`` is the 2 x 2 covariance of (north, east) in m^2; ``depth_variance_m2`` that of the depth;
     ``cross_ne_depth`` the covariances of north and east with the depth: the horizontal range comes from the ray to
     the measured depth, so a depth error moves the fix along the line of sight (by ``-cot(theta_end)`` per metre).
+    ``sound_speed_jacobian_m`` is how the fix moves (north, east, down; m) per unit of fractional error in the path-mean
+    sound speed: the slant range scales with it and, the depth being known, the horizontal range by ``slant^2 / horizontal``
+    times as much, along the line of sight. That error is common to successive fixes, so it is not in the covariance but
+    a state of the filter (:class:`lost.host.usbl.filter.SoundSpeedError`).
     """
 
     north_m: float
@@ -109,6 +113,7 @@ class UsblFix:
     azimuth_rad: float
     iterations: int
     cross_ne_depth: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    sound_speed_jacobian_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def covariance_ned(self) -> np.ndarray:
@@ -174,7 +179,7 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     east = transducer[1] + horizontal * np.sin(azimuth)
 
     # Along the line of sight: the ray's angle at the towfish turns time and depth noise into horizontal range.
-    end_angle = trace_to_depth(profile, ray.launch_angle_rad, top, target_depth_m).angle_rad
+    end_angle = ray.arrival_angle_rad
     end_speed = float(profile.speed_at(target_depth_m))
     sine = max(np.sin(end_angle), 1e-3)
     along_var = (end_speed / sine * array.travel_time_noise_s) ** 2 + (np.cos(end_angle) / sine * array.depth_noise_m) ** 2
@@ -186,8 +191,9 @@ def usbl_fix(profile: SoundSpeedProfile, array: UsblArray, *, travel_time_s: flo
     across = np.array([-np.sin(azimuth), np.cos(azimuth)])
     covariance = along_var * np.outer(along, along) + horizontal**2 * azimuth_var * np.outer(across, across) + array.gnss_noise_m**2 * np.eye(2)
     cross = -np.cos(end_angle) / sine * array.depth_noise_m**2 * along
+    speed_jacobian = np.append(ray.slant_range_m**2 / max(horizontal, 1.0) * along, 0.0)
     return UsblFix(float(north), float(east), float(target_depth_m), covariance, array.depth_noise_m**2, ray.slant_range_m, horizontal,
-                  azimuth, ray.iterations, cross)
+                  azimuth, ray.iterations, cross, speed_jacobian)
 
 
 def _azimuth_jacobian(cos_x: float, cos_y: float, attitude: np.ndarray, step: float = 1e-6) -> np.ndarray:
@@ -209,22 +215,16 @@ def reply_from_geometry(profile: SoundSpeedProfile, array: UsblArray, *, roll_ra
     """The noise-free reply a USBL measures of a target: one-way travel time and the two phase differences (rad).
 
     The inverse of :func:`usbl_fix`, for the simulator and the tests: the ray joining the transducer to the target
-    (its launch angle found by root finding on the traced horizontal offset), its arrival direction in the
+    (the direct one: :func:`lost.host.usbl.rays.ray_to_offset`), its arrival direction in the
     array's frame, and eq. 1.
     """
-    from scipy.optimize import brentq
-
     attitude = np.array([roll_rad, pitch_rad, heading_rad])
     rotation = body_to_ned(*attitude)
     transducer = np.array([antenna_north_m, antenna_east_m, -array.antenna_height_m]) + rotation @ np.asarray(array.lever_arm_m)
     top = max(transducer[2], 0.0)
     offset = np.array([target_north_m - transducer[0], target_east_m - transducer[1]])
     horizontal = float(np.hypot(*offset))
-    if horizontal < 1e-6:
-        angle = 0.0
-    else:
-        limit = np.arcsin(min(1.0, float(profile.speed_at(top) / profile.speed_m_s.max()))) - 1e-6
-        angle = brentq(lambda a: trace_to_depth(profile, a, top, target_depth_m).horizontal_m - horizontal, 0.0, limit, xtol=1e-13)
+    angle = ray_to_offset(profile, top, target_depth_m, horizontal) if horizontal >= 1e-6 else 0.0
     time = trace_to_depth(profile, angle, top, target_depth_m).time_s
     azimuth = np.arctan2(offset[1], offset[0])
     direction = rotation.T @ np.array([np.sin(angle) * np.cos(azimuth), np.sin(angle) * np.sin(azimuth), np.cos(angle)])

@@ -6,18 +6,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
 from scipy.stats import theilslopes
 
-from .filter import FusionResult, InsUsblFilter, fuse
+from ..config import NonNegativeFloat, PositiveFloat
+from .checks import check_replies
+from .filter import SOUND, STATES, FusionResult, InsUsblFilter, SoundSpeedError, fuse
 from .fix import UsblArray, UsblFix, usbl_fix
 from .frames import LocalFrame, body_to_ned
 from .ins import EarthModel, ImuSamples, NavState, dead_reckon, strapdown
-from .scenario import DEG_PER_HOUR, MILLI_G, ImuSpec
+from .scenario import DEG_PER_HOUR, MILLI_G, ImuSpec, OpenFraction
 from .simulate import IMU_COLUMNS, LOG_COLUMNS
-from .sound import Cast, SoundSpeedProfile
+from .sound import Cast, CastError, SoundSpeedProfile, extend_cast
 
 __all__ = ["UsblConfig", "UsblRun", "read_log", "read_imu", "process"]
 
@@ -26,13 +29,30 @@ __all__ = ["UsblConfig", "UsblRun", "read_log", "read_imu", "process"]
 class UsblConfig:
     """What processing needs beyond the recordings: the USBL's array and noise, the IMU's error model, the gate,
     and the alignment window (the first ``align_window_s`` of fixes give the start position and velocity);
-    ``earth_rotation=False`` for an IMU whose rates have the Earth's rotation removed already."""
+    ``earth_rotation=False`` for an IMU whose rates have the Earth's rotation removed already.
+
+    A cast that stops above the towfish's transponder: with ``cast_below_vehicle = "extend"`` it is continued below its
+    last sample by :func:`lost.host.usbl.sound.extend_cast` (the last temperature and salinity held, TEOS-10), at most
+    ``cast_extension_limit_m`` below it, and the replies from below the cast are counted in the summary; with
+    ``"refuse"``, or deeper than the limit, the run stops with an error that names the cast.
+
+    The sound speed's uncertainty (a state of the filter, :class:`lost.host.usbl.filter.SoundSpeedError`): the
+    path-mean speed's error ``sound_speed_sigma_m_s`` (the cast's own, internal waves), and a surface layer drifting by
+    ``surface_speed_drift_m_s_per_h`` since the cast was taken (``cast_age_h`` before the log's first ping), seen through
+    its share of the path (e-folding depth ``surface_layer_m``); correlated over ``sound_speed_correlation_s``."""
 
     array: UsblArray = field(default_factory=UsblArray)
     imu: ImuSpec = field(default_factory=ImuSpec)
-    gate_probability: float = 0.999
-    align_window_s: float = 40.0
+    gate_probability: OpenFraction = 0.999
+    align_window_s: PositiveFloat = 40.0
     earth_rotation: bool = True
+    cast_below_vehicle: Literal["extend", "refuse"] = "extend"
+    cast_extension_limit_m: NonNegativeFloat = 500.0
+    sound_speed_sigma_m_s: NonNegativeFloat = 0.2
+    cast_age_h: NonNegativeFloat = 0.0
+    surface_speed_drift_m_s_per_h: NonNegativeFloat = 0.75
+    surface_layer_m: PositiveFloat = 30.0
+    sound_speed_correlation_s: PositiveFloat = 600.0
 
 
 @dataclass(frozen=True)
@@ -52,6 +72,7 @@ class UsblRun:
     injected: np.ndarray | None
     ship: np.ndarray
     usbl_position: np.ndarray  # each fix moved from the transponder to the INS by the logged attitude (NaN without one)
+    cast: dict[str, Any] = field(default_factory=dict)  # the cast's source and depth, and what was done below it
 
 
 def _read_table(path: str | Path, kind: str, required: list[str]) -> pd.DataFrame:
@@ -106,6 +127,7 @@ def read_log(path: str | Path, *, turnaround_s: float = 0.0) -> pd.DataFrame:
     if len(travel) != 1:
         raise ValueError(f"{source}: needs exactly one of travel_time_s (one way) and two_way_travel_time_s; has {list(table.columns)}")
     table.attrs["direction_columns"] = pairs[0]
+    table.attrs["source"] = source
     optional_empty = {travel[0], *pairs[0]}
     for column in REQUIRED_LOG_COLUMNS + list(pairs[0]) + travel:
         table[column] = _numeric(table, column, source, allow_empty=column in optional_empty)
@@ -153,8 +175,7 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
     failures: dict[int, str] = {}
     first, second = log.attrs.get("direction_columns", DIRECTION_COLUMNS[0])
     # The ray ends at the transponder: the pressure depth plus the lever arm's vertical share at the towfish's attitude.
-    fish_attitude = body_to_ned(*np.radians(log[["fish_roll_deg", "fish_pitch_deg", "fish_heading_deg"]].to_numpy().T))
-    transponder_depth = log["fish_depth_m"].to_numpy() + fish_attitude[:, 2, :] @ np.asarray(array.transponder_lever_arm_m)
+    transponder_depth = _transponder_depths(log, array)
     for i, row in enumerate(log.itertuples(index=False)):
         if not np.isfinite(row.travel_time_s):
             fixes.append(None)
@@ -172,12 +193,55 @@ def _fixes(log: pd.DataFrame, profile: SoundSpeedProfile, array: UsblArray, fram
     return fixes, failures, np.column_stack([north, east])
 
 
-def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig) -> tuple[int, NavState, np.ndarray]:
+def _transponder_depths(log: pd.DataFrame, array: UsblArray) -> np.ndarray:
+    # The ray ends at the transponder: the pressure depth plus the lever arm's vertical share at the towfish's attitude.
+    fish_attitude = body_to_ned(*np.radians(log[["fish_roll_deg", "fish_pitch_deg", "fish_heading_deg"]].to_numpy().T))
+    return log["fish_depth_m"].to_numpy() + fish_attitude[:, 2, :] @ np.asarray(array.transponder_lever_arm_m)
+
+
+#: How far below the deepest reply an extended cast reaches.
+_EXTENSION_MARGIN_M = 100.0
+
+
+def _cast_below_vehicle(cast: Cast, log: pd.DataFrame, config: UsblConfig) -> tuple[Cast, dict[str, Any]]:
+    """The cast the rays need (extended below its last sample by the policy of ``config``) and what was done, for the summary."""
+    bottom = float(cast.depth_m[-1])
+    depth = _transponder_depths(log, config.array)[np.isfinite(log["travel_time_s"].to_numpy())]
+    below = int(np.sum(depth > bottom))
+    report = {"source": cast.source, "bottom_m": bottom, "policy": config.cast_below_vehicle, "replies_below_cast": below,
+              "extended_to_m": None}
+    if below == 0:
+        return cast, report
+    deepest = float(depth.max())
+    if config.cast_below_vehicle == "refuse":
+        raise CastError(f"cast {cast.source} stops at {bottom:.1f} m, above the towfish: {below} of {depth.size} replies come from below it "
+                        f"(the deepest at {deepest:.1f} m); take a deeper cast, or set cast_below_vehicle = \"extend\"")
+    if deepest - bottom > config.cast_extension_limit_m:
+        raise CastError(f"cast {cast.source} stops at {bottom:.1f} m, {deepest - bottom:.1f} m above the deepest reply's transponder "
+                        f"({deepest:.1f} m; {below} of {depth.size} replies come from below the cast); extending a cast (its last "
+                        f"temperature and salinity held) is trusted to cast_extension_limit_m = {config.cast_extension_limit_m:g} m: take a deeper cast")
+    extended = extend_cast(cast, deepest + _EXTENSION_MARGIN_M)
+    report["extended_to_m"] = float(extended.depth_m[-1])
+    return extended, report
+
+
+def _sound_speed_error(profile: SoundSpeedProfile, log: pd.DataFrame, config: UsblConfig) -> SoundSpeedError:
+    """The filter's model of the path-mean sound speed's error: the surface drift weighted by the surface layer's
+    share of the path to the towfish's median depth, ``(L / D)(1 - exp(-D / L))``."""
+    top = max(config.array.lever_arm_m[2] - config.array.antenna_height_m, 0.0)
+    depth = max(float(np.nanmedian(log["fish_depth_m"].to_numpy())) - top, 1.0)
+    share = config.surface_layer_m / depth * -np.expm1(-depth / config.surface_layer_m)
+    speed = profile.harmonic_mean_m_s(top, min(top + depth, profile.bottom_m))
+    return SoundSpeedError(config.sound_speed_sigma_m_s, config.surface_speed_drift_m_s_per_h * share, config.cast_age_h,
+                           config.sound_speed_correlation_s, speed)
+
+
+def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFrame, config: UsblConfig,
+           sound_speed: SoundSpeedError) -> tuple[int, NavState, np.ndarray]:
     """Start state and covariance at the row time of the first fix: position and velocity from a robust line through
-    the first ``align_window_s`` of fixes (at their epochs ``time``), attitude from the INS's columns of that row."""
-    valid = [i for i, f in enumerate(fixes) if f is not None]
-    if len(valid) < 5:
-        raise ValueError(f"alignment needs at least five USBL fixes, the log has {len(valid)}")
+    the first ``align_window_s`` of fixes (at their epochs ``time``), attitude from the INS's columns of that row. The
+    fixes share the sound speed's error, so the start position carries it: the covariance holds their correlation."""
+    valid = [i for i, f in enumerate(fixes) if f is not None]  # five or more (_check_enough_fixes)
     first = valid[0]
     window = [i for i in valid if time[i] - time[first] <= config.align_window_s]
     if len(window) < 5:
@@ -200,7 +264,7 @@ def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFram
     n, span = int(inliers.sum()), max(float(np.ptp(t[inliers])), 1.0)  # the fit's origin lies within a travel time of its first point
     # Line fit at its first point: intercept variance about 4 sigma^2 / n, slope variance 12 sigma^2 / (n span^2).
     variance = np.array([horizontal[0, 0], horizontal[1, 1], fixes[first].depth_variance_m2])
-    covariance = np.zeros((15, 15))
+    covariance = np.zeros((STATES, STATES))
     covariance[0:3, 0:3] = np.diag(4.0 * variance / n)
     covariance[0:2, 0:2] = 4.0 * horizontal / n
     covariance[3:6, 3:6] = np.diag(12.0 * variance / (n * span**2))
@@ -209,9 +273,26 @@ def _align(time: np.ndarray, row_time: np.ndarray, fixes: list, log: pd.DataFram
     covariance[8, 8] = np.radians(spec.alignment_heading_deg) ** 2
     covariance[9:12, 9:12] = np.eye(3) * (spec.gyro_bias_deg_h * DEG_PER_HOUR) ** 2
     covariance[12:15, 12:15] = np.eye(3) * (spec.accel_bias_mg * MILLI_G) ** 2
+    # The fit's position is off by the fixes' mean sound-speed displacement J b; the error state is -b (the estimate is 0).
+    jacobian = np.mean([fixes[i].sound_speed_jacobian_m for i in window], axis=0)
+    sound_speed_variance = sound_speed.variance(row_time[first] - row_time[0])
+    covariance[SOUND, SOUND] = sound_speed_variance
+    covariance[0:3, 0:3] += np.outer(jacobian, jacobian) * sound_speed_variance
+    covariance[0:3, SOUND] = covariance[SOUND, 0:3] = -jacobian * sound_speed_variance
     row = log.iloc[first]
     attitude = body_to_ned(np.radians(row.fish_roll_deg), np.radians(row.fish_pitch_deg), np.radians(row.fish_heading_deg))
     return first, NavState(position, velocity, attitude), covariance
+
+
+def _check_enough_fixes(log: pd.DataFrame, fixes: list, failures: dict[int, str]) -> None:
+    """The alignment's five fixes, or an error that says why the replies gave none (the first failure's reason)."""
+    valid = sum(fix is not None for fix in fixes)
+    if valid >= 5:
+        return
+    replies = int(np.isfinite(log["travel_time_s"].to_numpy()).sum())
+    why = f"; {len(failures)} replies gave no fix, the first (row {min(failures) + 1}): {failures[min(failures)]}" if failures else ""
+    raise ValueError(f"{log.attrs.get('source', 'USBL log')}: the alignment needs at least five USBL fixes; {replies} of {len(log)} pings "
+                     f"have a reply and {valid} of them a fix{why}")
 
 
 def _trim(imu: ImuSamples, start_s: float) -> ImuSamples:
@@ -230,7 +311,9 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
     ValueError
         The IMU does not cover the log's pings after alignment, or too few fixes to align.
     """
+    cast, cast_report = _cast_below_vehicle(cast, log, config)
     profile = SoundSpeedProfile.from_cast(cast, tolerance_m_s=0.05)
+    check_replies(log, profile, config.array)
     frame = LocalFrame(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0]))
     # A fix places the towfish when it replied, one travel time before the ship heard it.
     travel = log["travel_time_s"].to_numpy()
@@ -239,8 +322,10 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         row = int(np.flatnonzero(np.diff(time) <= 0.0)[0]) + 2
         raise ValueError(f"USBL log: the reply at row {row} ({time[row - 1]:.3f} s) does not come after the one before; pings overlap")
     fixes, failures, ship = _fixes(log, profile, config.array, frame)
+    _check_enough_fixes(log, fixes, failures)
     row_time = log["time_s"].to_numpy()
-    first, state, covariance = _align(time, row_time, fixes, log, config)
+    sound_speed = _sound_speed_error(profile, log, config)
+    first, state, covariance = _align(time, row_time, fixes, log, config, sound_speed)
     # The filter starts at the first fix's row time and reports from the next ping on.
     start, begin = first + 1, row_time[first]
     if start >= time.size:
@@ -250,7 +335,8 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
     earth = EarthModel.at(frame.latitude0_deg, rotating=config.earth_rotation)
     trimmed = _trim(imu, begin)
     filt = InsUsblFilter(state.copy(), covariance, config.imu.noise(), earth, config.gate_probability,
-                         transponder_lever_arm_m=np.asarray(config.array.transponder_lever_arm_m, dtype=float))
+                         transponder_lever_arm_m=np.asarray(config.array.transponder_lever_arm_m, dtype=float), sound_speed=sound_speed,
+                         elapsed_s=float(begin - log["time_s"].iloc[0]))
     fused = fuse(trimmed, time[start:], fixes[start:], filt, depths_m=log["fish_depth_m"].to_numpy()[start:],
                  depth_variance_m2=config.array.depth_noise_m**2)
     free_position, _, _ = strapdown(trimmed, state, earth)
@@ -263,7 +349,8 @@ def process(log: pd.DataFrame, imu: ImuSamples, cast: Cast, config: UsblConfig) 
         truth = np.column_stack([north, east, log["true_depth_m"].to_numpy()])
     if "injected" in log.columns:
         injected = log["injected"].to_numpy() != ""
-    return UsblRun(frame, profile, time, fixes, failures, fused, start, ins, dead, truth, injected, ship, _usbl_positions(fixes, log, config))
+    return UsblRun(frame, profile, time, fixes, failures, fused, start, ins, dead, truth, injected, ship, _usbl_positions(fixes, log, config),
+                   cast_report)
 
 
 def _usbl_positions(fixes: list, log: pd.DataFrame, config: UsblConfig) -> np.ndarray:

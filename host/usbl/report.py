@@ -16,7 +16,7 @@ from ..consistency import BAND_PROBABILITY, nees, nees_figures
 from ..plotting import draw_plots, pyplot
 from ..runfolder import write_summary
 from .pipeline import UsblRun
-from .rays import trace_to_depth
+from .rays import NoRayError, ray_to_offset, trace_to_depth
 
 __all__ = ["summarize", "track_table", "write_outputs", "run_plots", "NEES_BAND_PROBABILITY"]
 
@@ -79,7 +79,7 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
         "name": name, "pings": int(run.time_s.size), "duration_s": float(run.time_s[-1] - run.time_s[0]), "run_time_s": run_time_s,
         "fused_epochs": int(fused.time_s.size), "epochs_before_start": s,
         "epochs_without_fused_position": int(np.sum(~np.all(np.isfinite(fused.position), axis=1))),
-        "truth_known": run.truth is not None, "gate_chi2": fused.gate, "gating": counts,
+        "truth_known": run.truth is not None, "gate_chi2": fused.gate, "gating": counts, "cast": run.cast,
         "frame": {"origin_lat_deg": run.frame.latitude0_deg, "origin_lon_deg": run.frame.longitude0_deg, "utm_crs": run.frame.utm_crs.to_string()},
     }
     if run.fix_failures:
@@ -108,7 +108,7 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
 
 
 def _goals(summary: dict[str, Any]) -> dict[str, bool]:
-    """Issue #14's goals on a simulated run, each met or not."""
+    """The goals on a simulated run, each met or not."""
     methods, gating = summary["methods"], summary["gating"]
     caught, good_rejected = gating["injected_bad_caught_fraction"], gating["good_rejected_fraction"]
     return {
@@ -184,10 +184,13 @@ def _plot_profile(path: Path, run: UsblRun) -> None:
     left.set(xlabel="sound speed (m/s)", ylabel="depth (m)", title="sound-speed layers")
     left.invert_yaxis()
     fixes = [f for f in run.fixes if f is not None]
-    if fixes:
-        fix = sorted(fixes, key=lambda f: f.slant_range_m)[len(fixes) // 2]
-        top = max(fix.depth_m - np.sqrt(max(fix.slant_range_m**2 - fix.horizontal_range_m**2, 0.0)), 0.0)
-        angle = _launch_angle(profile, top, fix)
+    fix = sorted(fixes, key=lambda f: f.slant_range_m)[len(fixes) // 2] if fixes else None
+    top = max(fix.depth_m - np.sqrt(max(fix.slant_range_m**2 - fix.horizontal_range_m**2, 0.0)), 0.0) if fix else 0.0
+    try:
+        angle = _launch_angle(profile, top, fix) if fix else None
+    except NoRayError:  # the median fix's ray turned under the towfish: the panels show the profile alone
+        angle = None
+    if angle is not None:
         depths = np.linspace(top, fix.depth_m, 60)[1:]
         offsets = [0.0] + [trace_to_depth(profile, angle, top, d).horizontal_m for d in depths]
         right.plot(offsets, np.concatenate(([top], depths)), color="tab:blue", label="ray (eq. 3)")
@@ -202,6 +205,4 @@ def _plot_profile(path: Path, run: UsblRun) -> None:
 
 
 def _launch_angle(profile, top: float, fix) -> float:
-    from scipy.optimize import brentq
-
-    return brentq(lambda a: trace_to_depth(profile, a, top, fix.depth_m).horizontal_m - fix.horizontal_range_m, 0.0, 1.4)
+    return ray_to_offset(profile, top, fix.depth_m, fix.horizontal_range_m)

@@ -1,7 +1,8 @@
 """Simulate an INS+USBL tow: the towfish's true motion and its IMU, the ship ahead on the same track, the USBL's
-replies through the cast's sound-speed layers with range-dependent noise, dropouts and bad fixes that grow in
-the ship's turns. The output is what a recording would hold (the log and IMU tables of docs/usbl.md) plus the
-truth, so a simulated run goes through the same processing as a recorded one.
+replies with range-dependent noise, dropouts and bad fixes that grow in the ship's turns. The replies are traced
+through the truth ocean of :mod:`lost.host.usbl.ocean` (finer than the cast, warming and heaving over the tow), not
+the cast the processing is given. The output is what a recording holds (the log and IMU tables of docs/usbl.md)
+plus the truth, so a simulated run goes through the same processing as a recorded one.
 
 The truth is exactly consistent with the strapdown mechanization on the rotating Earth: at every IMU sample the
 ideal angular rate is the rotation between the true attitudes of the interval's ends with the Earth's turn
@@ -21,8 +22,9 @@ from scipy.spatial.transform import Rotation
 from .fix import reply_from_geometry
 from .frames import LocalFrame, body_to_ned, euler_from_matrix, rotation_from_vector
 from .ins import EarthModel
+from .ocean import TruthOcean
 from .scenario import DEG_PER_HOUR, MILLI_G, UsblScenario
-from .sound import Cast, SoundSpeedProfile, read_cast
+from .sound import Cast, read_cast
 
 __all__ = ["SimulatedTow", "simulate_tow", "LOG_COLUMNS", "IMU_COLUMNS"]
 
@@ -100,7 +102,8 @@ def simulate_tow(scenario: UsblScenario) -> SimulatedTow:
     """Simulate the scenario's tow (deterministic for its seed)."""
     rng = np.random.default_rng(scenario.seed)
     cast = read_cast(scenario.cast_path())
-    profile = SoundSpeedProfile.from_cast(cast, tolerance_m_s=0.05)
+    tow = scenario.tow
+    ocean = TruthOcean.build(cast, scenario.ocean, tow.depth_m + tow.depth_swing_m + abs(scenario.usbl.transponder_lever_arm_m[2]) + 10.0)
     latitude, longitude = scenario.origin
     earth = EarthModel.at(latitude)
     dt = 1.0 / scenario.imu_rate_hz
@@ -113,15 +116,16 @@ def simulate_tow(scenario: UsblScenario) -> SimulatedTow:
 
     frame = LocalFrame(latitude, longitude)
     step = int(round(scenario.ping_interval_s / dt))
-    rows = [_ping(scenario, rng, profile, frame, k, time, position, attitude, lead) for k in range(step, samples, step)]
+    rows = [_ping(scenario, rng, ocean, frame, k, time, position, attitude, lead) for k in range(step, samples, step)]
     log = pd.DataFrame(rows, columns=LOG_COLUMNS + TRUTH_COLUMNS)
     return SimulatedTow(log, imu, cast, time[:samples], position[:samples], velocity[:samples], attitude[:samples])
 
 
-def _ping(scenario: UsblScenario, rng: np.random.Generator, profile: SoundSpeedProfile, frame: LocalFrame, k: int, time: np.ndarray,
+def _ping(scenario: UsblScenario, rng: np.random.Generator, ocean: TruthOcean, frame: LocalFrame, k: int, time: np.ndarray,
           position: np.ndarray, attitude: np.ndarray, lead: int) -> list:
     tow, array, faults = scenario.tow, scenario.usbl, scenario.faults
     t = time[k]
+    profile = ocean.profile_at(float(t))
     ship = position[k + lead, :2]
     ship_heading = float(np.arctan2(attitude[k + lead, 1, 0], attitude[k + lead, 0, 0]))
     ship_roll = np.radians(tow.ship_roll_swing_deg) * np.sin(2 * np.pi * t / 9.1)

@@ -89,7 +89,7 @@ def test_loaders_refuse_unknown_keys(tmp_path):
     scenario.write_text('name = "x"\n[tow]\nspeed = 2.0\n')
     with pytest.raises(ValueError, match=r"\[tow\]: unknown key\(s\) \['speed'\]"):
         load_usbl_scenario(scenario)
-    with pytest.raises(ValueError, match="the shipped ones are \\['usbl_turns'\\]"):
+    with pytest.raises(ValueError, match="the shipped ones are \\['usbl_stale_cast', 'usbl_turns'\\]"):
         load_usbl_scenario("no_such_scenario")
 
 
@@ -152,3 +152,26 @@ def test_a_two_way_travel_time_is_halved_after_the_turnaround(recording, tmp_pat
     np.testing.assert_allclose(converted["travel_time_s"], original["travel_time_s"], rtol=1e-12)
     with pytest.raises(ValueError, match="not longer than the turnaround"):
         read_log(tmp_path / "two_way.csv", turnaround_s=5.0)
+
+
+def test_a_step_in_the_cast_with_a_long_layback_loses_no_reply_and_writes_every_file(tmp_path, short_scenario, imu_samples):
+    """+40 m/s over a metre at 200 m, the towfish 2 km behind at 1000 m: rays near the step's grazing angle."""
+    from lost.host.usbl.pipeline import process
+    from lost.host.usbl.report import summarize, write_outputs
+    from lost.host.usbl.scenario import FaultSpec, TowSpec
+    from lost.host.usbl.simulate import simulate_tow
+
+    depth = np.concatenate(([0.0, 200.0, 201.0], np.arange(250.0, 1501.0, 50.0)))
+    speed = np.where(depth <= 200.0, 1500.0, 1540.0 + 0.0165 * (depth - 201.0))
+    cast = tmp_path / "step.csv"
+    cast.write_text("# latitude = 18\n# longitude = 115.5\ndepth_m,sound_speed_m_s\n" + "".join(f"{a},{b}\n" for a, b in zip(depth, speed)))
+    scenario = short_scenario(duration_s=120.0, cast=str(cast), tow=TowSpec(depth_m=1000.0, layback_m=2000.0, course=((120.0, 0.0),)),
+                              faults=FaultSpec(dropout_rate=0.0, dropout_rate_turning=0.0, bad_fix_rate=0.0, bad_fix_rate_turning=0.0))
+    sim = simulate_tow(scenario)
+    run = process(sim.log, imu_samples(sim.imu), sim.cast, scenario.processing_config())
+    summary = summarize(run, name="step", run_time_s=0.0)
+    assert summary["gating"]["failed"] == 0 and summary["gating"]["accepted"] >= 55
+    out, warnings = tmp_path / "out", []
+    out.mkdir()
+    write_outputs(out, run, summary, warnings)
+    assert warnings == [] and {path.name for path in out.iterdir()} == {"track.csv", "track.png", "error.png", "profile.png", "summary.json"}
