@@ -6,22 +6,22 @@ import numpy as np
 from scipy import ndimage
 
 from ..grid import Grid
-from ..terrain import synthetic_terrain
+from ..terrain import feature_relief, refine, shelf_profile, synthetic_terrain
 from .spec import Scenario
 
 __all__ = ["scenario_floor", "floor_depth", "cell_mean_depth"]
 
 
 def scenario_floor(scenario: Scenario) -> Grid:
-    """The scenario's true sea floor: its grid file, or its seeded synthetic floor."""
+    """The scenario's true sea floor: its grid file (refined below its node with ``refine_node_m``), or its seeded
+    synthetic floor: random relief, a shelf's shape and isolated features (see :class:`TerrainSpec`)."""
     spec = scenario.terrain
+    seed = scenario.seed if spec.seed is None else spec.seed
     if spec.file is not None:
-        from ..io import read_grid  # lazily: the file readers and their dependencies load only when used
-
-        return read_grid(scenario.base_dir / spec.file, positive=spec.positive, nodata=spec.nodata)
+        return _file_floor(scenario, seed)
     depth = synthetic_terrain(
         spec.shape,
-        seed=scenario.seed if spec.seed is None else spec.seed,
+        seed=seed,
         mean_depth_m=spec.mean_depth_m,
         relief_m=spec.relief_m,
         roughness_m=spec.roughness_m,
@@ -32,8 +32,28 @@ def scenario_floor(scenario: Scenario) -> Grid:
         azimuth_deg=spec.azimuth_deg,
         repeat_nodes=None if spec.repeat_m is None else tuple(max(int(round(m / spec.node_m)), 2) for m in spec.repeat_m),
     )
+    if spec.gradient > 0 or spec.break_m is not None:
+        depth += shelf_profile(spec.shape, spec.node_m, gradient=spec.gradient, downslope_deg=spec.downslope_deg, break_m=spec.break_m,
+                               slope_gradient=spec.slope_gradient, break_width_m=spec.break_width_m)
+    if spec.features:
+        depth += feature_relief(spec.shape, spec.node_m, spec.features, seed=seed, x0_m=spec.x0_m, y0_m=spec.y0_m)
     return Grid(depth, spec.x0_m, spec.y0_m, spec.node_m)
 
+
+def _file_floor(scenario: Scenario, seed: int) -> Grid:
+    """A grid file as the floor, refined to ``terrain.refine_node_m`` when given."""
+    from ..io import read_grid  # lazily: the file readers and their dependencies load only when used
+
+    spec = scenario.terrain
+    grid = read_grid(scenario.base_dir / spec.file, positive=spec.positive, nodata=spec.nodata)
+    if spec.refine_node_m is None:
+        return grid
+    ratio = grid.node_m / spec.refine_node_m
+    if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
+        raise ValueError(f"terrain.refine_node_m ({spec.refine_node_m:g} m) must divide the node of {spec.file} ({grid.node_m:g} m) "
+                         "a whole number of times")
+    depth = refine(grid.depth_m, int(round(ratio)), seed=seed, detail_m=spec.detail_m, hurst=spec.hurst)
+    return Grid(depth, grid.x0_m, grid.y0_m, spec.refine_node_m, grid.crs)
 
 
 def floor_depth(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:

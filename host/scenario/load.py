@@ -7,6 +7,7 @@ from typing import Any
 
 from ..config import ConfigError, build, navigation_parameters, read_toml, validate_fields
 from ..shipped import shipped_names, shipped_path
+from ..terrain import Feature
 from .spec import SENSORS, CableSpec, CurrentSpec, FaultSpec, MapSpec, Scenario, ShipSpec, TerrainSpec, VehicleSpec
 
 __all__ = ["load_scenario", "builtin_scenarios", "builtin_scenario_path"]
@@ -42,7 +43,7 @@ def load_scenario(path: str | Path) -> Scenario:
     try:
         for key, cls in tables.items():
             if key in data:
-                kwargs[key] = build(cls, data[key], key)
+                kwargs[key] = _terrain(data[key]) if key == "terrain" else build(cls, data[key], key)
         if not isinstance(sensors, dict):
             raise ConfigError(f"[sensors] must be a table of sensor tables, got {sensors!r}")
         kwargs["sensors"] = {name: build(SENSORS[name], table, f"sensors.{name}") for name, table in sensors.items()}
@@ -51,6 +52,18 @@ def load_scenario(path: str | Path) -> Scenario:
         return Scenario(**kwargs)
     except ValueError as error:
         raise type(error)(f"{path.name}: {error}") from None
+
+
+def _terrain(table: Any) -> TerrainSpec:
+    """``[terrain]`` with its ``[[terrain.features]]``, each built and checked as a table of its own."""
+    if not isinstance(table, dict) or "features" not in table:
+        return build(TerrainSpec, table, "terrain")
+    features = table["features"]
+    if not isinstance(features, list):
+        raise ConfigError(f"terrain.features must be an array of tables ([[terrain.features]]), got {features!r}")
+    rest = {key: value for key, value in table.items() if key != "features"}
+    built = tuple(build(Feature, feature, f"terrain.features[{index}]") for index, feature in enumerate(features))
+    return TerrainSpec(**validate_fields(TerrainSpec, rest, "terrain"), features=built)
 
 
 def builtin_scenarios() -> list[str]:

@@ -13,9 +13,10 @@ from typing import Annotated, Any, Literal
 from pydantic import Field
 
 from ..config import Fraction, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
+from ..terrain import Feature
 
 __all__ = ["Scenario", "TerrainSpec", "MapSpec", "FaultSpec", "ShipSpec", "CableSpec", "CurrentSpec", "VehicleSpec", "SensorSpec",
-           "SonarSpec", "SlantRangeSpec", "UsblSpec", "SENSORS", "MAX_SCENARIO_BYTES", "KNOT_MPS"]
+           "SonarSpec", "SlantRangeSpec", "UsblSpec", "Feature", "SENSORS", "check_map_node", "MAX_SCENARIO_BYTES", "KNOT_MPS"]
 
 KNOT_MPS = 1852.0 / 3600.0
 
@@ -36,8 +37,20 @@ class TerrainSpec:
         of Goff and Jordan (corner wavelength in metres, elongation, its direction) rather than a pure
         power law: the statistical model of real sea-floor morphology.
     repeat_m : (north, east) size of a tile repeated over the whole floor (look-alike terrain).
+    gradient, downslope_deg, break_m, slope_gradient, break_width_m : a shelf and its slope under the random
+        relief (``lost.host.terrain.shelf_profile``): the floor deepens toward ``downslope_deg`` by ``gradient``
+        (metres per metre), beyond ``break_m`` from the floor's centre by ``slope_gradient``; mean_depth_m is
+        then the depth at the floor's centre. gradient = 0 and no break_m: no regional shape.
+    features : ``[[terrain.features]]`` tables, isolated strong features on the synthetic floor: a winding
+        canyon, a ridge, a seamount (``lost.host.terrain.Feature``: kind, height_m, width_m, path_m or at_m,
+        meander_m, meander_wavelength_m), in the floor's metres.
+    refine_node_m : with ``file``, the floor is the file's grid refined to this node (a whole fraction of the
+        file's) with fractal detail below the file's node (``lost.host.terrain.refine``), so a real DEM serves
+        as a floor finer than a map made from it; detail_m is the detail's standard deviation (None: the
+        file's own relief at its node scale), hurst its spectrum.
 
-    This is the true sea floor, which the sonar, altimeter and depth follow; the navigation map is
+    A smooth shelf with a few strong features: ``relief_m`` and ``roughness_m`` of a metre or two,
+    ``gradient``, ``features``. This is the true sea floor, which the sonar, altimeter and depth follow; the navigation map is
     made from it by ``[map]``.
     """
 
@@ -58,27 +71,66 @@ class TerrainSpec:
     aspect: PositiveFloat = 1.0
     azimuth_deg: float = 0.0
     repeat_m: tuple[PositiveFloat, PositiveFloat] | None = None
+    gradient: NonNegativeFloat = 0.0
+    downslope_deg: float = 90.0
+    break_m: float | None = None
+    slope_gradient: NonNegativeFloat = 0.06
+    break_width_m: PositiveFloat = 400.0
+    features: tuple[Feature, ...] = ()
+    refine_node_m: PositiveFloat | None = None
+    detail_m: NonNegativeFloat | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
 class MapSpec:
     """``[map]``: the navigation map, made from the true floor as a survey makes one.
 
-    node_m : the map's node spacing, a whole multiple of ``terrain.node_m``; each map node is the mean
-        of the floor's nodes in its cell, as a gridded multibeam survey is. None (the default): the
-        map is the true floor itself, node for node, as in a simulation that knows too much.
-    noise_m : 1-sigma survey noise of each map node (independent from node to node).
+    node_m : the map's node spacing, a whole multiple of the floor's (``terrain.node_m``, or a file's own,
+        or ``terrain.refine_node_m``); each map node grids the floor's nodes in its cell, each node one
+        sounding, as a gridded multibeam survey is (real maps are 3-10 times coarser than what the sonar
+        resolves). None (the default): the map is the true floor itself, node for node, as in a simulation
+        that knows too much.
+    gridding : "mean" or "median" of the soundings in a cell. The map's per-node standard deviation
+        (``Grid.sigma_m``) is their spread, as gridding tools report it (a cell of one sounding takes the
+        map's median spread; a cell of none is a hole, NaN).
+    line_spacing_m, line_azimuth_deg, swath_width_m : survey lines run toward ``line_azimuth_deg``
+        (clockwise from north), ``line_spacing_m`` apart, each sounding a swath ``swath_width_m`` wide
+        (default: the spacing, full coverage; narrower leaves unsurveyed stripes, holes in the map).
+        None: no line structure (only the per-node noise below).
+    line_offset_m : 1-sigma depth offset of each line as a whole (tide, heave, draft, the sound speed at the head).
+    line_drift_m, along_m : 1-sigma depth error that wanders along each line, correlated over ``along_m``.
+    refraction_m : a sound-speed error's bend of the outer beams: the error grows as (across / half swath)**2
+        to this many metres at the swath's edges, up or down by line (the "smile" of a swath).
+    sounding_noise_m : 1-sigma noise of each sounding (independent).
+    hole_fraction, hole_size_m : a share of the area in unsurveyed patches about ``hole_size_m`` across.
+    noise_m : 1-sigma noise added to each map node after gridding (independent from node to node).
     offset_m : a constant added to every map depth (a datum or tide error).
     extent_m : (west, south, east, north), metres: the map covers only this box (a map that stops
         before the survey does); None: the whole floor.
-    seed : the noise's seed (default: the scenario's seed + 1).
+    seed : the survey's seed (default: the scenario's seed + 1).
     """
 
     node_m: PositiveFloat | None = None
+    gridding: Literal["mean", "median"] = "mean"
+    line_spacing_m: PositiveFloat | None = None
+    line_azimuth_deg: float = 0.0
+    swath_width_m: PositiveFloat | None = None
+    line_offset_m: NonNegativeFloat = 0.0
+    line_drift_m: NonNegativeFloat = 0.0
+    along_m: PositiveFloat = 500.0
+    refraction_m: NonNegativeFloat = 0.0
+    sounding_noise_m: NonNegativeFloat = 0.0
+    hole_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.0
+    hole_size_m: PositiveFloat = 300.0
     noise_m: NonNegativeFloat = 0.0
     offset_m: float = 0.0
     extent_m: tuple[float, float, float, float] | None = None
     seed: NonNegativeInt | None = None
+
+    @property
+    def surveyed(self) -> bool:
+        """Whether the map is made of soundings (any survey error or a coarser node), not the floor as it is."""
+        return self.node_m is not None or self.line_spacing_m is not None or self.sounding_noise_m > 0 or self.hole_fraction > 0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -275,15 +327,34 @@ class Scenario:
             raise ValueError(f"sensors.sonar.interval_s must be positive, got {sonar.interval_s!r}.")
         object.__setattr__(self, "sensors", sensors)
         _check_physics(self)
-        if self.map.node_m is not None:
-            ratio = self.map.node_m / self.terrain.node_m
-            if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
-                raise ValueError(f"map.node_m must be a whole multiple of terrain.node_m ({self.terrain.node_m} m), got {self.map.node_m!r}.")
+        _check_floor(self.terrain)
+        floor_node_m = self.terrain.refine_node_m if self.terrain.file is not None else self.terrain.node_m
+        # A file's node is known once it is read: lost.host.scenario.map checks it there.
+        if self.map.node_m is not None and floor_node_m is not None:
+            check_map_node(self.map.node_m, floor_node_m, "terrain.refine_node_m" if self.terrain.file is not None else "terrain.node_m")
         if self.map.noise_m < 0:
             raise ValueError(f"map.noise_m must not be negative, got {self.map.noise_m!r}.")
         if self.map.extent_m is not None and not (len(self.map.extent_m) == 4 and self.map.extent_m[0] < self.map.extent_m[2]
                                                   and self.map.extent_m[1] < self.map.extent_m[3]):
             raise ValueError(f"map.extent_m must be (west, south, east, north) with west < east and south < north, got {self.map.extent_m!r}.")
+
+
+def _check_floor(terrain: TerrainSpec) -> None:
+    """The synthetic floor's shape fields mean nothing under a file, and refinement nothing without one."""
+    if terrain.file is None:
+        if terrain.refine_node_m is not None or terrain.detail_m is not None:
+            raise ValueError("terrain.refine_node_m and terrain.detail_m refine a grid file: set terrain.file, or leave them out.")
+        return
+    shaped = [name for name in ("gradient", "break_m", "features") if getattr(terrain, name)]
+    if shaped:
+        raise ValueError(f"terrain.{', terrain.'.join(shaped)} shape the synthetic floor, not a grid file (terrain.file = {terrain.file!r}).")
+
+
+def check_map_node(map_node_m: float, floor_node_m: float, floor_source: str) -> None:
+    """The map's node must be a whole multiple of the floor's (a map node grids whole floor cells)."""
+    ratio = map_node_m / floor_node_m
+    if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
+        raise ValueError(f"map.node_m must be a whole multiple of the floor's node, {floor_node_m:g} m ({floor_source}), got {map_node_m!r}.")
 
 
 #: A scenario needing more memory than this (records, patches, floor) is refused before it starts.
