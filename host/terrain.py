@@ -181,6 +181,11 @@ def feature_relief(shape: tuple[int, int], node_m: float, features: Sequence[Fea
     """Metres added to the depth by ``features`` (a canyon deepens the floor, a ridge or seamount raises it).
 
     Seeded: a canyon's meanders are drawn from ``seed`` and the feature's index.
+
+    Raises
+    ------
+    ValueError
+        A feature that lies wholly off the floor (it would change nothing: a mistyped coordinate, not a floor).
     """
     total = np.zeros(shape)
     for index, feature in enumerate(features):
@@ -188,17 +193,26 @@ def feature_relief(shape: tuple[int, int], node_m: float, features: Sequence[Fea
         if feature.kind == "seamount":
             x = x0_m + np.arange(shape[1]) * node_m - feature.at_m[0]
             y = y0_m + np.arange(shape[0]) * node_m - feature.at_m[1]
+            # The centre's distance from the floor (0 inside it): beyond three widths the seamount raises nothing.
+            if np.hypot(max(x.min(), -x.max(), 0.0), max(y.min(), -y.max(), 0.0)) > 3.0 * feature.width_m:
+                raise ValueError(_off_floor(index, feature, shape, node_m, x0_m, y0_m))
             total -= feature.height_m * np.exp(-(x[None, :] ** 2 + y[:, None] ** 2) / feature.width_m**2)
             continue
         reach = 4.0 * feature.width_m if feature.kind == "ridge" else 6.0 * feature.width_m
         box, distance = _distance_to_path(shape, node_m, _winding_path(feature, node_m, rng), reach, x0_m, y0_m)
         if box is None:
-            continue
+            raise ValueError(_off_floor(index, feature, shape, node_m, x0_m, y0_m))
         if feature.kind == "canyon":
             total[box] += feature.height_m / (1.0 + (distance / feature.width_m) ** 4)
         else:
             total[box] -= feature.height_m * np.exp(-((distance / feature.width_m) ** 2))
     return total
+
+
+def _off_floor(index: int, feature: Feature, shape: tuple[int, int], node_m: float, x0_m: float, y0_m: float) -> str:
+    where = f"at_m = {feature.at_m}" if feature.kind == "seamount" else f"path_m = {feature.path_m}"
+    return (f"terrain.features[{index}], a {feature.kind} ({where}), lies wholly off the floor (east {x0_m:g} to "
+            f"{x0_m + (shape[1] - 1) * node_m:g} m, north {y0_m:g} to {y0_m + (shape[0] - 1) * node_m:g} m)")
 
 
 def _winding_path(feature: Feature, node_m: float, rng: np.random.Generator) -> np.ndarray:

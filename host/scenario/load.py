@@ -8,6 +8,7 @@ from typing import Any
 from ..config import ConfigError, build, navigation_parameters, read_toml, validate_fields
 from ..shipped import shipped_names, shipped_path
 from ..terrain import Feature
+from .map import check_before_simulating
 from .spec import SENSORS, CableSpec, CurrentSpec, FaultSpec, MapSpec, Scenario, ShipSpec, TerrainSpec, VehicleSpec
 
 __all__ = ["load_scenario", "builtin_scenarios", "builtin_scenario_path"]
@@ -49,7 +50,9 @@ def load_scenario(path: str | Path) -> Scenario:
         kwargs["sensors"] = {name: build(SENSORS[name], table, f"sensors.{name}") for name, table in sensors.items()}
         kwargs["navigation"] = dict(data.get("navigation", {}))
         kwargs["base_dir"] = path.parent
-        return Scenario(**kwargs)
+        scenario = Scenario(**kwargs)
+        check_before_simulating(scenario)
+        return scenario
     except ValueError as error:
         raise type(error)(f"{path.name}: {error}") from None
 

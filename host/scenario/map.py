@@ -16,11 +16,12 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from ..config import ConfigError
 from ..grid import Grid
 from .floor import scenario_floor
 from .spec import MapSpec, Scenario, check_map_node
 
-__all__ = ["survey_map", "scenario_grid", "survey_soundings", "grid_soundings"]
+__all__ = ["survey_map", "scenario_grid", "survey_soundings", "grid_soundings", "planned_map_shape", "check_patch_fits"]
 
 
 def survey_map(floor: Grid, spec: MapSpec, seed: int) -> Grid:
@@ -139,6 +140,42 @@ def _cut(grid: Grid, extent_m: tuple[float, float, float, float]) -> Grid:
     x, y = grid.xy(r0, c0)
     sigma = None if grid.sigma_m is None else grid.sigma_m[r0 : r1 + 1, c0 : c1 + 1]
     return Grid(grid.depth_m[r0 : r1 + 1, c0 : c1 + 1], float(x), float(y), grid.node_m, grid.crs, sigma)
+
+
+def planned_map_shape(scenario: Scenario, floor_shape: tuple[int, int], floor_node_m: float) -> tuple[int, int]:
+    """The shape of the map ``[map]`` will make of a floor of this shape and node, without making either."""
+    spec, terrain = scenario.map, scenario.terrain
+    factor = 1
+    if spec.node_m is not None:
+        check_map_node(spec.node_m, floor_node_m, "the floor's node")
+        factor = int(round(spec.node_m / floor_node_m))
+    rows, cols = floor_shape[0] // factor, floor_shape[1] // factor
+    if rows < 1 or cols < 1:
+        raise ValueError(f"map.node_m ({spec.node_m:g} m) is larger than the floor ({floor_shape[0]} x {floor_shape[1]} nodes of {floor_node_m:g} m)")
+    if spec.extent_m is None:
+        return rows, cols
+    x0 = terrain.x0_m + (factor - 1) / 2 * floor_node_m
+    y0 = terrain.y0_m + (factor - 1) / 2 * floor_node_m
+    return _cut(Grid(np.zeros((rows, cols)), x0, y0, floor_node_m * factor), spec.extent_m).shape
+
+
+def check_patch_fits(scenario: Scenario, map_shape: tuple[int, int]) -> None:
+    """The sonar patch, in map nodes, must fit inside the map: a correlator places it wholly on the map."""
+    sonar = scenario.sensors["sonar"]
+    if not sonar.enabled:
+        return
+    h, w = sonar.shape
+    if h > map_shape[0] or w > map_shape[1]:
+        raise ConfigError(f"sensors.sonar.shape ({h} x {w} map nodes) is larger than the map ({map_shape[0]} x {map_shape[1]} nodes"
+                          f"{'' if scenario.map.node_m is None else f' of {scenario.map.node_m:g} m'}): no placement of the patch lies on it; "
+                          "use a smaller patch, a finer map.node_m, or a larger map")
+
+
+def check_before_simulating(scenario: Scenario) -> None:
+    """What can be refused from the settings alone, refused before any floor is made (a grid file's is checked once read)."""
+    if scenario.terrain.file is None:
+        node = scenario.terrain.node_m
+        check_patch_fits(scenario, planned_map_shape(scenario, scenario.terrain.shape, node))
 
 
 def scenario_grid(scenario: Scenario) -> Grid:

@@ -12,11 +12,11 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field
 
-from ..config import Fraction, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
+from ..config import ConfigError, Fraction, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
 from ..terrain import Feature
 
 __all__ = ["Scenario", "TerrainSpec", "MapSpec", "FaultSpec", "ShipSpec", "CableSpec", "CurrentSpec", "VehicleSpec", "SensorSpec",
-           "SonarSpec", "SlantRangeSpec", "UsblSpec", "Feature", "SENSORS", "check_map_node", "MAX_SCENARIO_BYTES", "KNOT_MPS"]
+           "SonarSpec", "SlantRangeSpec", "UsblSpec", "Feature", "SENSORS", "check_map_node", "MIN_RECORDS", "MAX_SCENARIO_BYTES", "KNOT_MPS"]
 
 KNOT_MPS = 1852.0 / 3600.0
 
@@ -326,6 +326,7 @@ class Scenario:
         if not sonar.interval_s > 0:
             raise ValueError(f"sensors.sonar.interval_s must be positive, got {sonar.interval_s!r}.")
         object.__setattr__(self, "sensors", sensors)
+        _check_records(self)
         _check_physics(self)
         _check_floor(self.terrain)
         floor_node_m = self.terrain.refine_node_m if self.terrain.file is not None else self.terrain.node_m
@@ -339,22 +340,34 @@ class Scenario:
             raise ValueError(f"map.extent_m must be (west, south, east, north) with west < east and south < north, got {self.map.extent_m!r}.")
 
 
+#: The fewest records a tow has: its velocities are differences of positions.
+MIN_RECORDS = 2
+
+
+def _check_records(scenario: Scenario) -> None:
+    """A tow of fewer than two records has no velocity and nothing to navigate: refused by name, before anything runs."""
+    records = int(round(scenario.duration_s * scenario.rate_hz))
+    if records < MIN_RECORDS:
+        raise ConfigError(f"duration_s = {scenario.duration_s:g} s at rate_hz = {scenario.rate_hz:g} Hz makes {records} record(s); a tow needs at "
+                          f"least {MIN_RECORDS} (its velocity is a difference of positions): lengthen duration_s or raise rate_hz")
+
+
 def _check_floor(terrain: TerrainSpec) -> None:
     """The synthetic floor's shape fields mean nothing under a file, and refinement nothing without one."""
     if terrain.file is None:
         if terrain.refine_node_m is not None or terrain.detail_m is not None:
-            raise ValueError("terrain.refine_node_m and terrain.detail_m refine a grid file: set terrain.file, or leave them out.")
+            raise ConfigError("terrain.refine_node_m and terrain.detail_m refine a grid file: set terrain.file, or leave them out.")
         return
     shaped = [name for name in ("gradient", "break_m", "features") if getattr(terrain, name)]
     if shaped:
-        raise ValueError(f"terrain.{', terrain.'.join(shaped)} shape the synthetic floor, not a grid file (terrain.file = {terrain.file!r}).")
+        raise ConfigError(f"terrain.{', terrain.'.join(shaped)} shape the synthetic floor, not a grid file (terrain.file = {terrain.file!r}).")
 
 
 def check_map_node(map_node_m: float, floor_node_m: float, floor_source: str) -> None:
     """The map's node must be a whole multiple of the floor's (a map node grids whole floor cells)."""
     ratio = map_node_m / floor_node_m
     if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
-        raise ValueError(f"map.node_m must be a whole multiple of the floor's node, {floor_node_m:g} m ({floor_source}), got {map_node_m!r}.")
+        raise ConfigError(f"map.node_m must be a whole multiple of the floor's node, {floor_node_m:g} m ({floor_source}), got {map_node_m!r}.")
 
 
 #: A scenario needing more memory than this (records, patches, floor) is refused before it starts.

@@ -9,7 +9,7 @@ import numpy as np
 from ..grid import Grid
 from ..records import NavRecords
 from .floor import floor_depth, scenario_floor
-from .map import survey_map
+from .map import check_before_simulating, check_patch_fits, planned_map_shape, survey_map
 from .sensors import read, usbl_pings
 from .spec import KNOT_MPS, Scenario
 from .swath import sonar_patches
@@ -23,7 +23,9 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
     The vehicle, its altimeter and its sonar see the true floor (:func:`scenario_floor`); the map
     returned is the survey of it that ``[map]`` describes.
     """
+    check_before_simulating(scenario)
     floor = scenario_floor(scenario)
+    check_patch_fits(scenario, planned_map_shape(scenario, floor.shape, floor.node_m))
     grid = survey_map(floor, scenario.map, scenario.seed + 1 if scenario.map.seed is None else scenario.map.seed)
     rng = np.random.default_rng(scenario.seed)
     t = np.arange(int(round(scenario.duration_s * scenario.rate_hz))) / scenario.rate_hz

@@ -174,3 +174,34 @@ def test_a_scenario_file_lays_out_a_shelf_with_a_canyon(tmp_path):
     with pytest.raises(ValueError, match="refine a grid file"):
         load_scenario(path)
     assert math.isfinite(floor.sum())
+
+
+REALISTIC = ("coarse_map", "shelf_canyon", "seamount_ridges")
+
+
+@pytest.mark.parametrize("name", REALISTIC)
+def test_the_shipped_realistic_map_scenarios_survey_a_floor_three_to_ten_times_finer(name):
+    from lost.host.scenario import builtin_scenario_path, load_scenario
+
+    scenario = load_scenario(builtin_scenario_path(name))
+    spec = scenario.map
+    assert 3 <= spec.node_m / scenario.terrain.node_m <= 10
+    assert spec.line_spacing_m and spec.line_offset_m > 0 and spec.line_drift_m > 0 and spec.refraction_m > 0
+    assert spec.sounding_noise_m > 0 and spec.hole_fraction > 0 and abs(spec.offset_m) >= 2.0
+
+
+def test_the_shelf_canyon_map_shows_the_canyon_and_its_walls_spread_more_than_the_shelf():
+    from lost.host.scenario import builtin_scenario_path, load_scenario, scenario_floor, survey_map
+
+    scenario = load_scenario(builtin_scenario_path("shelf_canyon"))
+    floor = scenario_floor(scenario)
+    nav_map = survey_map(floor, scenario.map, seed=1)
+    assert nav_map.shape == (180, 340) and 0.005 < np.isnan(nav_map.depth_m).mean() < 0.06
+    # Across the track's row (2.2 km north), the canyon is the deepest 50 m; its walls have the largest spread.
+    row = nav_map.depth_m[88]
+    shelf = np.nanmedian(row)
+    assert np.nanmax(row) - shelf > 40.0
+    walls = np.nanmax(nav_map.sigma_m[88]) / np.nanmedian(nav_map.sigma_m[88])
+    assert walls > 5.0
+    # The shelf itself is smooth: within a few metres over kilometres, its sigma the sounding noise and a little relief.
+    assert np.nanmedian(nav_map.sigma_m) == pytest.approx(0.3, abs=0.1)
