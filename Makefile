@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-nav bench-nav-usbl bench-track bench-usbl synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test bench bench-sim bench-nav bench-nav-usbl bench-track bench-usbl synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -29,6 +29,10 @@ test: setup
 
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+# The tow simulator's time per shipped scenario, and a 10 km x 10 km floor at 5 m with its map: build/bench/simulate_speed.json.
+bench-sim: setup
+	$(BIN)/python benchmarks/simulate_speed.py
 
 # The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
 # build/bench/nav_filters.json.

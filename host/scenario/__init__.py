@@ -40,6 +40,7 @@ from .spec import (
     CableSpec,
     CurrentSpec,
     FaultSpec,
+    Feature,
     MapSpec,
     Scenario,
     SensorSpec,
@@ -54,6 +55,6 @@ from .tow import simulate
 
 __all__ = [
     "Scenario", "TerrainSpec", "ShipSpec", "CableSpec", "CurrentSpec", "VehicleSpec", "SensorSpec", "SonarSpec", "SlantRangeSpec",
-    "UsblSpec", "usbl_profile", "MapSpec", "FaultSpec", "load_scenario", "scenario_floor", "survey_map", "scenario_grid",
+    "UsblSpec", "usbl_profile", "MapSpec", "Feature", "FaultSpec", "load_scenario", "scenario_floor", "survey_map", "scenario_grid",
     "builtin_scenarios", "builtin_scenario_path", "simulate", "KNOT_MPS", "MAX_SCENARIO_BYTES",
 ]
