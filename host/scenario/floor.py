@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from ..config import ConfigError
 from ..grid import Grid
 from ..terrain import feature_relief, refine, shelf_profile, synthetic_terrain
-from .spec import Scenario
+from .spec import MAX_SCENARIO_BYTES, Scenario
 
 __all__ = ["scenario_floor", "floor_depth", "cell_mean_depth"]
 
@@ -52,7 +53,14 @@ def _file_floor(scenario: Scenario, seed: int) -> Grid:
     if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
         raise ValueError(f"terrain.refine_node_m ({spec.refine_node_m:g} m) must divide the node of {spec.file} ({grid.node_m:g} m) "
                          "a whole number of times")
-    depth = refine(grid.depth_m, int(round(ratio)), seed=seed, detail_m=spec.detail_m, hurst=spec.hurst)
+    factor = int(round(ratio))
+    rows, cols = (grid.shape[0] - 1) * factor + 1, (grid.shape[1] - 1) * factor + 1
+    # The spline's coordinates, the result and the detail's spectrum: about 48 bytes a fine node.
+    if 48.0 * rows * cols > MAX_SCENARIO_BYTES:
+        raise ConfigError(f"{spec.file} ({grid.shape[0]} x {grid.shape[1]} nodes of {grid.node_m:g} m) refined to terrain.refine_node_m = "
+                          f"{spec.refine_node_m:g} m would be {rows:,} x {cols:,} nodes, about {48.0 * rows * cols / 1e9:,.0f} GB; the limit is "
+                          f"{MAX_SCENARIO_BYTES / 1e9:g} GB: refine less, or cut the file to the tow's area")
+    depth = refine(grid.depth_m, factor, seed=seed, detail_m=spec.detail_m, hurst=spec.hurst)
     return Grid(depth, grid.x0_m, grid.y0_m, spec.refine_node_m, grid.crs)
 
 

@@ -98,7 +98,8 @@ class MapSpec:
         (default: the spacing, full coverage; narrower leaves unsurveyed stripes, holes in the map).
         None: no line structure (only the per-node noise below).
     line_offset_m : 1-sigma depth offset of each line as a whole (tide, heave, draft, the sound speed at the head).
-    line_drift_m, along_m : 1-sigma depth error that wanders along each line, correlated over ``along_m``.
+    line_drift_m, along_m : 1-sigma depth error that wanders along each line, correlated over ``along_m`` (its
+        autocorrelation falls to 1/e at that lag).
     refraction_m : a sound-speed error's bend of the outer beams: the error grows as (across / half swath)**2
         to this many metres at the swath's edges, up or down by line (the "smile" of a swath).
     sounding_noise_m : 1-sigma noise of each sounding (independent).

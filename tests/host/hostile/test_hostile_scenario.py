@@ -94,3 +94,15 @@ def test_a_feature_wholly_off_the_floor_is_named_not_silently_dropped(feature, w
 def test_bad_floor_and_survey_settings_are_named(tmp_path, table, message):
     with pytest.raises(ConfigError, match=message):
         load_scenario(_file(tmp_path, "[cable]\nout_m = 2000.0\n" + table))
+
+
+def test_a_grid_file_refined_beyond_memory_is_refused_by_name_before_refining(tmp_path, monkeypatch):
+    import lost.host.scenario.floor as floor_module
+    from lost.host.io import write_npz
+    from lost.host.scenario import scenario_floor
+
+    write_npz(Grid(np.full((200, 300), 700.0), 0.0, 0.0, 100.0), tmp_path / "dem.npz")
+    monkeypatch.setattr(floor_module, "refine", lambda *args, **kwargs: pytest.fail("refined before the size was checked"))
+    text = '[terrain]\nfile = "dem.npz"\nrefine_node_m = 0.5\n[map]\nnode_m = 100.0\n[cable]\nout_m = 900.0\n'
+    with pytest.raises(ConfigError, match=r"refined to terrain.refine_node_m = 0.5 m would be 39,801 x 59,801 nodes, about 114 GB"):
+        scenario_floor(load_scenario(_file(tmp_path, text)))
