@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-sim bench-nav bench-nav-usbl bench-track bench-usbl synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-nav bench-nav-usbl bench-track bench-usbl synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -26,6 +26,12 @@ demo: setup
 test: setup
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest
+
+# The quick tier while working (under 3 minutes here): the linter, then every test that needs neither Verilator
+# nor the FPGA tools, on both cores. `make test` stays everything, and is what CI runs.
+check: setup
+	$(BIN)/ruff check .
+	$(BIN)/python -m pytest -q -n 2 -m 'not slow and not fpga and not verilator'
 
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds

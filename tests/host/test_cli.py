@@ -18,7 +18,7 @@ from lost.host.terrain import synthetic_terrain
 def test_run_a_scenario_writes_the_track_summary_and_plots(tmp_path, capsys):
     out = tmp_path / "short"
     assert main(["run", str(builtin_scenario_path("short")), "--out", str(out)]) == 0
-    assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "map.png", "error.png"}
+    assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "map.png", "error.png", "lost-run.json"}
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["methods"]) == {"lost", "layback", "dead_reckoning", "pmf", "pf"}
     for stats in summary["methods"].values():
