@@ -36,9 +36,11 @@ check: setup
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
 
-# The tow simulator's time per shipped scenario, and a 10 km x 10 km floor at 5 m with its map: build/bench/simulate_speed.json.
+# The tow simulator's time per shipped scenario, a 10 km x 10 km floor at 5 m with its map (build/bench/simulate_speed.json),
+# and the survey maps' errors against their floors over 10 seeds (build/bench/survey_maps.json).
 bench-sim: setup
 	$(BIN)/python benchmarks/simulate_speed.py
+	$(BIN)/python benchmarks/survey_maps.py
 
 # The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
 # build/bench/nav_filters.json.
