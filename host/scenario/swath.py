@@ -78,6 +78,7 @@ def _swath_patches(
     # for at most max_window_s away: a slow vehicle gathers pings for longer.
     half_diagonal = math.hypot(h, w) * node_m / 2
     window = int(np.ceil(spec.max_window_s * rate_hz))
+    soundings = _SoundedBeams(depth, beam_offsets)
     patches: list[SonarPatch | None] = []
     for n in at:
         centre = n
@@ -88,11 +89,30 @@ def _swath_patches(
             centre = int(behind.max()) if behind.size else int(earlier[0])
         nearby = np.arange(max(centre - window, 0), min(centre + window, n if spec.realtime else truth.shape[0] - 1) + 1)
         pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[centre]).T) <= half_diagonal]
-        offsets = beam_offsets[pings] + (reckoned[pings] - reckoned[n])[:, None, :]
-        sounded = np.isfinite(depth[pings])
-        ages = np.broadcast_to(((n - pings) * dt)[:, None], sounded.shape)
+        east, north, sounded_depth, ping = soundings.of(pings)
         patches.append(grid_soundings(
-            offsets[..., 0][sounded], offsets[..., 1][sounded], depth[pings][sounded],
-            patch_shape=(h, w), node_m=node_m, centre_m=tuple(reckoned[centre] - reckoned[n]), age_s=ages[sounded],
+            east + (reckoned[ping, 0] - reckoned[n, 0]), north + (reckoned[ping, 1] - reckoned[n, 1]), sounded_depth,
+            patch_shape=(h, w), node_m=node_m, centre_m=tuple(reckoned[centre] - reckoned[n]), age_s=(n - ping) * dt,
         ).patch)
     return patches
+
+
+class _SoundedBeams:
+    """The soundings with a return, ping after ping (beams in order within a ping), so that the soundings of a run of
+    consecutive pings are one slice: a patch takes them without a mask over every beam of its pings."""
+
+    def __init__(self, depth: np.ndarray, beam_offsets: np.ndarray) -> None:
+        sounded = np.isfinite(depth)
+        self.depth = depth[sounded]
+        self.east = beam_offsets[..., 0][sounded]
+        self.north = beam_offsets[..., 1][sounded]
+        self.ping = np.nonzero(sounded)[0]
+        self.first = np.concatenate([[0], np.cumsum(sounded.sum(axis=1))])  # ping p's soundings: first[p] to first[p + 1]
+
+    def of(self, pings: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(east offset of the beam, north offset, depth, ping) of every sounding of ``pings`` (ascending)."""
+        if pings.size and pings[-1] - pings[0] + 1 == pings.size:
+            chosen = slice(self.first[pings[0]], self.first[pings[-1] + 1])
+        else:
+            chosen = np.concatenate([np.arange(self.first[p], self.first[p + 1]) for p in pings]) if pings.size else np.zeros(0, np.int64)
+        return self.east[chosen], self.north[chosen], self.depth[chosen], self.ping[chosen]
