@@ -39,6 +39,10 @@ def survey_map(floor: Grid, spec: MapSpec, seed: int) -> Grid:
         x0, y0, node = x0 + (factor - 1) / 2 * node, y0 + (factor - 1) / 2 * node, spec.node_m
     else:
         depth = soundings
+    if not np.isfinite(depth).any():
+        raise ConfigError(f"the survey leaves no sounding on the map (map.swath_width_m = {spec.swath_width_m!r} m between lines "
+                          f"{spec.line_spacing_m!r} m apart, map.hole_fraction = {spec.hole_fraction:g}, a floor of {floor.node_m:g} m nodes): "
+                          "widen the swath or survey more")
     depth = depth + spec.offset_m + np.random.default_rng(seed).normal(0.0, spec.noise_m, depth.shape)
     grid = Grid(depth, x0, y0, node, floor.crs, sigma)
     return grid if spec.extent_m is None else _cut(grid, spec.extent_m)

@@ -26,7 +26,8 @@ class TerrainSpec:
     """``[terrain]``: a seeded synthetic sea floor, or a grid file.
 
     file : path of a grid file read by ``lost.host.io.read_grid`` (relative to the scenario); when
-        given, the synthetic fields are ignored. positive ("up" for elevations, "down" for depths)
+        given, the synthetic fields are ignored (the shelf's and the features', which shape only a synthetic
+        floor, are refused). positive ("up" for elevations, "down" for depths)
         and nodata, as read_grid takes them, for a file that does not say.
     seed : terrain seed (default: the scenario's seed).
     shape : (rows, cols) of the synthetic floor; node_m : its node spacing, metres.
@@ -50,8 +51,8 @@ class TerrainSpec:
         file's own relief at its node scale), hurst its spectrum.
 
     A smooth shelf with a few strong features: ``relief_m`` and ``roughness_m`` of a metre or two,
-    ``gradient``, ``features``. This is the true sea floor, which the sonar, altimeter and depth follow; the navigation map is
-    made from it by ``[map]``.
+    ``gradient``, ``features``. This is the true sea floor, which the sonar, altimeter and depth follow;
+    the navigation map is made from it by ``[map]``.
     """
 
     file: str | None = None

@@ -106,3 +106,11 @@ def test_a_grid_file_refined_beyond_memory_is_refused_by_name_before_refining(tm
     text = '[terrain]\nfile = "dem.npz"\nrefine_node_m = 0.5\n[map]\nnode_m = 100.0\n[cable]\nout_m = 900.0\n'
     with pytest.raises(ConfigError, match=r"refined to terrain.refine_node_m = 0.5 m would be 39,801 x 59,801 nodes, about 114 GB"):
         scenario_floor(load_scenario(_file(tmp_path, text)))
+
+
+def test_a_survey_that_leaves_no_sounding_is_named_not_a_map_of_holes():
+    from lost.host.scenario import survey_map
+
+    floor = Grid(np.full((40, 60), 500.0), 5.0, 0.0, 10.0)  # every node 5 m off the north-running lines at x = 0, 100, ...
+    with pytest.raises(ConfigError, match=r"the survey leaves no sounding on the map \(map.swath_width_m = 4.0 m between lines 100.0 m apart"):
+        survey_map(floor, MapSpec(node_m=50.0, line_spacing_m=100.0, swath_width_m=4.0), seed=1)
