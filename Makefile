@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-nav bench-nav-usbl bench-track bench-usbl synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -42,6 +42,10 @@ bench-sim: setup
 	$(BIN)/python benchmarks/simulate_speed.py
 	$(BIN)/python benchmarks/survey_maps.py
 
+# The planner's speed on a 2000 x 2000 map (the bound alone, and the whole lost plan command).
+bench-plan: setup
+	$(BIN)/python benchmarks/plan_speed.py
+
 # The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
 # build/bench/nav_filters.json.
 bench-nav: setup
@@ -62,6 +66,11 @@ bench-usbl: setup
 	$(BIN)/python benchmarks/usbl_goals.py --seeds 20
 	$(BIN)/python benchmarks/usbl_table1.py
 	$(BIN)/python benchmarks/usbl_speed.py
+
+# The survey readers: soundings per second per format on the real files, and the peak memory of reading a
+# 1 GB .all (about 3 minutes here): a table on stdout and build/bench/read_speed.json.
+bench-read: setup
+	$(BIN)/python benchmarks/read_speed.py
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

@@ -45,7 +45,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", "write_summary", "RUN_MARKER", "MIN_FREE_BYTES"]
+__all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", "write_summary", "folder_lock", "writable_parent", "RUN_MARKER",
+           "MIN_FREE_BYTES"]
 
 #: The file that marks a folder as a LOST run (:func:`run_folder` writes it into every run).
 RUN_MARKER = "lost-run.json"
@@ -110,7 +111,7 @@ def _check_target(out: Path, replace: bool) -> None:
         raise RunFolderError(f"--out {out} holds a run that cannot be replaced: the folder is read-only")
 
 
-def _parent(out: Path) -> Path:
+def writable_parent(out: Path) -> Path:
     parent = out.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)
@@ -127,7 +128,7 @@ def _parent(out: Path) -> Path:
 
 
 @contextlib.contextmanager
-def _lock(parent: Path, out: Path) -> Iterator[None]:
+def folder_lock(parent: Path, out: Path) -> Iterator[None]:
     path = parent / f".{out.name}.lock"
     while True:
         handle = open(path, "a+")
@@ -226,8 +227,8 @@ def run_folder(out: str | os.PathLike, *, replace: bool = False, command: str = 
     """
     out = Path(out).absolute()
     _check_target(out, replace)
-    parent = _parent(out)
-    with _lock(parent, out):
+    parent = writable_parent(out)
+    with folder_lock(parent, out):
         _recover(parent, out)
         _check_target(out, replace)  # again, now that no other run can be installing one
         try:

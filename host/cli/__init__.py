@@ -6,8 +6,12 @@
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
     lost demo [--out runs/demo]                         the built-in scenario "demo"
     lost correlate MAP PATCH                            best fit and runner-up of a patch on a map
+    lost survey FILE... [--json]                        what is inside Kongsberg .all/.kmall and GSF files
+    lost grid FILE... --node-m M --out GRID.nc          a bathymetry grid (mean, count, std) from their soundings
     lost track DETECTIONS.csv|SCENARIO [--out DIR]      sonar contact tracking
     lost usbl LOG.csv --svp CAST.csv | SCENARIO         INS+USBL positioning of the towfish
+    lost campaign SPEC.toml [--out DIR]                 many simulated tows on Dask, a table of results
+    lost plan MAP [--route WAYPOINTS.csv]               where terrain navigation will work, and how well
 
 Every command that writes files writes them into a run folder (``--out``), whole or not at all
 (:mod:`lost.host.runfolder`): an earlier LOST run there is replaced only with ``--replace``.
@@ -42,7 +46,7 @@ __all__ = ["main", "build_parser", "COMMANDS", "UsageError", "EXIT_OK", "EXIT_ER
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: The subcommands, in the order ``lost --help`` lists them: each is the module of this package of that name.
-COMMANDS = ("run", "demo", "correlate", "track", "usbl")
+COMMANDS = ("run", "demo", "correlate", "survey", "grid", "track", "usbl", "campaign", "plan")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -7,8 +7,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
 from ..correlator import BACKENDS, correlation
 from ..nav import PreparedMap
 from .common import configure_hardware, hardware_options
@@ -16,31 +14,13 @@ from .common import configure_hardware, hardware_options
 __all__ = ["register"]
 
 
-def _load_patch(path: Path) -> np.ndarray:
-    if path.suffix == ".npy":
-        patch = np.load(path, allow_pickle=False)
-    elif path.suffix == ".npz":
-        with np.load(path, allow_pickle=False) as data:
-            key = "depth_m" if "depth_m" in data.files else data.files[0] if len(data.files) == 1 else None
-            if key is None:
-                raise ValueError(f"{path.name} holds {data.files}; name the patch array 'depth_m'")
-            patch = data[key]
-    elif path.suffix in (".csv", ".txt"):
-        patch = np.genfromtxt(path, delimiter=",", dtype=np.float64)  # empty cells read as NaN: no beam
-    else:
-        raise ValueError(f"a patch must be .npy, .npz or .csv of depths in metres, got {path.name}")
-    patch = np.asarray(patch, dtype=np.float64)
-    if patch.ndim != 2:
-        raise ValueError(f"{path.name} holds a {patch.ndim}-D array; a patch is 2-D")
-    return patch
-
-
 def _cmd_correlate(args: argparse.Namespace) -> int:
     from ..io import read_grid
+    from ..io.patch import read_patch
 
     grid = read_grid(args.map)
     prepared = PreparedMap(grid=grid, lsb_m=args.lsb_m)
-    words, mask, dropped = prepared.quantize_patch(_load_patch(args.patch))
+    words, mask, dropped = prepared.quantize_patch(read_patch(args.patch))
     if not mask.any():
         raise ValueError(f"{args.patch} has no finite depth inside the map's word range")
     configure_hardware(args)

@@ -22,8 +22,8 @@ from lost.model.shapes import shape_argument
 from ..correlator import BACKENDS
 from ..errors import UsageError
 from ..grid import Grid
+from ..io.navlog import PATCH_CENTRES
 from ..nav import ESTIMATORS, NavParameters, navigate
-from ..navlog import PATCH_CENTRES
 from ..records import NavRecords
 from ..runfolder import run_folder, write_summary
 from .common import (
@@ -168,7 +168,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
     try:
         from ..io import read_grid
-        from ..navlog import check_against_map, read_navlog
+        from ..io.navlog import check_against_map, read_navlog
     except ImportError as error:
         raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
     params = _parameters(args, {})

@@ -161,7 +161,7 @@ def test_a_recorded_realtime_swath_is_centred_on_its_soundings(tmp_path, capsys)
     import pandas as pd
 
     from lost.host.io import write_npz
-    from lost.host.navlog import write_navlog
+    from lost.host.io.navlog import write_navlog
     from lost.host.scenario import load_scenario, simulate
 
     scenario = load_scenario(builtin_scenario_path("demo"))

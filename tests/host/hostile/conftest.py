@@ -80,7 +80,7 @@ def recorded(tmp_path, tiny):
     import xarray as xr
 
     from lost.host.io import write_npz
-    from lost.host.navlog import write_navlog
+    from lost.host.io.navlog import write_navlog
     from lost.host.scenario import load_scenario, simulate
 
     grid, records = simulate(load_scenario(tiny))

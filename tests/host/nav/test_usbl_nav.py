@@ -294,7 +294,7 @@ def test_with_the_fix_the_filters_stay_consistent_and_beat_the_raw_fixes(usbl_to
 
 def _recorded(tmp_path, usbl_tow):
     from lost.host.io import write_npz
-    from lost.host.navlog import write_navlog
+    from lost.host.io.navlog import write_navlog
 
     _, grid, records = usbl_tow
     write_navlog(records, tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv")
