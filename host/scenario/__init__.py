@@ -18,7 +18,7 @@ The physics, kept simple and stated
 - Vehicle depth: follows the sea floor at the target altitude through a first-order lag.
 - Sensors: each with Gaussian noise, a bias, dropouts (NaN) and outliers at its own rate. The sonar
   swath is delivered gridded on the map's nodes as an h x w patch centred on the vehicle (what
-  ``lost.host.sonar`` produces from real soundings) every ``interval_s``, with missing beams; a
+  ``lost.host.io.sonar`` produces from real soundings) every ``interval_s``, with missing beams; a
   real-time swath patch is centred behind the vehicle, on the pings already received.
 - USBL (``[sensors.usbl]``, off by default): the ship's USBL replies ray-traced through a sound-speed
   cast with range-dependent noise, dropouts and multipath, and the fixes ``lost.host.usbl`` makes of

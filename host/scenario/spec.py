@@ -210,7 +210,7 @@ class SonarSpec(SensorSpec):
     - ``"gridded"``: the patch arrives sampled on the map's nodes around the true position;
     - ``"swath"``: a multibeam swath of ``beams`` soundings across ``swath_width_m`` (default the
       patch's larger side) perpendicular to the vehicle's motion at every record; the patch of record n
-      bins, with ``lost.host.sonar.grid_soundings``, the soundings of the pings (within
+      bins, with ``lost.host.io.sonar.grid_soundings``, the soundings of the pings (within
       ``max_window_s`` before and after n) whose position lies within half a patch diagonal of the
       vehicle's, all placed relative to the vehicle by dead reckoning on the measured velocity (so
       its errors distort the patch, as on a real tow). Using later pings makes this a
