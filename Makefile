@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-plan bench-nav bench-nav-usbl bench-track bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -35,6 +35,12 @@ check: setup
 
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+# The tow simulator's time per shipped scenario, a 10 km x 10 km floor at 5 m with its map (build/bench/simulate_speed.json),
+# and the survey maps' errors against their floors over 10 seeds (build/bench/survey_maps.json).
+bench-sim: setup
+	$(BIN)/python benchmarks/simulate_speed.py
+	$(BIN)/python benchmarks/survey_maps.py
 
 # The planner's speed on a 2000 x 2000 map (the bound alone, and the whole lost plan command).
 bench-plan: setup

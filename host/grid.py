@@ -32,6 +32,9 @@ class Grid:
         Node spacing, metres, the same along both axes.
     crs : str or None
         The projected CRS (anything ``pyproj.CRS.from_user_input`` takes), or None for a local frame.
+    sigma_m : (rows, cols) float64 array or None
+        The standard deviation of each node's depth, metres, as gridding reports it (the spread of the
+        soundings in the node's cell; a BAG's uncertainty layer); NaN where the depth is a hole. None: not known.
     """
 
     depth_m: np.ndarray
@@ -39,6 +42,7 @@ class Grid:
     y0_m: float
     node_m: float
     crs: str | None = None
+    sigma_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         depth = np.asarray(self.depth_m, dtype=np.float64)
@@ -49,6 +53,13 @@ class Grid:
         if not (np.isfinite(self.x0_m) and np.isfinite(self.y0_m)):
             raise ValueError(f"the grid origin must be finite, got ({self.x0_m!r}, {self.y0_m!r})")
         object.__setattr__(self, "depth_m", depth)
+        if self.sigma_m is not None:
+            sigma = np.asarray(self.sigma_m, dtype=np.float64)
+            if sigma.shape != depth.shape:
+                raise ValueError(f"sigma_m must have the depths' shape {depth.shape}, got {sigma.shape}")
+            if np.any(sigma < 0):
+                raise ValueError(f"sigma_m must not be negative, got a minimum of {np.nanmin(sigma)!r} m")
+            object.__setattr__(self, "sigma_m", sigma)
 
     @property
     def shape(self) -> tuple[int, int]:
