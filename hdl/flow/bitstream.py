@@ -26,7 +26,7 @@ from typing import Any
 from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Instance, Module, ResetSignal, Signal
 
 from lost.hdl.device import CorrelatorDevice
-from lost.hdl.variants import DEFAULT_VARIANT
+from lost.model.variants import DEFAULT_VARIANT
 
 __all__ = ["BAUD", "CLOCK_HZ", "UlX3SDevice", "main"]
 
