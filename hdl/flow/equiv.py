@@ -54,7 +54,7 @@ __all__ = [
     "read_renames",
 ]
 
-#: Flattening as the throwaway proof of session 10 did: memories become one register per word, so that
+#: Flattening: memories become one register per word, so that
 #: a memory moved into a component pairs word by word like any register (and a big memory is slow).
 _PREPARE = "read_rtlil {il}\nhierarchy -top {top}\nproc\nflatten\nmemory -nomap\nmemory_map\nopt_clean\nhierarchy -top {top}\n"
 

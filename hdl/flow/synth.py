@@ -143,7 +143,7 @@ class RouterStall:
     """Watches router2's log: a reason to stop once it has found no fewer overused wires for ``patience`` iterations
     while more than ``floor`` remain.
 
-    At 4 lanes router2 converges on some placements and not on others (docs/fpga.md, sessions 10 and 11): a run
+    At 4 lanes router2 converges on some placements and not on others (docs/fpga.md): a run
     that stalls would otherwise hold its core for hours, where the next seed may route. A run near the end may
     rest for many iterations on a few wires (6e39ad9, seed 1: 32 iterations at 1 or 2, then 0), hence the floor.
     """
@@ -421,9 +421,9 @@ def place_and_route(
     return RouteResult(**(asdict(result) | {"seconds": round(time.monotonic() - start, 1)}))
 
 
-# ---- the configurations the issue measures ----------------------------------------------------------
+# ---- the configurations measured --------------------------------------------------------------------
 
-#: The goals of the issue: the recursive variant at least matches the paper, the window one is 1000 times faster.
+#: The goals: the recursive variant at least matches the paper, the window one is 1000 times faster.
 GOAL_SECONDS = {"recursive": PAPER_SECONDS, "window": PAPER_SECONDS / 1000}
 #: The DP16KD block RAM of the ECP5: 18 kbit, of which 1024 words of 16 bits serve a depth word.
 EBR_DEPTH_WORDS = 1024
