@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test bench bench-nav bench-nav-usbl bench-track bench-usbl synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-plan bench-nav bench-nav-usbl bench-track bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -27,8 +27,18 @@ test: setup
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest
 
+# The quick tier while working (under 3 minutes here): the linter, then every test that needs neither Verilator
+# nor the FPGA tools, on both cores. `make test` stays everything, and is what CI runs.
+check: setup
+	$(BIN)/ruff check .
+	$(BIN)/python -m pytest -q -n 2 -m 'not slow and not fpga and not verilator'
+
 bench: setup
 	$(BIN)/python -m pytest benchmarks --benchmark-only --benchmark-columns=min,median,mean,max,rounds
+
+# The planner's speed on a 2000 x 2000 map (the bound alone, and the whole lost plan command).
+bench-plan: setup
+	$(BIN)/python benchmarks/plan_speed.py
 
 # The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
 # build/bench/nav_filters.json.
@@ -50,6 +60,11 @@ bench-usbl: setup
 	$(BIN)/python benchmarks/usbl_goals.py --seeds 20
 	$(BIN)/python benchmarks/usbl_table1.py
 	$(BIN)/python benchmarks/usbl_speed.py
+
+# The survey readers: soundings per second per format on the real files, and the peak memory of reading a
+# 1 GB .all (about 3 minutes here): a table on stdout and build/bench/read_speed.json.
+bench-read: setup
+	$(BIN)/python benchmarks/read_speed.py
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

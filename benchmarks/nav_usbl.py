@@ -28,7 +28,7 @@ import numpy as np
 
 from lost.host.nav import NavParameters, navigate
 from lost.host.records import USBL_FIELDS
-from lost.host.report import NEES_BAND, horizontal_error, nees, summarize
+from lost.host.report import NEES_BAND, horizontal_error, summarize, track_nees
 from lost.host.scenario import builtin_scenario_path, load_scenario, simulate, usbl_profile
 from lost.host.usbl.rays import slant_range_from_travel_time
 
@@ -103,7 +103,7 @@ def run(name: str, seed: int | None) -> dict:
             error = horizontal_error(result.tracks[method].position, result.truth)[settled]
             row[method]["whole_rms_m"] = round(float(np.sqrt(np.nanmean(error**2))), 2)
             if method != "lost":
-                value = nees(result.tracks[method], result.truth)[settled]
+                value = track_nees(result.tracks[method], result.truth)[settled]
                 value = value[np.isfinite(value)]
                 row[method]["nees_in_band_all"] = round(float(np.mean((value >= NEES_BAND[0]) & (value <= NEES_BAND[1]))), 3)
             row[method]["counts"] = {k: v for k, v in result.tracks[method].counts.items() if "fix" in k or "range" in k}

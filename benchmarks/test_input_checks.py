@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from lost.host.filecheck import check_whole
+from lost.host.io.filecheck import check_whole
 
 
 @pytest.mark.parametrize("fmt", ["NETCDF3_CLASSIC", "NETCDF4"])

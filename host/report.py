@@ -24,26 +24,28 @@ The Bayesian filters' trust figures (``methods.pmf``, ``methods.pf``):
 from __future__ import annotations
 
 import csv
-import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.stats import chi2
 
+from .consistency import nees, nees_band, three_sigma
 from .grid import Grid
 from .nav.pipeline import FilterTrack, NavResult
+from .plotting import map_figure_size, pyplot
+from .runfolder import write_summary
 
-__all__ = ["ConvergenceRule", "error_stats", "convergence_index", "summarize", "write_track_csv", "write_summary", "plot_run", "METHODS"]
+__all__ = ["ConvergenceRule", "error_stats", "convergence_index", "summarize", "write_track_csv", "write_summary", "run_plots", "METHODS"]
 
 #: summary.json's method names and the NavResult fields they read.
 METHODS = {"lost": "estimate", "layback": "layback", "dead_reckoning": "dead_reckoning"}
 
 #: NEES of a consistent 2-D estimate: its two-sided 95 % band, and 3 sigma (99.73 %).
-NEES_BAND = (float(chi2.ppf(0.025, 2)), float(chi2.ppf(0.975, 2)))
-NEES_3_SIGMA = float(chi2.ppf(0.9973, 2))
+NEES_BAND = nees_band(2)
+NEES_3_SIGMA = three_sigma(2)
 #: Stages at which a filter made a terrain update.
 UPDATE_STAGES = ("acquisition", "tracking")
 
@@ -84,14 +86,9 @@ def error_stats(errors: np.ndarray) -> dict[str, float | int | None]:
     }
 
 
-def nees(track: FilterTrack, truth: np.ndarray) -> np.ndarray:
-    """Normalized estimation error squared of every record (NaN without an estimate or a covariance)."""
-    error = track.position - truth
-    out = np.full(len(error), np.nan)
-    ok = np.isfinite(error).all(axis=1) & np.isfinite(track.covariance).all(axis=(1, 2))
-    out[ok] = np.einsum("ni,nij,nj->n", error[ok], np.linalg.pinv(track.covariance[ok]), error[ok])
-    return out
-
+def track_nees(track: FilterTrack, truth: np.ndarray) -> np.ndarray:
+    """The NEES of every record of a filter's track (NaN without an estimate or a covariance)."""
+    return nees(track.position - truth, track.covariance)
 
 def _last_finite(values: np.ndarray, digits: int = 3) -> float | list[float] | None:
     """The last finite value of an (N,) series, or the last row of an (N, 2) one with both finite; None without one."""
@@ -120,7 +117,7 @@ def filter_figures(track: FilterTrack, truth: np.ndarray | None, start: int | No
     }
     if truth is None:
         return figures
-    value = nees(track, truth)
+    value = track_nees(track, truth)
     figures["false_fixes"] = int(np.count_nonzero(track.usable & (value > NEES_3_SIGMA)))
     if start is not None:
         after = updates & (np.arange(len(value)) >= start) & np.isfinite(value)
@@ -263,10 +260,6 @@ def _filter_cells(track: FilterTrack, n: int, error: float) -> list[str]:
             *(_fmt(v, 4) for v in (*track.velocity_bias_mps[n], *track.velocity_bias_sigma_mps[n]))]
 
 
-def write_summary(path: Path, summary: dict[str, Any]) -> None:
-    path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
-
-
 #: Colour and line style of each method in the plots.
 STYLES = {"layback": ("tab:orange", "--"), "dead_reckoning": ("tab:gray", ":"), "lost": ("tab:red", "-"), "pmf": ("tab:blue", "-"),
           "pf": ("tab:purple", "-")}
@@ -284,27 +277,44 @@ def _tracks(result: NavResult) -> dict[str, np.ndarray]:
     return tracks
 
 
-def plot_run(out_dir: Path, result: NavResult, grid: Grid, summary: dict[str, Any]) -> list[Path]:
-    """``map.png`` (the bathymetry with the tracks and the filters' 2-sigma ellipses) and, when the
-    truth is known, ``error.png`` (each method's error, each filter's 2-sigma radius as a band)."""
-    import matplotlib
+def run_plots(result: NavResult, grid: Grid, summary: dict[str, Any]) -> dict[str, Callable[[Path], None]]:
+    """The plots of a run by file name, for :func:`lost.host.plotting.draw_plots`: ``map.png`` (the bathymetry with the
+    tracks and the filters' 2-sigma ellipses) and, when the truth is known, ``error.png`` (each method's error, each
+    filter's 2-sigma radius as a band)."""
+    plots = {"map.png": lambda path: _plot_map(path, result, grid, summary)}
+    if result.truth is not None:
+        plots["error.png"] = lambda path: _plot_errors(path, result, summary)
+    return plots
 
-    matplotlib.use("Agg")  # files only, no display
-    import matplotlib.pyplot as plt
 
-    paths = [out_dir / "map.png"]
-    fig, ax = plt.subplots(figsize=(10, 6), layout="constrained")
-    _draw_map(fig, ax, result, grid, summary)
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    if result.truth is None:
-        return paths
-    paths.append(out_dir / "error.png")
-    fig, ax = plt.subplots(figsize=(10, 4), layout="constrained")
+def _plot_map(path: Path, result: NavResult, grid: Grid, summary: dict[str, Any]) -> None:
+    plt = pyplot()
+    xlim, ylim = _map_frame(result, grid)
+    fig, ax = plt.subplots(figsize=map_figure_size(xlim[1] - xlim[0], ylim[1] - ylim[0]), layout="constrained")
+    _draw_map(fig, ax, result, grid, summary, xlim, ylim)
+    fig.savefig(path, dpi=110)
+
+
+def _plot_errors(path: Path, result: NavResult, summary: dict[str, Any]) -> None:
+    fig, ax = pyplot().subplots(figsize=(10, 4), layout="constrained")
     _draw_errors(ax, result, summary)
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    return paths
+    fig.savefig(path, dpi=110)
+
+
+def _map_extent(grid: Grid) -> tuple[float, float, float, float]:
+    rows, cols = grid.shape
+    return (grid.x0_m - grid.node_m / 2, grid.x0_m + (cols - 0.5) * grid.node_m,
+            grid.y0_m - grid.node_m / 2, grid.y0_m + (rows - 0.5) * grid.node_m)
+
+
+def _map_frame(result: NavResult, grid: Grid) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The tracks with a margin of a search area, within the map: the part of the map the plot shows."""
+    extent = _map_extent(grid)
+    points = np.vstack(list(_tracks(result).values()) + ([result.truth] if result.truth is not None else []))
+    if not np.isfinite(points).any():
+        return (extent[0], extent[1]), (extent[2], extent[3])
+    low, high = np.nanmin(points, axis=0) - 500.0, np.nanmax(points, axis=0) + 500.0
+    return (max(low[0], extent[0]), min(high[0], extent[1])), (max(low[1], extent[2]), min(high[1], extent[3]))
 
 
 def _two_sigma_radius(covariance: np.ndarray) -> np.ndarray:
@@ -312,12 +322,10 @@ def _two_sigma_radius(covariance: np.ndarray) -> np.ndarray:
     return 2.0 * np.sqrt(np.maximum(np.linalg.eigvalsh(np.nan_to_num(covariance))[:, -1], 0.0))
 
 
-def _draw_map(fig, ax, result: NavResult, grid: Grid, summary: dict[str, Any]) -> None:
+def _draw_map(fig, ax, result: NavResult, grid: Grid, summary: dict[str, Any], xlim: tuple[float, float], ylim: tuple[float, float]) -> None:
     from matplotlib.patches import Ellipse
 
-    rows, cols = grid.shape
-    extent = (grid.x0_m - grid.node_m / 2, grid.x0_m + (cols - 0.5) * grid.node_m,
-              grid.y0_m - grid.node_m / 2, grid.y0_m + (rows - 0.5) * grid.node_m)
+    extent = _map_extent(grid)
     image = ax.imshow(grid.depth_m, origin="lower", extent=extent, cmap="viridis_r")
     fig.colorbar(image, ax=ax, label="depth (m)")
     if result.truth is not None:
@@ -337,10 +345,7 @@ def _draw_map(fig, ax, result: NavResult, grid: Grid, summary: dict[str, Any]) -
             angle = float(np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1])))
             width, height = 4.0 * np.sqrt(np.maximum(values[::-1], 0.0))
             ax.add_patch(Ellipse(track.position[n], width, height, angle=angle, fill=False, color=STYLES[name][0], lw=0.8))
-    # Frame the tracks, not the whole map, with a margin of a search area.
-    points = np.vstack(list(tracks.values()) + ([result.truth] if result.truth is not None else []))
-    low, high = np.nanmin(points, axis=0) - 500.0, np.nanmax(points, axis=0) + 500.0
-    ax.set(xlim=(max(low[0], extent[0]), min(high[0], extent[1])), ylim=(max(low[1], extent[2]), min(high[1], extent[3])))
+    ax.set(xlim=xlim, ylim=ylim)
     ax.set(xlabel="easting (m)", ylabel="northing (m)", title=f"{summary['name']}: tracks over the map (2-sigma ellipses)", aspect="equal")
     ax.legend(loc="upper right", fontsize="small")
 

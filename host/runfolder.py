@@ -9,9 +9,12 @@
 - Before any work it checks that ``out`` can be written: its parent is created (or must be a
   folder), a temporary folder ``.NAME.partial-XXXX`` is made beside ``out`` (so the final rename
   stays on one file system) and a few megabytes must be free there.
-- A folder that already holds a run (a ``summary.json``) is refused unless ``replace=True``; then it
-  is replaced whole, never merged, so no file of the earlier run survives beside the new one. A
-  non-empty folder that is not a run is refused even with ``replace``: it is not ours to delete.
+- Every run carries a marker, ``lost-run.json`` (the command that wrote it and when), written as the
+  run is installed; a folder holds a LOST run when it has that marker. Such a folder is refused unless
+  ``replace=True``; then it is replaced whole, never merged, so no file of the earlier run survives
+  beside the new one. A non-empty folder without the marker is refused even with ``replace`` (another
+  tool's ``summary.json`` does not make it ours to delete), and so is a symbolic link, and an earlier
+  run that cannot be moved (read-only): all before any work is done.
 - A lock (``fcntl.flock`` on ``.NAME.lock`` beside ``out``) refuses a second run on the same folder
   while the first is writing; the kernel releases it when the process dies, so a killed run leaves
   no stale lock.
@@ -30,16 +33,23 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import glob
+import json
+import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
+from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
-__all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", "RUN_MARKER", "MIN_FREE_BYTES"]
+import numpy as np
 
-#: The file that marks a folder as a LOST run (every run writes it).
-RUN_MARKER = "summary.json"
+__all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", "write_summary", "folder_lock", "writable_parent", "RUN_MARKER",
+           "MIN_FREE_BYTES"]
+
+#: The file that marks a folder as a LOST run (:func:`run_folder` writes it into every run).
+RUN_MARKER = "lost-run.json"
 
 #: A run's files (track CSV, summary, plots) take a few MB; refuse to start with less free.
 MIN_FREE_BYTES = 16 * 1024 * 1024
@@ -50,8 +60,30 @@ class RunFolderError(OSError):
 
 
 def holds_a_run(folder: Path) -> bool:
-    """Whether ``folder`` is a folder holding a finished LOST run."""
-    return (folder / RUN_MARKER).is_file()
+    """Whether ``folder`` holds a finished LOST run: its marker is there and reads as ours."""
+    try:
+        return json.loads((folder / RUN_MARKER).read_text(encoding="utf-8")).get("lost_run") == 1
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def write_summary(path: Path, summary: Mapping[str, Any]) -> Path:
+    """``summary.json`` of a run: NaN and infinities written as null, NumPy scalars and arrays as JSON values."""
+    def clean(value: Any) -> Any:
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        if isinstance(value, Mapping):
+            return {str(k): clean(v) for k, v in value.items()}
+        if isinstance(value, list | tuple):
+            return [clean(v) for v in value]
+        return value
+
+    path.write_text(json.dumps(clean(summary), indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    return path
 
 
 def describe_untouched(out: Path) -> str:
@@ -62,20 +94,24 @@ def describe_untouched(out: Path) -> str:
 
 
 def _check_target(out: Path, replace: bool) -> None:
+    if out.is_symlink():
+        raise RunFolderError(f"--out {out} is a symbolic link (to {os.readlink(out)}); give the folder itself, a run replaces its folder whole")
     if out.exists() and not out.is_dir():
         raise RunFolderError(f"--out {out} is a file, not a folder")
     if not out.is_dir() or not any(out.iterdir()):
         return
     if not holds_a_run(out):
         raise RunFolderError(
-            f"--out {out} is a non-empty folder that holds no LOST run ({RUN_MARKER} missing); choose an empty or new folder "
+            f"--out {out} is a non-empty folder that holds no LOST run (no {RUN_MARKER}); choose an empty or new folder "
             "(--replace only replaces an earlier run)"
         )
     if not replace:
         raise RunFolderError(f"--out {out} already holds a run; pass --replace to replace it whole, or choose another folder")
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise RunFolderError(f"--out {out} holds a run that cannot be replaced: the folder is read-only")
 
 
-def _parent(out: Path) -> Path:
+def writable_parent(out: Path) -> Path:
     parent = out.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)
@@ -92,7 +128,7 @@ def _parent(out: Path) -> Path:
 
 
 @contextlib.contextmanager
-def _lock(parent: Path, out: Path) -> Iterator[None]:
+def folder_lock(parent: Path, out: Path) -> Iterator[None]:
     path = parent / f".{out.name}.lock"
     while True:
         handle = open(path, "a+")
@@ -142,11 +178,20 @@ def _install(partial: Path, out: Path, parent: Path) -> None:
     """Move the finished run into place, replacing (whole) an earlier run or an empty folder."""
     if out.is_dir() and any(out.iterdir()):
         old = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out.name}.old-"))
-        os.replace(out, old / "run")
+        try:
+            os.replace(out, old / "run")
+        except OSError as error:
+            old.rmdir()
+            raise RunFolderError(f"cannot replace the run in {out}: {error.strerror or error}; it is left as it was") from None
         os.replace(partial, out)
         shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(partial, out)  # POSIX rename replaces an empty folder
+
+
+def _mark(folder: Path, command: str) -> None:
+    marker = {"lost_run": 1, "command": command, "finished": datetime.now(UTC).isoformat(timespec="seconds")}
+    (folder / RUN_MARKER).write_text(json.dumps(marker) + "\n", encoding="utf-8")
 
 
 def _umask() -> int:
@@ -156,7 +201,7 @@ def _umask() -> int:
 
 
 @contextlib.contextmanager
-def run_folder(out: str | os.PathLike, *, replace: bool = False) -> Iterator[Path]:
+def run_folder(out: str | os.PathLike, *, replace: bool = False, command: str = "run") -> Iterator[Path]:
     """Yield a fresh temporary folder for a run's files; on success it becomes ``out``, whole.
 
     Parameters
@@ -165,6 +210,8 @@ def run_folder(out: str | os.PathLike, *, replace: bool = False) -> Iterator[Pat
         The run's folder.
     replace : bool
         Replace an earlier run in ``out`` (whole). Without it such a folder is refused.
+    command : str
+        The subcommand writing the run, recorded in its marker.
 
     Yields
     ------
@@ -180,8 +227,8 @@ def run_folder(out: str | os.PathLike, *, replace: bool = False) -> Iterator[Pat
     """
     out = Path(out).absolute()
     _check_target(out, replace)
-    parent = _parent(out)
-    with _lock(parent, out):
+    parent = writable_parent(out)
+    with folder_lock(parent, out):
         _recover(parent, out)
         _check_target(out, replace)  # again, now that no other run can be installing one
         try:
@@ -191,6 +238,7 @@ def run_folder(out: str | os.PathLike, *, replace: bool = False) -> Iterator[Pat
         partial.chmod(0o777 & ~_umask())  # mkdtemp makes it private; a run folder is an ordinary folder
         try:
             yield partial
+            _mark(partial, command)
             _install(partial, out, parent)
         finally:
             shutil.rmtree(partial, ignore_errors=True)

@@ -729,7 +729,7 @@ def _swath_patches(
     rng: np.random.Generator, floor: Grid, node_m: float, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float,
     at: np.ndarray,
 ) -> list[SonarPatch | None]:
-    from .sonar import grid_soundings
+    from .io.sonar import grid_soundings
 
     h, w = spec.shape
     dt = 1.0 / rate_hz

@@ -1,4 +1,4 @@
-"""Our own yardsticks, the few Stone Soup has no name for: when a filter locks on, and NEES.
+"""Our own yardstick, the one Stone Soup has no name for: when a filter locks on (NEES is ``lost.host.consistency``'s).
 
 Lock, precisely: the filter has locked at ping ``k`` (1-based) when its estimate is within ``radius_m`` of
 the target at ping ``k`` and at every later ping at which the target is in the sector; ``pings_to_lock`` is
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LOCK_RADIUS_M", "pings_to_lock", "nees"]
+__all__ = ["LOCK_RADIUS_M", "pings_to_lock"]
 
 #: An estimate this close to the diver counts as locked on (a few bearing sigmas at 450 m, far from the next clutter).
 LOCK_RADIUS_M = 25.0
@@ -36,7 +36,3 @@ def pings_to_lock(errors_m: np.ndarray, valid: np.ndarray, *, radius_m: float = 
     return int(later[0]) + 1 if later.size else None
 
 
-def nees(error: np.ndarray, covariance: np.ndarray) -> np.ndarray:
-    """Normalized estimation error squared ``e' P^-1 e`` of each row of ``error`` (n, d) against ``covariance`` (n, d, d)."""
-    solved = np.linalg.solve(covariance, error[..., None])[..., 0]
-    return np.einsum("nd,nd->n", error, solved)

@@ -1,14 +1,12 @@
-"""What ``lost track`` leaves in its folder: ``tracks.csv`` and ``summary.json``, each written whole or not at all.
+"""What ``lost track`` writes into its run folder besides the summary: ``tracks.csv`` and the table of tracks.
 
-Each file is written under a temporary name in the folder and moved into place (an atomic rename), and
-``summary.json`` comes last: a folder with a summary is a finished run. (Kept here, not in ``host/report.py``,
-until the shared outputs are one module every system uses.)
+The folder itself is written whole or not at all (``lost.host.runfolder``); ``tracks.csv`` is also written under a
+temporary name and moved into place, so a reader never sees half of it.
 """
 
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import tempfile
@@ -18,7 +16,7 @@ from pathlib import Path
 
 from .tracker import TrackReport
 
-__all__ = ["TRACK_COLUMNS", "write_tracks_csv", "write_summary", "track_table", "atomic_write"]
+__all__ = ["TRACK_COLUMNS", "write_tracks_csv", "track_table", "atomic_write"]
 
 TRACK_COLUMNS = ("ping", "t_s", "track_id", "status", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "speed_mps",
                  "heading_deg", "range_m", "bearing_deg", "class", "cpa_m", "t_cpa_s", "time_to_reach_s")
@@ -76,17 +74,3 @@ def track_table(reports: Sequence[Sequence[TrackReport]]) -> list[dict]:
             "last_time_to_reach_s": None if math.isnan(last.time_to_reach_s) else round(last.time_to_reach_s, 1),
         })
     return table
-
-
-def write_summary(path: Path, summary: dict) -> Path:
-    """``summary.json``, NaN written as null."""
-    def clean(value):
-        if isinstance(value, float) and not math.isfinite(value):
-            return None
-        if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items()}
-        if isinstance(value, list | tuple):
-            return [clean(v) for v in value]
-        return value
-
-    return atomic_write(path, lambda handle: json.dump(clean(summary), handle, indent=2))

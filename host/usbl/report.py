@@ -1,28 +1,26 @@
 """Outputs of an INS+USBL run: ``track.csv``, ``summary.json`` and the plots (track, error over time, the
-sound-speed profile with a ray). Kept inside ``host.usbl`` for now; the shared report module may absorb them.
-
-Each file is written under a temporary name and renamed into place, ``summary.json`` last, so a folder with a
-summary is complete.
+sound-speed profile with a ray), written into the run folder (``lost.host.runfolder``) through the shared summary
+writer and plot guard (``lost.host.plotting``: a plot that fails is a warning, not a lost run).
 """
 
 from __future__ import annotations
 
-import json
-import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
+from ..consistency import BAND_PROBABILITY, nees, nees_figures
+from ..plotting import draw_plots, pyplot
+from ..runfolder import write_summary
 from .pipeline import UsblRun
 from .rays import trace_to_depth
 
-__all__ = ["summarize", "track_table", "write_outputs", "NEES_BAND_PROBABILITY"]
+__all__ = ["summarize", "track_table", "write_outputs", "run_plots", "NEES_BAND_PROBABILITY"]
 
-#: The NEES band: the central interval of the chi-square distribution with this probability.
-NEES_BAND_PROBABILITY = 0.95
+NEES_BAND_PROBABILITY = BAND_PROBABILITY
 
 
 def _stats(errors: np.ndarray) -> dict[str, float | int | None]:
@@ -68,12 +66,8 @@ def track_table(run: UsblRun) -> pd.DataFrame:
         table["true_north_m"], table["true_east_m"], table["true_depth_m"] = truth.T
         table["error_m"] = np.hypot(north - truth[:, 0], east - truth[:, 1])
         table["usbl_error_m"] = np.hypot(usbl[:, 0] - truth[:, 0], usbl[:, 1] - truth[:, 1])
-        table["nees"] = _nees(fused.position - truth, fused.covariance)
+        table["nees"] = nees(fused.position - truth, fused.covariance)
     return table
-
-
-def _nees(error: np.ndarray, covariance: np.ndarray) -> np.ndarray:
-    return np.einsum("ki,ki->k", error, np.linalg.solve(covariance, error[..., None])[..., 0])
 
 
 def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
@@ -99,10 +93,7 @@ def summarize(run: UsblRun, *, name: str, run_time_s: float) -> dict[str, Any]:
         methods["usbl"] = _stats(horizontal(usbl, run.truth))
         methods["ins"] = _stats(horizontal(run.ins_position, truth))
         methods["dead_reckoning"] = _stats(horizontal(run.dead_reckoning, truth))
-        nees = _nees(fused.position - truth, fused.covariance)
-        low, high = chi2.ppf([(1 - NEES_BAND_PROBABILITY) / 2, (1 + NEES_BAND_PROBABILITY) / 2], 3)
-        summary["nees"] = {"mean": float(np.mean(nees)), "band": [float(low), float(high)], "fraction_inside": float(np.mean((nees >= low) & (nees <= high))),
-                           "fraction_above": float(np.mean(nees > high)), "fraction_below": float(np.mean(nees < low)), "dof": 3}
+        summary["nees"] = nees_figures(nees(fused.position - truth, fused.covariance), 3, NEES_BAND_PROBABILITY)
         if run.injected is not None:
             good = np.array([f is not None for f in run.fixes]) & ~run.injected
             methods["usbl_good_fixes"] = _stats(np.where(good, horizontal(usbl, run.truth), np.nan))
@@ -141,30 +132,27 @@ def _injected_counts(run: UsblRun, status: np.ndarray) -> dict[str, Any]:
             "good": int(np.sum(good)), "good_rejected": good_rejected, "good_rejected_fraction": good_rejected / int(np.sum(good)) if np.any(good) else None}
 
 
-def _replace(path: Path, write) -> None:
-    temporary = path.with_name(f".{path.name}.tmp")
-    write(temporary)
-    os.replace(temporary, path)
+def write_outputs(out: Path, run: UsblRun, summary: dict[str, Any], warnings: list[str]) -> None:
+    """``track.csv``, the plots (a plot that fails is a warning in ``warnings``), then ``summary.json`` with the warnings."""
+    track_table(run).to_csv(out / "track.csv", index=False, float_format="%.6f")
+    draw_plots(out, run_plots(run), warnings)
+    summary["warnings"] = list(warnings)
+    write_summary(out / "summary.json", summary)
 
 
-def write_outputs(out: Path, run: UsblRun, summary: dict[str, Any]) -> list[Path]:
-    """``track.csv``, the plots, then ``summary.json``; returns the paths written."""
-    out.mkdir(parents=True, exist_ok=True)
-    _replace(out / "track.csv", lambda p: track_table(run).to_csv(p, index=False, float_format="%.6f"))
-    written = [out / "track.csv"] + _plots(out, run)
-    _replace(out / "summary.json", lambda p: p.write_text(json.dumps(summary, indent=2) + "\n"))
-    return written + [out / "summary.json"]
-
-
-def _plots(out: Path, run: UsblRun) -> list[Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def run_plots(run: UsblRun) -> dict[str, Callable[[Path], None]]:
+    """The plots of a run by file name (``lost.host.plotting.draw_plots``): the track, the error over time (with the
+    truth) and the sound-speed profile with a ray."""
     table = track_table(run)
-    paths = []
-    fig, ax = plt.subplots(figsize=(8, 7))
+    plots = {"track.png": lambda path: _plot_track(path, run, table)}
+    if run.truth is not None:
+        plots["error.png"] = lambda path: _plot_error(path, run, table)
+    plots["profile.png"] = lambda path: _plot_profile(path, run)
+    return plots
+
+
+def _plot_track(path: Path, run: UsblRun, table: pd.DataFrame) -> None:
+    fig, ax = pyplot().subplots(figsize=(8, 7))
     if run.truth is not None:
         ax.plot(run.truth[:, 1], run.truth[:, 0], color="k", lw=1, label="truth")
     ax.plot(run.ship[:, 1], run.ship[:, 0], color="0.6", lw=1, ls="--", label="ship (GNSS)")
@@ -174,20 +162,23 @@ def _plots(out: Path, run: UsblRun) -> list[Path]:
     ax.plot(table.east_m, table.north_m, color="tab:green", lw=1.5, label="INS+USBL")
     ax.set(xlabel="east (m)", ylabel="north (m)", title="towfish track", aspect="equal")
     ax.legend(fontsize=8)
-    paths.append(_save(fig, out / "track.png"))
+    fig.savefig(path, dpi=110, bbox_inches="tight", format="png")
 
-    if run.truth is not None:
-        fig, ax = plt.subplots(figsize=(10, 4))
-        ax.semilogy(table.time_s, table.usbl_error_m, ".", ms=3, color="tab:red", label="raw USBL")
-        reckoning_error = np.hypot(*(run.dead_reckoning - run.truth[run.start_index:])[:, :2].T)
-        ax.semilogy(table.time_s, reckoning_error, color="tab:orange", lw=1, label="eqs. 6-7 dead reckoning")
-        ax.semilogy(table.time_s, table.error_m, color="tab:green", lw=1.5, label="INS+USBL")
-        ax.semilogy(table.time_s, 2 * np.sqrt(table.var_north_m2 + table.var_east_m2), color="tab:green", lw=0.8, ls=":", label="INS+USBL 2 sigma")
-        ax.set(xlabel="time (s)", ylabel="horizontal error (m)", title="error over time")
-        ax.legend(fontsize=8)
-        paths.append(_save(fig, out / "error.png"))
 
-    fig, (left, right, bend) = plt.subplots(1, 3, figsize=(13, 5), sharey=True)
+def _plot_error(path: Path, run: UsblRun, table: pd.DataFrame) -> None:
+    fig, ax = pyplot().subplots(figsize=(10, 4))
+    ax.semilogy(table.time_s, table.usbl_error_m, ".", ms=3, color="tab:red", label="raw USBL")
+    reckoning_error = np.hypot(*(run.dead_reckoning - run.truth[run.start_index:])[:, :2].T)
+    ax.semilogy(table.time_s, reckoning_error, color="tab:orange", lw=1, label="eqs. 6-7 dead reckoning")
+    ax.semilogy(table.time_s, table.error_m, color="tab:green", lw=1.5, label="INS+USBL")
+    ax.semilogy(table.time_s, 2 * np.sqrt(table.var_north_m2 + table.var_east_m2), color="tab:green", lw=0.8, ls=":", label="INS+USBL 2 sigma")
+    ax.set(xlabel="time (s)", ylabel="horizontal error (m)", title="error over time")
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=110, bbox_inches="tight", format="png")
+
+
+def _plot_profile(path: Path, run: UsblRun) -> None:
+    fig, (left, right, bend) = pyplot().subplots(1, 3, figsize=(13, 5), sharey=True)
     profile = run.profile
     left.plot(profile.speed_m_s, profile.depth_m, color="tab:blue")
     left.set(xlabel="sound speed (m/s)", ylabel="depth (m)", title="sound-speed layers")
@@ -207,19 +198,10 @@ def _plots(out: Path, run: UsblRun) -> list[Path]:
         bend.plot(np.array(offsets) - chord, np.concatenate(([top], depths)), color="tab:blue")
         bend.axvline(0.0, color="0.5", ls="--")
         bend.set(xlabel="ray minus straight line (m)", title="the ray's bending")
-    paths.append(_save(fig, out / "profile.png"))
-    return paths
+    fig.savefig(path, dpi=110, bbox_inches="tight", format="png")
 
 
 def _launch_angle(profile, top: float, fix) -> float:
     from scipy.optimize import brentq
 
     return brentq(lambda a: trace_to_depth(profile, a, top, fix.depth_m).horizontal_m - fix.horizontal_range_m, 0.0, 1.4)
-
-
-def _save(fig, path: Path) -> Path:
-    import matplotlib.pyplot as plt
-
-    _replace(path, lambda p: fig.savefig(p, dpi=110, bbox_inches="tight", format="png"))
-    plt.close(fig)
-    return path

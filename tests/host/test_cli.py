@@ -18,7 +18,7 @@ from lost.host.terrain import synthetic_terrain
 def test_run_a_scenario_writes_the_track_summary_and_plots(tmp_path, capsys):
     out = tmp_path / "short"
     assert main(["run", str(builtin_scenario_path("short")), "--out", str(out)]) == 0
-    assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "map.png", "error.png"}
+    assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "map.png", "error.png", "lost-run.json"}
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["methods"]) == {"lost", "layback", "dead_reckoning", "pmf", "pf"}
     for stats in summary["methods"].values():
@@ -161,7 +161,7 @@ def test_a_recorded_realtime_swath_is_centred_on_its_soundings(tmp_path, capsys)
     import pandas as pd
 
     from lost.host.io import write_npz
-    from lost.host.navlog import write_navlog
+    from lost.host.io.navlog import write_navlog
     from lost.host.scenario import load_scenario, simulate
 
     scenario = load_scenario(builtin_scenario_path("demo"))

@@ -26,12 +26,36 @@ search_half_width_m = 100.0
 """
 
 
+#: Twelve seconds of one diver in light clutter: a whole `lost track` run folder in a second.
+TINY_TRACK_SCENARIO = """
+name = "brief"
+seed = 4
+duration_s = 12.0
+[sonar]
+clutter_per_ping = 2.0
+[[target]]
+start_range_m = 300.0
+start_bearing_deg = 10.0
+speed_mps = 0.8
+"""
+
+
+def _written(folder, name: str, text: str):
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
 @pytest.fixture
 def tiny(tmp_path):
     """Path of the tiny scenario file."""
-    path = tmp_path / "tiny.toml"
-    path.write_text(TINY_SCENARIO)
-    return path
+    return _written(tmp_path, "tiny.toml", TINY_SCENARIO)
+
+
+@pytest.fixture
+def tiny_track(tmp_path):
+    """Path of the tiny tracker scenario file."""
+    return _written(tmp_path, "brief.toml", TINY_TRACK_SCENARIO)
 
 
 @pytest.fixture
@@ -56,7 +80,7 @@ def recorded(tmp_path, tiny):
     import xarray as xr
 
     from lost.host.io import write_npz
-    from lost.host.navlog import write_navlog
+    from lost.host.io.navlog import write_navlog
     from lost.host.scenario import load_scenario, simulate
 
     grid, records = simulate(load_scenario(tiny))

@@ -327,3 +327,47 @@ def test_cdf2_and_cdf5_grids_are_read_whole_and_refused_cut(tmp_path, fmt, recor
     np.testing.assert_allclose(read_grid(path).depth_m, z.astype(np.float32))
     with pytest.raises(ValueError, match="g.nc is truncated"):
         read_grid(_cut(path, path.stat().st_size - 40))
+
+
+def test_an_xyz_stray_line_is_named_with_the_file_and_its_line(tmp_path):
+    path = tmp_path / "soundings.xyz"
+    lines = [f"{x} {y} {100 + x}" for x in range(20) for y in range(20)]
+    lines.insert(300, "3 4 5 6")
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=r"soundings.xyz: line 301 has 4 fields where the lines before it have 3: '3 4 5 6'"):
+        read_grid(path, source_crs="EPSG:32631")
+
+
+def write_bag(path, elevation, uncertainty, *, node=10.0):
+    """A BAG written by GDAL's BAG driver (north row first), UTM 31 N."""
+    import rasterio
+    from affine import Affine
+
+    with rasterio.open(path, "w", driver="BAG", width=elevation.shape[1], height=elevation.shape[0], count=2, dtype="float32",
+                       crs="EPSG:32631", transform=Affine(node, 0.0, 500_000.0, 0.0, -node, 5_700_000.0), nodata=1e6) as dst:
+        dst.write(elevation.astype(np.float32), 1)
+        dst.write(uncertainty.astype(np.float32), 2)
+    return path
+
+
+def test_a_bag_without_its_uncertainty_layer_is_refused_by_name(tmp_path):
+    h5py = pytest.importorskip("h5py")
+    from lost.host.io.bag import read_bag
+    from lost.host.io.errors import MissingLayerError
+
+    path = write_bag(tmp_path / "nou.bag", -np.full((3, 4), 50.0), np.full((3, 4), 0.5))
+    with h5py.File(path, "a") as f:
+        del f["BAG_root/uncertainty"]
+    with pytest.raises(MissingLayerError, match="nou.bag has no uncertainty layer"):
+        read_bag(path)
+    depth_only = read_bag(path, require_uncertainty=False)
+    assert depth_only.uncertainty_m is None and (depth_only.grid.depth_m == 50.0).all()
+
+
+def test_a_truncated_bag_is_named(tmp_path):
+    from lost.host.io.bag import read_bag
+
+    path = write_bag(tmp_path / "cut.bag", -np.full((30, 40), 50.0), np.full((30, 40), 0.5))
+    path.write_bytes(path.read_bytes()[:-2000])
+    with pytest.raises(ValueError, match="cut.bag"):
+        read_bag(path)

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from lost.host.grid import Grid
-from lost.host.navlog import check_against_map, read_navlog
+from lost.host.io.navlog import check_against_map, read_navlog
 from lost.host.records import SonarPatch
 
 COLUMNS = ["t_s", "x_m", "y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps", "cable_out_m"]
@@ -274,3 +274,27 @@ def test_soundings_no_sea_floor_has_are_counted_not_gridded(tmp_path):
     records, report = read_navlog(nav, sonar=tmp_path / "s.csv", node_m=10.0, patch_shape=(3, 3))
     assert report.soundings_implausible == 2 and report.soundings_used == 2 and report.soundings_without_value == 0
     assert np.isnan(records.sonar[0].depth_m[1, 2]) and "not used: 2 with a depth no sea floor has" in report.summary()
+
+
+def test_a_log_whose_second_half_is_in_kilometres_is_refused_at_the_change(tmp_path):
+    table = _log()
+    table.loc[30:, ["x_m", "y_m"]] /= 1000.0
+    table.loc[30:, "x_m"] += table.loc[29, "x_m"]  # kilometres onward from where the metres stopped
+    with pytest.raises(ValueError, match=r"nav.csv: positions move 0.001 times as fast .* from about data row 3\d"):
+        read_navlog(_write(tmp_path, table))
+
+
+def test_a_log_whose_second_half_is_in_feet_is_refused(tmp_path):
+    table = _log()
+    table.loc[30:, "x_m"] = table.loc[30, "x_m"] + (table.loc[30:, "x_m"] - table.loc[30, "x_m"]) / 0.3048
+    with pytest.raises(ValueError, match=r"positions move 3.28 times as fast .* a change of unit part-way"):
+        read_navlog(_write(tmp_path, table))
+
+
+def test_a_bare_clock_jumping_by_two_hours_is_refused_as_a_zone_change(tmp_path):
+    table = _log().drop(columns="t_s")
+    stamps = pd.Timestamp("2024-05-01T10:00:00") + pd.to_timedelta(np.arange(60), unit="s")
+    stamps = stamps.where(np.arange(60) < 30, stamps + pd.Timedelta(hours=2))
+    table.insert(0, "time_utc", stamps.strftime("%Y-%m-%dT%H:%M:%S"))
+    with pytest.raises(ValueError, match=r"nav.csv: time jumps by 7201 s \(2 h and \+1 s\) before data row 30.*a change of time zone"):
+        read_navlog(_write(tmp_path, table))

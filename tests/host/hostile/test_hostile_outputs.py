@@ -108,7 +108,7 @@ def test_ctrl_c_leaves_the_previous_run_intact_and_says_so(tiny, tmp_path, run_c
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("lost.host.report.plot_run", interrupted)  # after track.csv and summary.json are written
+    monkeypatch.setattr("lost.host.plotting.draw_plots", interrupted)  # after track.csv is written
     code, _, err = run_cli("run", tiny, "--out", out, "--replace")
     assert code == EXIT_INTERRUPTED and "interrupted; the previous run in" in err and "is intact" in err
     assert {name: (out / name).read_bytes() for name in _files(out)} == before
@@ -119,7 +119,7 @@ def test_ctrl_c_on_a_first_run_leaves_nothing(tiny, tmp_path, run_cli, monkeypat
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("lost.host.report.write_summary", interrupted)
+    monkeypatch.setattr("lost.host.cli.run.write_summary", interrupted)
     code, _, err = run_cli("run", tiny, "--out", tmp_path / "a")
     assert code == EXIT_INTERRUPTED and "nothing was written to" in err
     assert not (tmp_path / "a").exists()
@@ -146,7 +146,7 @@ def test_a_second_run_on_a_locked_folder_is_refused(tiny, tmp_path, run_cli):
         code, _, err = run_cli("run", tiny, "--out", out)
         assert code == EXIT_ERROR and f"(pid {os.getpid()}) is writing to" in err
         (folder / "summary.json").write_text("{}")
-    assert _files(out) == ["summary.json"]
+    assert _files(out) == ["lost-run.json", "summary.json"]
 
 
 def test_the_lock_is_released_after_a_failed_run(tmp_path):
@@ -181,7 +181,7 @@ def test_an_unexpected_error_is_one_line_that_asks_for_debug(tiny, tmp_path, run
 def test_the_demo_replaces_its_own_folder(tmp_path, run_cli, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "runs" / "demo").mkdir(parents=True)
-    (tmp_path / "runs" / "demo" / "summary.json").write_text("{}")
+    (tmp_path / "runs" / "demo" / "lost-run.json").write_text('{"lost_run": 1, "command": "demo"}')
     monkeypatch.setattr("lost.host.scenario.builtin_scenario_path", lambda name: tmp_path / "tiny.toml")
     from .conftest import TINY_SCENARIO
 
@@ -200,7 +200,7 @@ def test_sigterm_unwinds_like_ctrl_c(tiny, tmp_path, run_cli, monkeypatch):
     def terminated(*args, **kwargs):
         os.kill(os.getpid(), signal.SIGTERM)
 
-    monkeypatch.setattr("lost.host.report.plot_run", terminated)
+    monkeypatch.setattr("lost.host.plotting.draw_plots", terminated)
     code, _, err = run_cli("run", tiny, "--out", tmp_path / "a")
     assert code == EXIT_INTERRUPTED and "interrupted; nothing was written to" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.toml"]
@@ -218,6 +218,7 @@ def test_a_run_set_aside_by_a_replacement_that_died_is_put_back(tiny, tmp_path, 
     aside = tmp_path / ".a.old-dead" / "run"
     aside.mkdir(parents=True)
     (aside / "summary.json").write_text('{"name": "the previous run"}')
+    (aside / "lost-run.json").write_text('{"lost_run": 1, "command": "run"}')
     code, _, err = run_cli("run", tiny, "--out", tmp_path / "a")
     assert code == EXIT_ERROR and "already holds a run" in err  # it is back, and not overwritten without --replace
     assert json.loads((tmp_path / "a" / "summary.json").read_text())["name"] == "the previous run"

@@ -19,7 +19,7 @@ from lost.host.nav.pipeline import _RecordLoop
 from lost.host.nav.pmf import PointMassFilter
 from lost.host.nav.stages import TrackFrame
 from lost.host.records import NavRecords
-from lost.host.report import NEES_3_SIGMA, nees
+from lost.host.report import NEES_3_SIGMA, track_nees
 from lost.host.scenario import builtin_scenario_path, load_scenario, simulate, usbl_profile
 from lost.host.terrain import synthetic_terrain
 from lost.host.usbl.rays import slant_range_from_travel_time
@@ -279,7 +279,7 @@ def test_with_the_fix_the_filters_stay_consistent_and_beat_the_raw_fixes(usbl_to
     for name in ("pmf", "pf"):
         track = result.tracks[name]
         assert track.counts["fix_updates"] > 100
-        value = nees(track, truth)[60:]  # after the first minute
+        value = track_nees(track, truth)[60:]  # after the first minute
         value = value[np.isfinite(value)]
         # Never overconfident; wide at most for the acquisition floor's minutes (the PF, its bias learned
         # at once, is 1.1 m off against that floor's 2.5 m: 0.85 in band, the rest all below it).
@@ -294,7 +294,7 @@ def test_with_the_fix_the_filters_stay_consistent_and_beat_the_raw_fixes(usbl_to
 
 def _recorded(tmp_path, usbl_tow):
     from lost.host.io import write_npz
-    from lost.host.navlog import write_navlog
+    from lost.host.io.navlog import write_navlog
 
     _, grid, records = usbl_tow
     write_navlog(records, tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv")
@@ -352,6 +352,6 @@ def test_without_its_usbl_the_point_mass_filter_makes_no_false_fix_while_it_lear
                    usbl_sxx=None, usbl_syy=None, usbl_sxy=None)
     track = navigate(none, grid, NavParameters(**scenario.navigation), estimators=("pmf",)).tracks["pmf"]
     truth = np.column_stack([records.truth_x_m, records.truth_y_m])
-    value = nees(track, truth)
+    value = track_nees(track, truth)
     assert track.usable[150:].mean() > 0.8  # it is usable while it learns, not silenced
     assert np.count_nonzero(track.usable & (value > NEES_3_SIGMA)) == 0

@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from lost.host.consistency import nees
 from lost.host.track import Ping, Sonar
 from lost.host.track.cluster import fit_mixture
 from lost.host.track.kalman import ContactState, measurement, pda_update, predict
-from lost.host.track.metrics import nees, pings_to_lock
+from lost.host.track.metrics import pings_to_lock
 from lost.host.track.simulate import TargetSpec, builtin_scenario_path, load_scenario, simulate
 from lost.host.track.tracker import MultiTargetTracker, TrackerParameters, _cpa
 

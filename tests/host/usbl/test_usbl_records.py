@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from scipy.stats import chi2
 
-from lost.host.navlog import read_navlog, write_navlog
+from lost.host.io.navlog import read_navlog, write_navlog
 from lost.host.records import NavRecords
 from lost.host.scenario import builtin_scenario_path, load_scenario, simulate, usbl_profile
 from lost.host.usbl.rays import slant_range_from_travel_time

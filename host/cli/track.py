@@ -21,32 +21,28 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import progress_bar, setting_argument
-from ..errors import UsageError
-from .detections import read_detections, write_detections
-from .evaluate import score
-from .geometry import Sonar
-from .output import track_table, write_summary, write_tracks_csv
-from .run import run_tracker
-from .simulate import builtin_scenario_path, load_scenario, simulate
-from .tracker import TrackerParameters
+from ..plotting import draw_plots
+from ..runfolder import run_folder, write_summary
+from ..track.detections import read_detections, write_detections
+from ..track.evaluate import score
+from ..track.geometry import Sonar
+from ..track.output import track_table, write_tracks_csv
+from ..track.run import run_tracker
+from ..track.simulate import builtin_scenario_path, load_scenario, simulate
+from ..track.tracker import TrackerParameters
+from .common import merge_settings, output_options, progress_bar, settings_option, warnings_collected
 
-__all__ = ["add_track_command", "run_track"]
-
-#: Runs longer than this many pings show a progress bar.
+__all__ = ["register", "run_track"]
 
 
 def _parameters(base: dict, overrides: dict, where: str) -> TrackerParameters:
-    known = set(TrackerParameters.__dataclass_fields__)
-    unknown = sorted(set(overrides) - known)
-    if unknown:
-        raise UsageError(f"{where} names no tracker parameter: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-    from ..config import ConfigError, build
+    from ..config import build
 
-    try:
-        return build(TrackerParameters, {**base, **overrides}, "tracker")
-    except ConfigError as error:
-        raise UsageError(f"{where}: {error}") from None
+    def check(table, layer):
+        return build(TrackerParameters, {**base, **table}, "tracker")
+
+    merged = merge_settings([(where, overrides)], TrackerParameters.__dataclass_fields__, "tracker parameter", check)
+    return build(TrackerParameters, {**base, **merged}, "tracker")
 
 
 def _load(source: str, args: argparse.Namespace):
@@ -59,7 +55,7 @@ def _load(source: str, args: argparse.Namespace):
         pings, report = read_detections(path, sonar=sonar, crs=args.crs)
         truth = None
         if args.truth is not None:
-            from .truth import read_truth
+            from ..track.truth import read_truth
 
             truth = read_truth(args.truth, pings, sonar=sonar)
         return pings, sonar, _parameters({}, overrides, "--set"), truth, path.stem, report.summary(), None
@@ -68,7 +64,7 @@ def _load(source: str, args: argparse.Namespace):
     model = scenario.sonar
     base = {"pd": max(model.pd, 1e-3), "clutter_per_ping": max(model.clutter_per_ping, 1e-3), "range_sigma_m": model.range_sigma_m,
             "bearing_sigma_deg": model.bearing_sigma_deg}
-    params = _parameters(base, {**scenario.tracker, **overrides}, f"[tracker] of {scenario.name} or --set")
+    params = _parameters(base, {**scenario.tracker, **overrides}, f"--set or [tracker] of {scenario.name}")
     note = f"{scenario.name}: {len(sim.pings)} pings simulated, {sim.target_detections} target detections, {sim.false_alarms} false alarms"
     return sim.pings, model.sonar, params, sim.truth, scenario.name, note, sim
 
@@ -77,15 +73,24 @@ def run_track(args: argparse.Namespace) -> int:
     """The handler of ``lost track``."""
     pings, sonar, params, truth, name, note, sim = _load(args.input, args)
     print(note)
-    out = args.out or Path("runs") / "track" / name
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "summary.json").unlink(missing_ok=True)  # no stale summary beside a run that fails half-way
-    if args.write_detections and sim is not None:
-        from .truth import write_truth
+    out = args.out = args.out or Path("runs") / "track" / name
+    with run_folder(out, replace=args.replace, command="track") as folder, warnings_collected() as warnings:
+        if args.write_detections and sim is not None:
+            from ..track.truth import write_truth
 
-        write_detections(out / "detections.csv", pings)
-        write_truth(out / "truth.csv", truth)
-    run = run_tracker(pings, sonar=sonar, parameters=params, seed=args.seed, progress=progress_bar(len(pings), "tracking"))
+            write_detections(folder / "detections.csv", pings)
+            write_truth(folder / "truth.csv", truth)
+        run = run_tracker(pings, sonar=sonar, parameters=params, seed=args.seed, progress=progress_bar(len(pings), "tracking"))
+        summary = _summary(args, pings, sonar, params, truth, name, run)
+        write_tracks_csv(folder / "tracks.csv", run.reports)
+        draw_plots(folder, _plots(args, sonar, pings, run, truth), warnings)
+        summary["warnings"] = list(warnings)
+        write_summary(folder / "summary.json", summary)
+    _print(summary, out)
+    return 0
+
+
+def _summary(args: argparse.Namespace, pings, sonar: Sonar, params: TrackerParameters, truth, name: str, run) -> dict:
     summary: dict = {
         "name": name, "input": str(args.input), "pings": len(pings), "detections": int(sum(p.detections for p in pings)),
         "tracker": params.as_dict(), "seed": args.seed, "truth_known": truth is not None,
@@ -100,30 +105,35 @@ def run_track(args: argparse.Namespace) -> int:
                        gospa={"localisation": s.gospa_localisation_mean, "missed": s.gospa_missed_mean, "false": s.gospa_false_mean},
                        ospa_mean=s.ospa_mean, siap=s.siap)
     if args.baseline:
-        from .baseline import run_gm_phd
+        summary["baseline"] = _baseline(pings, sonar, params, truth)
+    return summary
 
-        start = time.perf_counter()
-        phd = run_gm_phd(pings, sonar=sonar, tracker=params)
-        baseline = {"tracker": "Stone Soup GM-PHD (PointProcessMultiTargetTracker)",
-                    "ms_per_ping": (time.perf_counter() - start) / len(pings) * 1e3,
-                    "confirmed_tracks": len({e.track_id for ping in phd for e in ping})}
-        if truth is not None:
-            b = score(phd, truth)
-            baseline.update(pings_to_lock=b.pings_to_lock, false_tracks=b.false_tracks, gospa_mean=b.gospa_mean, ospa_mean=b.ospa_mean, siap=b.siap)
-        summary["baseline"] = baseline
-    write_tracks_csv(out / "tracks.csv", run.reports)
-    from .plots import animate, plot_sector
+
+def _baseline(pings, sonar: Sonar, params: TrackerParameters, truth) -> dict:
+    from ..track.baseline import run_gm_phd
+
+    start = time.perf_counter()
+    phd = run_gm_phd(pings, sonar=sonar, tracker=params)
+    baseline = {"tracker": "Stone Soup GM-PHD (PointProcessMultiTargetTracker)",
+                "ms_per_ping": (time.perf_counter() - start) / len(pings) * 1e3,
+                "confirmed_tracks": len({e.track_id for ping in phd for e in ping})}
+    if truth is not None:
+        b = score(phd, truth)
+        baseline.update(pings_to_lock=b.pings_to_lock, false_tracks=b.false_tracks, gospa_mean=b.gospa_mean, ospa_mean=b.ospa_mean, siap=b.siap)
+    return baseline
+
+
+def _plots(args: argparse.Namespace, sonar: Sonar, pings, run, truth) -> dict:
+    from ..track.plots import animate, plot_sector
 
     truth_xy = None if truth is None else truth.xy
-    plot_sector(out / "sector.png", sonar, pings, run.reports, run.clouds, truth_xy=truth_xy)
+    plots = {"sector.png": lambda path: plot_sector(path, sonar, pings, run.reports, run.clouds, truth_xy=truth_xy)}
     if not args.no_animation:
-        animate(out / "tracks.gif", sonar, pings, run.reports, run.clouds, truth_xy=truth_xy)
-    write_summary(out / "summary.json", summary)
-    _print(summary, out, args)
-    return 0
+        plots["tracks.gif"] = lambda path: animate(path, sonar, pings, run.reports, run.clouds, truth_xy=truth_xy)
+    return plots
 
 
-def _print(summary: dict, out: Path, args: argparse.Namespace) -> None:
+def _print(summary: dict, out: Path) -> None:
     print(f"{summary['confirmed_tracks']} confirmed track(s) of {summary['tentative_tracks']} tentative; "
           f"{summary['ms_per_ping']:.2f} ms per ping (p95 {summary['ms_per_ping_p95']:.2f}) with {summary['tracker']['particles']} particles")
     for t in summary["tracks"]:
@@ -136,22 +146,21 @@ def _print(summary: dict, out: Path, args: argparse.Namespace) -> None:
         b = summary["baseline"]
         extra = f", pings to lock {b['pings_to_lock']}, false tracks {b['false_tracks']}, mean GOSPA {b['gospa_mean']:.2f} m" if "gospa_mean" in b else ""
         print(f"baseline (Stone Soup GM-PHD): {b['confirmed_tracks']} track(s), {b['ms_per_ping']:.1f} ms per ping{extra}")
-    files = "tracks.csv, sector.png" + ("" if args.no_animation else ", tracks.gif") + ", summary.json"
-    print(f"wrote {out}/{files}")
+    drawn = [name for name in ("sector.png", "tracks.gif") if (out / name).is_file()]
+    print(f"wrote {out}/" + ", ".join(["tracks.csv", *drawn, "summary.json"]))
 
 
-def add_track_command(commands: argparse._SubParsersAction) -> None:
-    """Register ``lost track`` on the ``lost`` command's subparsers."""
-    sub = commands.add_parser("track", help="track sonar contacts (divers) in recorded detections or a simulated scenario")
+def register(commands, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``lost track``."""
+    sub = commands.add_parser("track", parents=parents, help="track sonar contacts (divers) in recorded detections or a simulated scenario")
     sub.add_argument("input", help="detections CSV, scenario TOML, or a built-in scenario's name (one_diver, two_divers, clutter_hour)")
-    sub.add_argument("--out", type=Path, default=None, help="output folder (default runs/track/NAME)")
+    output_options(sub, "runs/track/NAME")
     sub.add_argument("--baseline", action="store_true", help="also run Stone Soup's GM-PHD on the same pings (slow: ~0.1 s a ping)")
     sub.add_argument("--particles", type=int, default=None, help="search-cloud particles (default 10000)")
     sub.add_argument("--seed", type=int, default=0, help="the tracker's random seed (default 0)")
     sub.add_argument("--pd", type=float, default=None, help="detection probability the tracker assumes (default the scenario's, or 0.9)")
     sub.add_argument("--clutter", type=float, default=None, help="false alarms per ping the tracker assumes (default the scenario's, or 5)")
-    sub.add_argument("--set", dest="settings", type=setting_argument, action="append", metavar="NAME=VALUE",
-                     help="a tracker parameter (TrackerParameters, e.g. --set confirm_m=5 --set bearing_sigma_deg=1.0); repeatable")
+    settings_option(sub, "a tracker parameter (TrackerParameters)", "--set confirm_m=5 --set bearing_sigma_deg=1.0")
     sub.add_argument("--max-range", type=float, default=500.0, help="with a CSV: the sonar's range, m (default 500)")
     sub.add_argument("--half-fov", type=float, default=45.0, help="with a CSV: half the field of view, degrees (default 45)")
     sub.add_argument("--crs", default=None, help="with a CSV of platform_lat/platform_lon: the projected CRS to work in (default its UTM zone)")

@@ -17,23 +17,25 @@ import time
 from pathlib import Path
 
 from ..errors import UsageError
-from .pipeline import UsblConfig, process, read_imu, read_log
-from .report import summarize, write_outputs
-from .scenario import load_processing_config, load_usbl_scenario
-from .simulate import simulate_tow
-from .sound import read_cast
+from ..runfolder import run_folder
+from ..usbl.pipeline import UsblConfig, process, read_imu, read_log
+from ..usbl.report import summarize, write_outputs
+from ..usbl.scenario import load_processing_config, load_usbl_scenario
+from ..usbl.simulate import simulate_tow
+from ..usbl.sound import read_cast
+from .common import output_options, warnings_collected
 
-__all__ = ["add_usbl_command", "run_usbl"]
+__all__ = ["register", "run_usbl"]
 
 
-def add_usbl_command(commands) -> None:
-    """Register ``lost usbl`` on the ``lost`` command's subparsers."""
-    usbl = commands.add_parser("usbl", help="INS+USBL positioning of a recorded log or a simulated scenario")
+def register(commands, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``lost usbl``."""
+    usbl = commands.add_parser("usbl", parents=parents, help="INS+USBL positioning of a recorded log or a simulated scenario")
     usbl.add_argument("source", help="USBL log CSV, or a scenario TOML file, or a shipped scenario's name (usbl_turns)")
     usbl.add_argument("--svp", type=Path, help="CTD or SVP cast CSV (required with a log)")
     usbl.add_argument("--imu", type=Path, help="IMU CSV (default: imu.csv beside the log)")
     usbl.add_argument("--config", type=Path, help="processing settings TOML: [usbl], [imu], gate_probability, align_window_s, earth_rotation")
-    usbl.add_argument("--out", type=Path, default=None, help="output folder (default runs/usbl-NAME)")
+    output_options(usbl, "runs/usbl-NAME")
     usbl.set_defaults(handler=run_usbl)
 
 
@@ -42,39 +44,44 @@ def _is_log(source: str) -> bool:
 
 
 def run_usbl(args: argparse.Namespace) -> int:
+    """The handler of ``lost usbl``."""
     start = time.perf_counter()
     if _is_log(args.source):
-        log_path = Path(args.source)
         if args.svp is None:
             raise UsageError("a log needs its sound-speed cast: --svp CAST.csv")
-        imu_path = args.imu or log_path.with_name("imu.csv")
         config = UsblConfig(**load_processing_config(args.config)) if args.config else UsblConfig()
-        name = log_path.stem
-        out = args.out or Path("runs") / f"usbl-{name}"
+        name, scenario = Path(args.source).stem, None
     else:
         if args.svp or args.imu or args.config:
             raise UsageError("--svp, --imu and --config are for a recorded log; a scenario names its own cast and settings")
         scenario = load_usbl_scenario(args.source)
         name = scenario.name
-        out = args.out or Path("runs") / f"usbl-{name}"
-        inputs = out / "inputs"
-        inputs.mkdir(parents=True, exist_ok=True)
-        sim = simulate_tow(scenario)
-        log_path, imu_path = inputs / "log.csv", inputs / "imu.csv"
-        sim.log.to_csv(log_path, index=False, float_format="%.12g")
-        sim.imu.to_csv(imu_path, index=False, float_format="%.12g")
-        cast_path = inputs / "cast.csv"
-        cast_path.write_text(Path(sim.cast.source).read_text())
-        args.svp = cast_path
         config = UsblConfig(array=scenario.usbl, imu=scenario.imu, gate_probability=scenario.gate_probability)
-    log = read_log(log_path, turnaround_s=config.array.turnaround_s)
-    imu = read_imu(imu_path)
-    cast = read_cast(args.svp, default_position=(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0])))
-    run = process(log, imu, cast, config)
-    summary = summarize(run, name=name, run_time_s=time.perf_counter() - start)
-    write_outputs(out, run, summary)
+    out = args.out = args.out or Path("runs") / f"usbl-{name}"
+    with run_folder(out, replace=args.replace, command="usbl") as folder, warnings_collected() as warnings:
+        log_path, imu_path, cast_path = _inputs(args, scenario, folder)
+        log = read_log(log_path, turnaround_s=config.array.turnaround_s)
+        imu = read_imu(imu_path)
+        cast = read_cast(cast_path, default_position=(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0])))
+        run = process(log, imu, cast, config)
+        summary = summarize(run, name=name, run_time_s=time.perf_counter() - start)
+        write_outputs(folder, run, summary, warnings)
     _print(summary, out)
     return 0
+
+
+def _inputs(args: argparse.Namespace, scenario, folder: Path) -> tuple[Path, Path, Path]:
+    """The log, IMU and cast files: the recorded ones, or a scenario's simulated recording written into ``folder/inputs``."""
+    if scenario is None:
+        log_path = Path(args.source)
+        return log_path, args.imu or log_path.with_name("imu.csv"), args.svp
+    inputs = folder / "inputs"
+    inputs.mkdir()
+    sim = simulate_tow(scenario)
+    sim.log.to_csv(inputs / "log.csv", index=False, float_format="%.12g")
+    sim.imu.to_csv(inputs / "imu.csv", index=False, float_format="%.12g")
+    (inputs / "cast.csv").write_text(Path(sim.cast.source).read_text())
+    return inputs / "log.csv", inputs / "imu.csv", inputs / "cast.csv"
 
 
 def _print(summary: dict, out: Path) -> None:
@@ -93,5 +100,8 @@ def _print(summary: dict, out: Path) -> None:
         print(f"NEES (3 dof) inside its 95 % band at {nees['fraction_inside']:.1%} of epochs (mean {nees['mean']:.2f})")
         if "goals" in summary:
             print("goals: " + ", ".join(f"{name} {'met' if met else 'NOT met'}" for name, met in summary["goals"].items()))
-    print(f"wrote {out}/track.csv, summary.json and plots")
+    drawn = [name for name in ("track.png", "error.png", "profile.png") if (out / name).is_file()]
+    print(f"wrote {out}/" + ", ".join(["track.csv", "summary.json", *drawn]))
+    for warning in summary.get("warnings", ()):
+        print(f"warning: {warning}")
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .records import SonarPatch
+from ..records import SonarPatch
 
 __all__ = ["GriddedSoundings", "grid_soundings", "soundings_centre"]
 

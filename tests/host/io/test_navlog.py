@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from pyproj import Transformer
 
-from lost.host.navlog import read_navlog
+from lost.host.io.navlog import read_navlog
 
 HEADER = "t_s,x_m,y_m,ship_heading_deg,vehicle_depth_m,altitude_m,vel_x_mps,vel_y_mps,slant_range_m,cable_out_m"
 ROWS = [
@@ -223,7 +223,7 @@ def test_short_row_is_missing_readings_and_long_row_an_error(tmp_path):
 
 
 def test_written_records_read_back_value_for_value(tmp_path):
-    from lost.host.navlog import write_navlog
+    from lost.host.io.navlog import write_navlog
     from lost.host.records import NavRecords, SonarPatch
 
     rng = np.random.default_rng(3)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lost.host.sonar import grid_soundings, soundings_centre
+from lost.host.io.sonar import grid_soundings, soundings_centre
 
 
 def test_each_sounding_lands_on_its_node():

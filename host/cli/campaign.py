@@ -1,0 +1,58 @@
+"""``lost campaign SPEC.toml --out DIR [--scheduler ADDRESS] [--workers N]``: many tows on Dask, one row per run and estimator.
+
+Writes ``DIR/rows/RUN_ID.json`` as each run finishes (so the campaign resumes where it stopped), then
+``results.parquet``, ``summary.json`` (medians and 90th percentiles per scenario and estimator) and
+``distributions.png``. The file's layout: :mod:`lost.host.campaign.spec`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..errors import UsageError
+
+__all__ = ["register", "run_campaign_command"]
+
+
+def run_campaign_command(args: argparse.Namespace) -> int:
+    """The handler of ``lost campaign``."""
+    from ..campaign import load_campaign, run_campaign
+
+    if args.workers < 1:
+        raise UsageError(f"--workers must be at least 1, got {args.workers}")
+    spec = load_campaign(args.spec)
+    tasks = spec.tasks()
+    print(f"{spec.name}: {len(tasks)} runs ({len(spec.scenarios)} scenarios x {len(spec.seed_list())} seeds x "
+          f"{len(tasks) // max(len(spec.scenarios) * len(spec.seed_list()), 1)} parameter combinations), estimators {', '.join(spec.estimators)}")
+    out = args.out = args.out or Path("runs") / "campaign" / spec.name
+    progress = lambda finished: bar_over(finished, len(tasks))  # noqa: E731 (always a bar: a campaign is long even with few runs)
+    summary = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers, progress=progress)
+    print(f"ran {summary['ran_now']} now; {summary['finished']} of {summary['runs']} runs finished, {summary['failed_runs']} failed")
+    for entry in summary["distributions"]:
+        rms, nees = entry["rms_nodes"], entry["nees_in_band"]
+        print(f"  {entry['scenario']:>16s} {entry['estimator']:>5s}: {entry['runs']} runs, RMS "
+              + ("-" if rms is None else f"median {rms['median']:.3f} / p90 {rms['p90']:.3f} nodes")
+              + ("" if nees is None else f", NEES in band median {nees['median']:.2f}"))
+    for error in summary["errors"]:
+        print(f"  failed: {error}")
+    print(f"wrote {out}/results.parquet, summary.json" + (", distributions.png" if (out / "distributions.png").is_file() else ""))
+    return 0
+
+
+def bar_over(finished, total: int):
+    """A rich progress bar over the runs as they finish."""
+    from rich.console import Console
+    from rich.progress import track
+
+    return track(finished, total=total, description="runs", console=Console(stderr=True), transient=True)
+
+
+def register(commands, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``lost campaign``."""
+    sub = commands.add_parser("campaign", parents=parents, help="many simulated tows over scenarios, seeds and parameters, on Dask")
+    sub.add_argument("spec", type=Path, help="campaign TOML file (scenarios, seeds, estimators, [parameters])")
+    sub.add_argument("--out", type=Path, default=None, help="campaign folder (default runs/campaign/NAME); started again, it runs only what is missing")
+    sub.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler (tcp://host:8786); default a local cluster")
+    sub.add_argument("--workers", type=int, default=2, help="worker processes of the local cluster (default 2)")
+    sub.set_defaults(handler=run_campaign_command)

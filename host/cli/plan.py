@@ -1,0 +1,115 @@
+"""``lost plan MAP [--route WAYPOINTS.csv] [--config SCENARIO.toml] --out DIR``: where terrain navigation will work.
+
+Writes ``accuracy.nc`` (the predicted 1-sigma horizontal error of one correlation at every node, metres; read it with
+``lost.host.io.read_grid(path, variable="accuracy_m")``), ``accuracy.png``, and with ``--route`` the predicted error
+along the route (``route.csv``, ``route.png``); ``summary.json`` last. The model: ``lost.host.plan``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..runfolder import run_folder, write_summary
+from .common import output_options, positive_metres, warnings_collected
+
+__all__ = ["register", "run_plan"]
+
+
+def _models(args: argparse.Namespace, node_m: float):
+    """The sonar and route models: the defaults, a scenario's sonar, ship and navigation (``--config``), then the options."""
+    from ..plan import RouteModel, SonarModel
+
+    sonar, route = {}, {}
+    if args.config is not None:
+        from ..nav import NavParameters
+        from ..scenario import load_scenario
+
+        scenario = load_scenario(args.config)
+        spec = scenario.sensors["sonar"]
+        params = NavParameters(**scenario.navigation)
+        sonar = {"shape": tuple(spec.shape), "noise_m": max(spec.noise, 1e-3)}
+        route = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": spec.interval_s, "velocity_noise_mps": params.velocity_noise_mps,
+                 "gyro_bias_rps": params.gyro_bias_rps, "accel_bias_mps2": params.accel_bias_mps2,
+                 "usable_sigma_m": params.usable_sigma_nodes * node_m,
+                 "floor_m": float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m))}
+    if args.sonar_noise_m is not None:
+        sonar["noise_m"] = args.sonar_noise_m
+    if args.speed_mps is not None:
+        route["speed_mps"] = args.speed_mps
+    route.setdefault("usable_sigma_m", node_m)
+    route.setdefault("floor_m", float(np.hypot(0.1 * node_m, 0.8)))  # NavParameters' defaults
+    return SonarModel(**sonar), RouteModel(**route)
+
+
+def run_plan(args: argparse.Namespace) -> int:
+    """The handler of ``lost plan``."""
+    from ..io import read_grid
+    from ..plan import accuracy_grid, predict_route, read_route
+    from ..plan.output import plan_plots, write_accuracy_netcdf, write_route_csv
+    from ..plotting import draw_plots
+
+    out = args.out = args.out or Path("runs") / "plan" / Path(args.map).stem
+    with run_folder(out, replace=args.replace, command="plan") as folder, warnings_collected() as warnings:
+        grid = read_grid(args.map, node_m=args.node_m)
+        sonar, model = _models(args, grid.node_m)
+        waypoints = read_route(args.route) if args.route is not None else None
+        start = time.perf_counter()
+        accuracy = accuracy_grid(grid, sonar, args.map_sigma_m)
+        route = None if waypoints is None else predict_route(accuracy, waypoints, model)
+        elapsed = time.perf_counter() - start
+        write_accuracy_netcdf(folder / "accuracy.nc", accuracy)
+        if route is not None:
+            write_route_csv(folder / "route.csv", route)
+        draw_plots(folder, plan_plots(accuracy, route, Path(args.map).stem), warnings)
+        summary = _summary(args, grid, accuracy, sonar, model, route, elapsed)
+        summary["warnings"] = list(warnings)
+        write_summary(folder / "summary.json", summary)
+    _print(summary, out)
+    return 0
+
+
+def _summary(args, grid, accuracy, sonar, model, route, elapsed: float) -> dict:
+    bound = accuracy.depth_m[np.isfinite(accuracy.depth_m)]
+    summary = {"map": str(args.map), "shape": list(grid.shape), "node_m": grid.node_m, "crs": grid.crs, "sonar": {"shape": list(sonar.shape),
+               "noise_m": sonar.noise_m}, "map_sigma_m": args.map_sigma_m, "compute_s": round(elapsed, 3),
+               "nodes_with_a_bound": int(bound.size), "usable_sigma_m": model.usable_sigma_m,
+               "usable_share": float(np.mean(accuracy.depth_m <= model.usable_sigma_m)),
+               "bound_m": None if not bound.size else {q: float(np.percentile(bound, p)) for q, p in (("p10", 10), ("median", 50), ("p90", 90))}}
+    if route is not None:
+        summary["route"] = {"route": str(args.route), "updates": int(len(route["t_s"])), "duration_s": float(route["t_s"][-1]),
+                            "usable_share": float(route["usable"].mean()), "predicted_median_m": float(np.median(route["predicted_m"])),
+                            "predicted_max_m": float(route["predicted_m"].max())}
+    return summary
+
+
+def _print(summary: dict, out: Path) -> None:
+    bound = summary["bound_m"]
+    print(f"{summary['map']}: {summary['shape'][0]} x {summary['shape'][1]} nodes of {summary['node_m']:g} m, bound computed in {summary['compute_s']:.2f} s")
+    if bound:
+        print(f"one fix's 1-sigma bound: median {bound['median']:.2f} m (10 % of nodes below {bound['p10']:.2f} m, 90 % below {bound['p90']:.2f} m); "
+              f"usable (<= {summary['usable_sigma_m']:g} m) on {summary['usable_share']:.0%} of the map")
+    route = summary.get("route")
+    if route:
+        print(f"route: {route['duration_s']:.0f} s, terrain usable on {route['usable_share']:.0%} of it, predicted error median "
+              f"{route['predicted_median_m']:.1f} m, at most {route['predicted_max_m']:.1f} m")
+    for warning in summary["warnings"]:
+        print(f"warning: {warning}")
+    print(f"wrote {out}/accuracy.nc" + (", route.csv" if route else "") + ", summary.json and plots")
+
+
+def register(commands, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``lost plan``."""
+    sub = commands.add_parser("plan", parents=parents, help="predict from a map where terrain navigation will fix the position, and how well")
+    sub.add_argument("map", type=Path, help="bathymetry grid (any file read_grid reads)")
+    sub.add_argument("--route", type=Path, default=None, help="waypoints CSV (east_m, north_m in the map's CRS): the predicted error along it")
+    sub.add_argument("--config", type=Path, default=None, help="a scenario TOML: its sonar patch and noise, ship speed and [navigation]")
+    sub.add_argument("--node-m", type=positive_metres, default=None, help="node spacing of the map, metres (default: the file's)")
+    sub.add_argument("--map-sigma-m", type=float, default=0.0, help="the map's own 1-sigma depth uncertainty, metres (default 0)")
+    sub.add_argument("--sonar-noise-m", type=positive_metres, default=None, help="the sonar's 1-sigma depth noise, metres (default 0.5, or the scenario's)")
+    sub.add_argument("--speed-mps", type=positive_metres, default=None, help="speed along the route, m/s (default 1.5, or the scenario ship's)")
+    output_options(sub, "runs/plan/MAP")
+    sub.set_defaults(handler=run_plan)

@@ -1,0 +1,236 @@
+"""``lost run`` and ``lost demo``: the navigation on a simulated or recorded tow, into a run folder.
+
+::
+
+    lost run SCENARIO.toml|NAME [--out DIR]                                  a simulated tow
+    lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
+    lost demo [--out runs/demo]                                              the built-in scenario "demo"
+
+``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lost.model.shapes import shape_argument
+
+from ..correlator import BACKENDS
+from ..errors import UsageError
+from ..grid import Grid
+from ..io.navlog import PATCH_CENTRES
+from ..nav import ESTIMATORS, NavParameters, navigate
+from ..records import NavRecords
+from ..runfolder import run_folder, write_summary
+from .common import (
+    configure_hardware,
+    hardware_options,
+    merge_settings,
+    output_options,
+    positive_metres,
+    progress_bar,
+    settings_option,
+    warnings_collected,
+)
+
+__all__ = ["register", "run_demo", "navigation_options"]
+
+
+def _estimators(choice: str) -> tuple[str, ...]:
+    """``--estimator``: one name of ESTIMATORS, or ``all``."""
+    return ESTIMATORS if choice == "all" else (choice,)
+
+
+def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str],
+              estimators: tuple[str, ...] = ESTIMATORS, profile=None, profile_source: str | None = None) -> dict:
+    from ..plotting import draw_plots
+    from ..report import run_plots, summarize, write_track_csv
+
+    if profile is None and np.isfinite(records.usbl_travel_time_s).any():
+        warnings.append("the records have USBL travel times but no sound-speed profile was given (--svp CAST.csv): "
+                        "they are not used; the straight-line slant_range_m is, where there is one")
+    start = time.perf_counter()
+    result = navigate(records, grid, params, estimators=estimators, progress=progress_bar(len(records), "navigating"), profile=profile)
+    elapsed = time.perf_counter() - start
+    summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
+    summary["sound_speed_profile"] = profile_source
+    write_track_csv(out / "track.csv", result)
+    draw_plots(out, run_plots(result, grid, summary), warnings)
+    summary["warnings"] = list(warnings)
+    write_summary(out / "summary.json", summary)
+    return summary
+
+
+def _print_summary(summary: dict, out: Path) -> None:
+    print(f"{summary['name']}: {summary['records']} records, {summary['duration_s']:.0f} s of tow, navigated in {summary['run_time_s']:.2f} s")
+    convergence = summary["convergence"]
+    if summary["truth_known"]:
+        who = "LOST" if convergence["estimator"] == "lost" else convergence["estimator"]
+        if convergence["converged"]:
+            print(f"{who} converged after {convergence['time_s']:.0f} s from an initial error of {convergence['initial_error_m']:.1f} m")
+        else:
+            print(f"{who} did not converge (initial error {convergence['initial_error_m']:.1f} m)")
+        columns = ("rms_m", "p95_m", "max_m", "nees_in_band", "usable_fraction", "false_fixes", "ms_per_update")
+        print(f"{'method':16s} " + " ".join(f"{c:>15s}" for c in columns) + "   (errors after each one's convergence)")
+        for method, stats in summary["methods"].items():
+            cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
+            print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
+    print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    _print_usbl(summary)
+    for warning in summary.get("warnings", ()):
+        print(f"warning: {warning}")
+    drawn = [name for name in ("map.png", "error.png") if (out / name).is_file()]
+    print(f"wrote {out}/" + ", ".join(["track.csv", "summary.json", *drawn]))
+
+
+def _print_usbl(summary: dict) -> None:
+    """One line on the USBL's share, when the records had one."""
+    counts = summary.get("counts", {})
+    fixes = {name: stats.get("counts", {}).get("fix_updates", 0) for name, stats in summary["methods"].items() if "counts" in stats}
+    traced, unused = counts.get("slant_range_ray_traced", 0), counts.get("usbl_travel_time_without_profile", 0)
+    recentred = counts.get("usbl_fix_recentred", 0)
+    if not (traced or unused or recentred or any(fixes.values())):
+        return
+    used = ", ".join(f"{name} {n}" for name, n in fixes.items() if n)
+    print(f"USBL: {traced} slant ranges ray-traced ({summary.get('sound_speed_profile')}), {unused} travel times unused for want of a "
+          f"profile; fixes used: {used or 'none'}{f', LOST re-centred on {recentred}' if recentred else ''}")
+
+
+def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
+    """The navigation parameters: ``base`` (a scenario's [navigation]), then --config's, --set, --backend/--matching; strictly validated."""
+    from ..config import navigation_parameters, read_navigation_table
+
+    configure_hardware(args)
+    overrides = {key: value for key, value in (("backend", args.backend), ("matching", args.matching)) if value is not None}
+    layers = [("navigation", base)]
+    if getattr(args, "config", None) is not None:
+        layers.append((f"{args.config} [navigation]", read_navigation_table(args.config)))
+    layers += [("--set", dict(args.settings or ())), ("--backend/--matching", overrides)]
+    merged = merge_settings(layers, NavParameters.__dataclass_fields__, "navigation parameter", navigation_parameters)
+    return navigation_parameters(merged)
+
+
+def _scenario_path(text: str) -> Path:
+    from ..scenario import builtin_scenario_path
+
+    path = Path(text)
+    return path if path.suffix == ".toml" or path.exists() else builtin_scenario_path(text)
+
+
+def _svp(path: Path | None):
+    """``--svp``: the sound-speed profile of a cast CSV (lost.host.usbl.sound), its layers within 5 cm/s of the cast."""
+    if path is None:
+        return None
+    from ..usbl.sound import SoundSpeedProfile, read_cast
+
+    return SoundSpeedProfile.from_cast(read_cast(path), tolerance_m_s=0.05)
+
+
+def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int:
+    from ..scenario import load_scenario, simulate, usbl_profile
+
+    scenario = load_scenario(path)
+    params = _parameters(args, scenario.navigation)
+    svp = getattr(args, "svp", None)
+    # --svp wins over the scenario's own cast (to see what another profile does to the same replies).
+    profile = _svp(svp) if svp is not None else usbl_profile(scenario)
+    source = str(svp) if svp is not None else (f"[sensors.usbl] cast {scenario.sensors['usbl'].cast}" if profile is not None else None)
+    out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
+    with run_folder(out, replace=args.replace) as folder, warnings_collected() as warnings:
+        grid, records = simulate(scenario)
+        usbl = scenario.sensors["usbl"]
+        if usbl.enabled and params.reference_depth_m != usbl.transducer_depth_m:
+            warnings.append(f"[navigation] reference_depth_m ({params.reference_depth_m:g} m) is not the USBL transducer's depth "
+                            f"([sensors.usbl] transducer_depth_m = {usbl.transducer_depth_m:g} m): the rays start at the wrong depth")
+        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator),
+                            profile=profile, profile_source=source)
+    _print_summary(summary, out)
+    return 0
+
+
+#: Options of `lost run` that describe recorded files, meaningless with a scenario.
+_RECORDED_ONLY = ("sonar", "node_m", "crs", "source_crs", "positive", "nodata")
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    if args.scenario is not None:
+        if args.log or args.bathy:
+            raise UsageError("give either a scenario or --log and --bathy, not both")
+        grid_options = [f"--{name.replace('_', '-')}" for name in _RECORDED_ONLY if getattr(args, name) is not None]
+        if grid_options:
+            raise UsageError(f"{', '.join(grid_options)} apply to a recorded tow (--log, --bathy); a scenario sets its map in [terrain]")
+        return _run_scenario(_scenario_path(args.scenario), args, args.out)
+    if not (args.log and args.bathy):
+        raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
+    try:
+        from ..io import read_grid
+        from ..io.navlog import check_against_map, read_navlog
+    except ImportError as error:
+        raise ValueError(f"reading recorded tows is not available in this build: {error}") from None
+    params = _parameters(args, {})
+    profile = _svp(args.svp)
+    out = args.out = args.out or Path("runs") / Path(args.log).stem
+    with run_folder(out, replace=args.replace) as folder, warnings_collected() as warnings:
+        grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
+        records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
+                                      patch_shape=args.patch_shape, patch_centre=args.patch_centre)
+        print(report.summary())
+        warnings += [*report.warnings, *check_against_map(records, grid)]
+        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings,
+                            estimators=_estimators(args.estimator), profile=profile, profile_source=None if args.svp is None else str(args.svp))
+    _print_summary(summary, out)
+    return 0
+
+
+
+
+def run_demo(args: argparse.Namespace) -> int:
+    from ..scenario import builtin_scenario_path
+
+    if args.out is None:
+        args.out, args.replace = Path("runs") / "demo", True  # the demo's own folder holds only the demo: running it again replaces it
+    return _run_scenario(builtin_scenario_path("demo"), args, args.out)
+
+
+def navigation_options(sub: argparse.ArgumentParser) -> None:
+    output_options(sub, "runs/NAME")
+    sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
+    hardware_options(sub)
+    sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
+    sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",
+                     help="the LOST patent pipeline, the point-mass filter, the particle filter, or all three on the same records (default)")
+    settings_option(sub, "a navigation parameter (NavParameters), over the scenario's [navigation]",
+                    "--set u=0.005 --set cross_damping_per_s=none")
+
+
+def register(commands, parents: list[argparse.ArgumentParser]) -> None:
+    """Add ``lost run`` and ``lost demo``."""
+    run = commands.add_parser("run", parents=parents, help="navigate a simulated or recorded tow")
+    run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")
+    run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
+    run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
+    run.add_argument("--sonar", help="sonar soundings side file of the log")
+    run.add_argument("--node-m", type=positive_metres, default=None, metavar="METRES",
+                     help="node spacing of the map (and of the sonar patches), metres (default: the grid file's)")
+    run.add_argument("--crs", default=None, help="projected CRS to navigate in (default: the grid's own, or its UTM zone)")
+    run.add_argument("--source-crs", default=None, help="CRS of the grid file's coordinates when it declares none")
+    run.add_argument("--positive", choices=("up", "down"), default=None,
+                     help="the grid holds elevation (up, as GEBCO) or depth (down); default: its metadata, else its data's sign")
+    run.add_argument("--nodata", type=float, default=None, metavar="VALUE",
+                     help="a value of the grid file that marks a hole, when the file declares none (e.g. -32768)")
+    run.add_argument("--patch-shape", type=shape_argument, default=(10, 10), metavar="ROWSxCOLS",
+                     help="nodes of the sonar patch the soundings are gridded into (default 10x10)")
+    run.add_argument("--patch-centre", choices=PATCH_CENTRES, default="vehicle",
+                     help="centre of a record's patch when the log has no patch_east_m/patch_north_m: the vehicle "
+                          "(default) or the middle of its soundings (a swath gathered in real time, behind the vehicle)")
+    run.add_argument("--config", type=Path, default=None, metavar="FILE",
+                     help="navigation parameters from the [navigation] table of FILE (a scenario file), over a scenario's own; --set wins")
+    run.add_argument("--svp", type=Path, default=None, metavar="CAST.csv",
+                     help="sound-speed cast (lost.host.usbl.sound's CSV): the log's usbl_travel_time_s is ray-traced into the "
+                          "slant range, which wins over slant_range_m; with a scenario, over its [sensors.usbl] cast")
+    navigation_options(run)
+    run.set_defaults(handler=_cmd_run)

@@ -1,0 +1,152 @@
+"""Kongsberg ``.kmall`` files: MRZ datagrams as pings, through pykmall (Kongsberg's own datagram layouts, BSD-2).
+
+pykmall reads each MRZ's variable parts (header, partition, common part, ping info, sectors, receiver
+info); its soundings, a fixed 120-byte record each, are read as one NumPy array on pykmall's own layout
+rather than one dict per sounding (five times faster).
+
+Two passes, one datagram in memory at a time: the first keeps the attitude samples of the SKM datagrams
+(roll, pitch, heave, with the sensor's own times); the second yields one ping per MRZ datagram. The MRZ
+carries its own position (the reference point's latitude and longitude at the ping), heading and sound
+speed at the transducer; the per-sounding x/y/z are re the reference point, and z minus the water
+level's height re the reference point is the depth below the water line. Only the main soundings are
+read (extra detections are not bottom); a sounding is valid when its detection type is normal (0) and
+its detection method not "no valid detection" (0).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import struct
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from .survey import Ping, interpolate_at
+
+__all__ = ["read_kmall_pings"]
+
+_MAX_ATTITUDE_GAP_S = 1.0
+# One MRZ sounding (EMdgmMRZ_sounding_def, 120 bytes): pykmall's own layout "1H8B1H6f2H18f4H", read for all
+# soundings at once instead of one dict per sounding.
+_SOUNDING = np.dtype([
+    ("soundingIndex", "<u2"), ("txSectorNumb", "u1"), ("detectionType", "u1"), ("detectionMethod", "u1"), ("rejectionInfo1", "u1"),
+    ("rejectionInfo2", "u1"), ("postProcessingInfo", "u1"), ("detectionClass", "u1"), ("detectionConfidenceLevel", "u1"),
+    ("padding", "<u2"), ("rangeFactor", "<f4"), ("qualityFactor", "<f4"), ("detectionUncertaintyVer_m", "<f4"),
+    ("detectionUncertaintyHor_m", "<f4"), ("detectionWindowLength_sec", "<f4"), ("echoLength_sec", "<f4"), ("WCBeamNumb", "<u2"),
+    ("WCrange_samples", "<u2"), ("WCNomBeamAngleAlong_deg", "<f4"), ("meanAbsCoeff_dBPerkm", "<f4"), ("reflectivity1_dB", "<f4"),
+    ("reflectivity2_dB", "<f4"), ("receiverSensitivityApplied_dB", "<f4"), ("sourceLevelApplied_dB", "<f4"), ("BScalibration_dB", "<f4"),
+    ("TVG_dB", "<f4"), ("beamAngleReRx_deg", "<f4"), ("beamAngleCorrection_deg", "<f4"), ("twoWayTravelTime_sec", "<f4"),
+    ("twoWayTravelTimeCorrection_sec", "<f4"), ("deltaLatitude_deg", "<f4"), ("deltaLongitude_deg", "<f4"), ("z_reRefPoint_m", "<f4"),
+    ("y_reRefPoint_m", "<f4"), ("x_reRefPoint_m", "<f4"), ("beamIncAngleAdj_deg", "<f4"), ("realTimeCleanInfo", "<u2"),
+    ("SIstartRange_samples", "<u2"), ("SIcentreSample", "<u2"), ("SInumSamples", "<u2"),
+])
+
+
+def read_kmall_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
+    """Pings of one ``.kmall`` file, in file order; damaged or cut-off datagrams counted in ``skipped``."""
+    attitude = _attitude(path, Counter())
+    if attitude["t"].size == 0:
+        notes[f"{path.name}: no SKM attitude datagram (roll, pitch and heave unknown)"] += 1
+    for dg in _datagrams(path, "MRZ", skipped):
+        if dg["partition"]["numOfDgms"] != 1:
+            skipped[f"{path.name}: MRZ datagram split over partitions (not read)"] += 1
+            continue
+        yield _ping(dg, attitude)
+
+
+def _datagrams(path: Path, wanted: str, skipped: Counter) -> Iterator[dict]:
+    from KMALL.kmall import kmall
+
+    reader = kmall(str(path))
+    try:
+        reader.OpenFiletoRead()
+        reader.file_size = path.stat().st_size
+        while True:
+            at = reader.FID.tell()
+            if at + 8 > reader.file_size:
+                return
+            size = int.from_bytes(reader.FID.read(4), "little")
+            name = reader.FID.read(4)
+            if not (name[:1] == b"#" and name[1:].isalpha() and name[1:].isupper()) or size < 20:
+                skipped[f"{path.name}: bytes that are no datagram where one should start (the file's remainder not read)"] += 1
+                return
+            if at + size > reader.file_size:
+                skipped[f"{path.name}: datagram '{name.decode()}' cut off by the end of the file ({reader.file_size - at} of {size} bytes)"] += 1
+                return
+            end_size = struct.unpack("<I", _read_at(reader.FID, at + size - 4, 4))[0]
+            if end_size != size:
+                skipped[f"{path.name}: datagram '{name.decode()}' whose closing length disagrees with its opening one (the file's remainder not read)"] += 1
+                return
+            reader.FID.seek(at)
+            if name[1:].decode() == wanted:
+                try:
+                    with contextlib.redirect_stdout(io.StringIO()):  # pykmall prints while it scans
+                        yield _read_mrz(reader) if wanted == "MRZ" else getattr(reader, f"read_EMdgm{wanted}")()
+                except (struct.error, KeyError, ValueError, IndexError) as error:
+                    skipped[f"{path.name}: damaged datagram '{wanted}' ({type(error).__name__})"] += 1
+            reader.FID.seek(at + size)
+    finally:
+        reader.closeFile()
+
+
+def _read_mrz(reader) -> dict:
+    """pykmall's read_EMdgmMRZ, its parts in its order, with the soundings read as one array."""
+    dg = {"header": reader.read_EMdgmHeader(), "partition": reader.read_EMdgmMpartition(), "cmnPart": reader.read_EMdgmMbody(),
+          "pingInfo": reader.read_EMdgmMRZ_pingInfo()}
+    for _ in range(dg["pingInfo"]["numTxSectors"]):
+        reader.read_EMdgmMRZ_txSectorInfo()
+    dg["rxInfo"] = rx = reader.read_EMdgmMRZ_rxInfo()
+    for _ in range(rx["numExtraDetectionClasses"]):
+        reader.read_EMdgmMRZ_extraDetClassInfo()
+    count = rx["numSoundingsMaxMain"] + rx["numExtraDetections"]
+    if rx["numBytesPerSounding"] != _SOUNDING.itemsize:
+        raise ValueError(f"MRZ soundings of {rx['numBytesPerSounding']} bytes; this reader knows {_SOUNDING.itemsize}")
+    data = reader.FID.read(count * _SOUNDING.itemsize)
+    if len(data) < count * _SOUNDING.itemsize:
+        raise ValueError("MRZ datagram shorter than its soundings")
+    dg["sounding"] = np.frombuffer(data, _SOUNDING)
+    return dg
+
+
+def _read_at(f, offset: int, count: int) -> bytes:
+    here = f.tell()
+    f.seek(offset)
+    data = f.read(count)
+    f.seek(here)
+    return data
+
+
+def _attitude(path: Path, skipped: Counter) -> dict:
+    columns: dict[str, list] = {"t": [], "roll": [], "pitch": [], "heave": []}
+    for dg in _datagrams(path, "SKM", skipped):
+        samples = dg["sample"]["KMdefault"]
+        columns["t"].extend(samples["dgtime"])
+        columns["roll"].extend(samples["roll_deg"])
+        columns["pitch"].extend(samples["pitch_deg"])
+        columns["heave"].extend(samples["heave_m"])
+    out = {k: np.asarray(v, dtype=np.float64) for k, v in columns.items()}
+    order = np.argsort(out["t"], kind="stable")
+    return {k: v[order] for k, v in out.items()}
+
+
+def _ping(dg: dict, attitude: dict) -> Ping:
+    info, rx, sounding = dg["pingInfo"], dg["rxInfo"], dg["sounding"]
+    main = int(rx["numSoundingsMaxMain"])
+    t = np.array([dg["header"]["dgtime"]])
+    roll, pitch, heave = (interpolate_at(t, attitude["t"], attitude[k], max_gap_s=_MAX_ATTITUDE_GAP_S)[0] for k in ("roll", "pitch", "heave"))
+    z = np.asarray(sounding["z_reRefPoint_m"][:main], dtype=np.float64)
+    valid = (np.asarray(sounding["detectionType"][:main]) == 0) & (np.asarray(sounding["detectionMethod"][:main]) != 0)
+    sound_speed = float(info["soundSpeedAtTxDepth_mPerSec"])
+    return Ping(
+        time_s=float(t[0]), lat_deg=float(info["latitude_deg"]), lon_deg=float(info["longitude_deg"]),
+        heading_deg=float(info["headingVessel_deg"]), roll_deg=float(roll), pitch_deg=float(pitch), heave_m=float(heave),
+        sound_speed_mps=sound_speed if sound_speed > 0 else math.nan,
+        along_m=np.asarray(sounding["x_reRefPoint_m"][:main], dtype=np.float64),
+        across_m=np.asarray(sounding["y_reRefPoint_m"][:main], dtype=np.float64),
+        depth_m=z - float(info["z_waterLevelReRefPoint_m"]), valid=valid, head=int(dg["cmnPart"]["rxTransducerInd"]),
+        origin_depth_m=-float(info["z_waterLevelReRefPoint_m"]),
+    )

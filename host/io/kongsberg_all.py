@@ -1,0 +1,296 @@
+"""Kongsberg ``.all`` files: XYZ88 depth datagrams as pings, with position and attitude interpolated at each ping.
+
+A reader of its own on NumPy structured dtypes (the layout of Kongsberg's *EM Series datagram formats*,
+rev. W): the one Python package that reads ``.all`` (themachinethatgoesping 0.35, "in development") gives a
+ping's beams through an interface without the XYZ88 detection flags, which decide what is a valid sounding,
+counts a ping whose depth datagram is missing, and pulls in numba and Jupyter widgets.
+
+Two passes over the file: the first keeps only the active positioning system's positions ('P') and the
+attitude samples ('A'), small arrays (one sample per fix or per attitude reading); the second yields one
+:class:`~lost.host.io.survey.Ping` per XYZ88 ('X') datagram, reading one datagram at a time. Every
+datagram's frame is checked (start byte, end byte and, for the datagrams read, the checksum); a damaged
+or truncated one is counted in the skip counter, the reader resynchronises on the next good datagram,
+and the file's remainder is read. :func:`write_all_pings` writes pings back in the same three datagrams.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+import os
+from collections import Counter
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from .survey import Ping, interpolate_at
+
+__all__ = ["read_all_pings", "write_all_pings", "ALL_HEADER"]
+
+_STX, _ETX = 0x02, 0x03
+_POSITION, _ATTITUDE, _XYZ88 = ord("P"), ord("A"), ord("X")
+_MAX_DATAGRAM = 1 << 26  # no .all datagram is 64 MiB; a length beyond it is a damaged length field
+
+# The length field counts the bytes after itself; the header's fields follow it.
+ALL_HEADER = np.dtype([("length", "<u4"), ("stx", "u1"), ("type", "u1"), ("model", "<u2"), ("date", "<u4"), ("time_ms", "<u4"),
+                       ("counter", "<u2"), ("serial", "<u2")])
+_XYZ88_HEAD = np.dtype([("heading", "<u2"), ("sound_speed", "<u2"), ("tx_depth", "<f4"), ("beams", "<u2"), ("valid", "<u2"),
+                        ("sample_rate", "<f4"), ("scanning", "u1"), ("spare", "u1", 3)])
+_XYZ88_BEAM = np.dtype([("depth", "<f4"), ("across", "<f4"), ("along", "<f4"), ("window", "<u2"), ("quality", "u1"),
+                        ("incidence", "i1"), ("detection", "u1"), ("cleaning", "i1"), ("reflectivity", "<i2")])
+_POSITION_BODY = np.dtype([("lat", "<i4"), ("lon", "<i4"), ("quality", "<u2"), ("speed", "<u2"), ("course", "<u2"),
+                           ("heading", "<u2"), ("system", "u1"), ("input_bytes", "u1")])
+_ATTITUDE_SAMPLE = np.dtype([("t_ms", "<u2"), ("status", "<u2"), ("roll", "<i2"), ("pitch", "<i2"), ("heave", "<i2"), ("heading", "<u2")])
+_INVALID_DETECTION = 0x80  # detection info bit 7: the beam holds no valid sounding
+_ACTIVE_POSITION_SYSTEM = 0x80  # position system descriptor bit 7: the system the sonar uses
+# Position or attitude samples farther apart than this around a ping leave it without that value.
+_MAX_NAV_GAP_S = 10.0
+_MAX_ATTITUDE_GAP_S = 1.0
+_EARTH_RADIUS_M = 6_371_000.0  # a few seconds of dead reckoning: the sphere's error is far below the fix's
+
+
+def read_all_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
+    """Pings of one ``.all`` file, in file order; damaged datagrams counted in ``skipped``, dead-reckoned positions in ``notes``."""
+    # The first pass sees every frame too: only what it alone reads (position and attitude) is counted from it.
+    first_pass: Counter = Counter()
+    positions, attitude = _navigation(path, first_pass)
+    skipped.update({reason: n for reason, n in first_pass.items() if any(word in reason for word in ("'P'", "'A'", "position", "attitude"))})
+    pings = 0
+    for header, body in _datagrams(path, {_XYZ88}, skipped):
+        ping = _xyz88_ping(path, header, body, positions, attitude, skipped, notes)
+        if ping is not None:
+            pings += 1
+            yield ping
+    if pings == 0:
+        skipped[f"{path.name}: no XYZ88 depth datagram in the file (older depth datagrams 'D' are not read)"] += 1
+
+
+def _time_s(header) -> float:
+    date = int(header["date"])
+    day = dt.datetime(date // 10000, date // 100 % 100, date % 100, tzinfo=dt.UTC)
+    return day.timestamp() + int(header["time_ms"]) / 1000.0
+
+
+def _datagrams(path: Path, wanted: set[int], skipped: Counter) -> Iterator[tuple[np.void, bytes]]:
+    """(header, whole datagram) of each wanted datagram whose frame and checksum hold; others are skipped by seeking."""
+    size = path.stat().st_size
+    with path.open("rb") as f:
+        at = 0
+        while at + ALL_HEADER.itemsize <= size:
+            f.seek(at)
+            head = f.read(ALL_HEADER.itemsize)
+            header = np.frombuffer(head, ALL_HEADER)[0]
+            length = int(header["length"])
+            if header["stx"] != _STX or not ALL_HEADER.itemsize - 4 <= length <= _MAX_DATAGRAM:
+                at = _resync(f, at + 1, size, path, skipped)
+                continue
+            end = at + 4 + length
+            if end > size:
+                skipped[f"{path.name}: datagram cut off by the end of the file ({size - at} of {length + 4} bytes)"] += 1
+                return
+            f.seek(end - 3)
+            if f.read(1)[0] != _ETX:
+                at = _resync(f, at + 1, size, path, skipped)
+                continue
+            if int(header["type"]) in wanted:
+                f.seek(at)
+                data = f.read(length + 4)
+                checksum = int.from_bytes(data[-2:], "little")
+                if int(np.frombuffer(data, np.uint8, length - 4, 5).sum()) & 0xFFFF != checksum:
+                    skipped[f"{path.name}: datagram '{chr(header['type'])}' with a wrong checksum"] += 1
+                else:
+                    yield header, data
+            at = end
+
+
+def _resync(f, start: int, size: int, path: Path, skipped: Counter) -> int:
+    """The offset of the next well-framed datagram at or after ``start`` (or the end of the file); the gap is counted."""
+    f.seek(start)
+    chunk_start = start
+    while chunk_start < size:
+        f.seek(chunk_start)
+        chunk = f.read(1 << 20)
+        for k in np.flatnonzero(np.frombuffer(chunk, np.uint8) == _STX):
+            at = chunk_start + int(k) - 4
+            if at < start or at + ALL_HEADER.itemsize > size:
+                continue
+            f.seek(at)
+            header = np.frombuffer(f.read(ALL_HEADER.itemsize), ALL_HEADER)[0]
+            length = int(header["length"])
+            if not 16 <= length <= _MAX_DATAGRAM or at + 4 + length > size:
+                continue
+            f.seek(at + 4 + length - 3)
+            if f.read(1)[0] == _ETX and header["date"] // 10000 > 1980:
+                skipped[f"{path.name}: bytes that are no datagram (damaged data, resynchronised)"] += 1
+                return at
+        chunk_start += max(len(chunk) - ALL_HEADER.itemsize, 1)
+    skipped[f"{path.name}: bytes that are no datagram (damaged data, resynchronised)"] += 1
+    return size
+
+
+def _navigation(path: Path, skipped: Counter) -> tuple[dict, dict]:
+    fixes: list[tuple[float, ...]] = []
+    samples: list[np.ndarray] = []
+    for header, data in _datagrams(path, {_POSITION, _ATTITUDE}, skipped):
+        t0 = _time_s(header)
+        if header["type"] == _POSITION:
+            body = np.frombuffer(data, _POSITION_BODY, 1, ALL_HEADER.itemsize)[0]
+            fixes.append((t0, body["lat"] / 2e7, body["lon"] / 1e7, int(body["system"]), _or_nan(body["speed"]) / 100.0, _or_nan(body["course"]) / 100.0))
+        else:
+            n = int(np.frombuffer(data, "<u2", 1, ALL_HEADER.itemsize)[0])
+            if ALL_HEADER.itemsize + 2 + n * _ATTITUDE_SAMPLE.itemsize > len(data) - 3:
+                skipped[f"{path.name}: attitude datagram holding fewer samples than it says"] += 1
+                continue
+            raw = np.frombuffer(data, _ATTITUDE_SAMPLE, n, ALL_HEADER.itemsize + 2)
+            samples.append(np.column_stack([t0 + raw["t_ms"] / 1000.0, raw["roll"] / 100.0, raw["pitch"] / 100.0, raw["heave"] / 100.0]))
+    fix = np.array(fixes, dtype=np.float64).reshape(-1, 6)
+    active = (fix[:, 3].astype(int) & _ACTIVE_POSITION_SYSTEM) != 0
+    if active.any():
+        fix = fix[active]
+    bad = ~((np.abs(fix[:, 1]) <= 90) & (np.abs(fix[:, 2]) <= 180))
+    if bad.any():
+        skipped[f"{path.name}: position datagram with latitude/longitude out of range"] += int(bad.sum())
+        fix = fix[~bad]
+    fix = fix[np.argsort(fix[:, 0], kind="stable")]
+    att = np.concatenate(samples) if samples else np.empty((0, 4))
+    att = att[np.argsort(att[:, 0], kind="stable")]
+    positions = {"t": fix[:, 0], "lat": fix[:, 1], "lon": fix[:, 2], "speed": fix[:, 4], "course": fix[:, 5]}
+    return positions, {"t": att[:, 0], "roll": att[:, 1], "pitch": att[:, 2], "heave": att[:, 3]}
+
+
+def _xyz88_ping(path: Path, header, data: bytes, positions: dict, attitude: dict, skipped: Counter, notes: Counter) -> Ping | None:
+    head = np.frombuffer(data, _XYZ88_HEAD, 1, ALL_HEADER.itemsize)[0]
+    n = int(head["beams"])
+    start = ALL_HEADER.itemsize + _XYZ88_HEAD.itemsize
+    if start + n * _XYZ88_BEAM.itemsize > len(data) - 3:
+        skipped[f"{path.name}: XYZ88 datagram holding fewer beams than it says"] += 1
+        return None
+    beams = np.frombuffer(data, _XYZ88_BEAM, n, start)
+    t = np.array([_time_s(header)])
+    lat = interpolate_at(t, positions["t"], positions["lat"], max_gap_s=_MAX_NAV_GAP_S)[0]
+    lon = interpolate_at(t, positions["t"], positions["lon"], max_gap_s=_MAX_NAV_GAP_S)[0]
+    if not math.isfinite(lat) and positions["t"].size:
+        lat, lon = _dead_reckoned(float(t[0]), positions)
+        if math.isfinite(lat):
+            notes[f"{path.name}: pings before the first or after the last fix, placed by the nearest fix's speed and course"] += 1
+    roll, pitch, heave = (interpolate_at(t, attitude["t"], attitude[k], max_gap_s=_MAX_ATTITUDE_GAP_S)[0] for k in ("roll", "pitch", "heave"))
+    tx_depth = float(head["tx_depth"])
+    return Ping(
+        time_s=float(t[0]), lat_deg=float(lat), lon_deg=float(lon), heading_deg=head["heading"] / 100.0,
+        roll_deg=float(roll), pitch_deg=float(pitch), heave_m=float(heave),
+        sound_speed_mps=head["sound_speed"] / 10.0 if head["sound_speed"] else math.nan,
+        along_m=beams["along"].astype(np.float64), across_m=beams["across"].astype(np.float64),
+        depth_m=beams["depth"].astype(np.float64) + tx_depth,
+        valid=(beams["detection"] & _INVALID_DETECTION) == 0, head=int(header["serial"]), origin_depth_m=tx_depth,
+    )
+
+
+def _dead_reckoned(t: float, positions: dict) -> tuple[float, float]:
+    """The position at ``t`` from the nearest fix, its speed over ground and course, within ``_MAX_NAV_GAP_S``."""
+    k = int(np.argmin(np.abs(positions["t"] - t)))
+    dt_s = t - positions["t"][k]
+    if abs(dt_s) > _MAX_NAV_GAP_S:
+        return math.nan, math.nan
+    lat0, lon0 = positions["lat"][k], positions["lon"][k]
+    speed, course = positions["speed"][k], positions["course"][k]
+    if math.isfinite(speed) and math.isfinite(course):
+        north, east = speed * math.cos(math.radians(course)), speed * math.sin(math.radians(course))
+    else:
+        # Without a logged speed and course, the velocity of the fixes at that end of the file.
+        near = np.flatnonzero(np.abs(positions["t"] - positions["t"][k]) <= _MAX_NAV_GAP_S)
+        j = near[np.argmax(np.abs(positions["t"][near] - positions["t"][k]))]
+        span = positions["t"][j] - positions["t"][k]
+        if abs(span) < 0.1:
+            return math.nan, math.nan
+        north = math.radians(positions["lat"][j] - lat0) * _EARTH_RADIUS_M / span
+        east = math.radians(positions["lon"][j] - lon0) * _EARTH_RADIUS_M * math.cos(math.radians(lat0)) / span
+    lat = lat0 + math.degrees(north * dt_s / _EARTH_RADIUS_M)
+    lon = lon0 + math.degrees(east * dt_s / (_EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+    return float(lat), float(lon)
+
+
+def _or_nan(value) -> float:
+    return math.nan if int(value) == 0xFFFF else float(value)
+
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+
+
+def write_all_pings(pings: Iterable[Ping], path: str | os.PathLike, *, model: int = 710) -> Path:
+    """Write pings as a Kongsberg ``.all`` file: per ping a position ('P'), an attitude ('A') and an XYZ88 ('X') datagram.
+
+    What :func:`read_all_pings` reads back: times to the millisecond, latitude to 1/20,000,000 degree,
+    longitude to 1/10,000,000, heading, roll and pitch to 0.01 degree, heave to 1 cm, sound speed to
+    0.1 m/s, per beam along, across and depth as float32, the valid flag (detection info bit 7). The
+    transducer depth is the ping's ``origin_depth_m`` (0 when unknown) and the XYZ88 depths are re it. A ping without
+    roll, pitch or heave gets no attitude datagram (the reader interpolates those of pings within 1 s). Pings are
+    written as they come (one at a time); the file is written whole to ``NAME.partial``, then renamed.
+    Returns the path.
+    """
+    path = Path(path)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        with partial.open("wb") as out:
+            for counter, ping in enumerate(pings):
+                if not (math.isfinite(ping.lat_deg) and math.isfinite(ping.lon_deg) and math.isfinite(ping.heading_deg)):
+                    raise ValueError(f"ping {counter} at t={ping.time_s} has no position or heading; an .all ping needs both")
+                out.write(_position_datagram(ping, counter, model))
+                if all(math.isfinite(v) for v in (ping.roll_deg, ping.pitch_deg, ping.heave_m)):
+                    out.write(_attitude_datagram(ping, counter, model))
+                out.write(_xyz88_datagram(ping, counter, model))
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
+    return path
+
+
+def _framed(kind: int, ping: Ping, counter: int, model: int, body: bytes) -> bytes:
+    moment = dt.datetime.fromtimestamp(ping.time_s, dt.UTC)
+    midnight = moment.replace(hour=0, minute=0, second=0, microsecond=0)
+    header = np.zeros(1, ALL_HEADER)
+    if len(body) % 2:
+        body += b"\x00"  # Kongsberg datagrams have an even length
+    header["length"] = ALL_HEADER.itemsize - 4 + len(body) + 3
+    header["stx"], header["type"], header["model"] = _STX, kind, model
+    header["date"] = moment.year * 10000 + moment.month * 100 + moment.day
+    header["time_ms"] = round((ping.time_s - midnight.timestamp()) * 1000)
+    header["counter"], header["serial"] = counter & 0xFFFF, ping.head & 0xFFFF
+    framed = header.tobytes() + body
+    checksum = int(np.frombuffer(framed, np.uint8, len(framed) - 5, 5).sum()) & 0xFFFF
+    return framed + bytes([_ETX]) + checksum.to_bytes(2, "little")
+
+
+def _angle(value: float, scale: float, dtype: str) -> int:
+    info = np.iinfo(dtype)
+    return int(np.clip(round(value * scale), info.min, info.max)) if math.isfinite(value) else 0
+
+
+def _position_datagram(ping: Ping, counter: int, model: int) -> bytes:
+    body = np.zeros(1, _POSITION_BODY)
+    body["lat"], body["lon"] = round(ping.lat_deg * 2e7), round(ping.lon_deg * 1e7)
+    body["speed"] = body["course"] = 0xFFFF  # not available: the positions themselves are written, one per ping
+    body["heading"] = _angle(ping.heading_deg % 360.0, 100, "<u2")
+    body["system"] = _ACTIVE_POSITION_SYSTEM | 1
+    return _framed(_POSITION, ping, counter, model, body.tobytes())
+
+
+def _attitude_datagram(ping: Ping, counter: int, model: int) -> bytes:
+    sample = np.zeros(1, _ATTITUDE_SAMPLE)
+    sample["roll"], sample["pitch"] = _angle(ping.roll_deg, 100, "<i2"), _angle(ping.pitch_deg, 100, "<i2")
+    sample["heave"], sample["heading"] = _angle(ping.heave_m, 100, "<i2"), _angle(ping.heading_deg % 360.0, 100, "<u2")
+    return _framed(_ATTITUDE, ping, counter, model, np.uint16(1).tobytes() + sample.tobytes() + b"\x00")
+
+
+def _xyz88_datagram(ping: Ping, counter: int, model: int) -> bytes:
+    head = np.zeros(1, _XYZ88_HEAD)
+    origin = ping.origin_depth_m if math.isfinite(ping.origin_depth_m) else 0.0
+    head["heading"], head["tx_depth"] = _angle(ping.heading_deg % 360.0, 100, "<u2"), origin
+    head["sound_speed"] = _angle(ping.sound_speed_mps, 10, "<u2")
+    head["beams"], head["valid"] = ping.beams, int(ping.valid.sum())
+    beams = np.zeros(ping.beams, _XYZ88_BEAM)
+    beams["depth"], beams["across"], beams["along"] = ping.depth_m - origin, ping.across_m, ping.along_m
+    beams["detection"] = np.where(ping.valid, 0, _INVALID_DETECTION)
+    return _framed(_XYZ88, ping, counter, model, head.tobytes() + beams.tobytes())

@@ -1,0 +1,11 @@
+"""The survey planner: from the map alone, where terrain navigation will fix the position and how well.
+
+:mod:`lost.host.plan.accuracy`: the Cramer-Rao bound of a correlation centred at every node; :mod:`lost.host.plan.route`:
+the predicted error along a route with the dead reckoning's growth between informative stretches;
+:mod:`lost.host.plan.output`: the files of ``lost plan``.
+"""
+
+from .accuracy import SonarModel, accuracy_grid, information
+from .route import RouteModel, predict_route, read_route, route_points
+
+__all__ = ["SonarModel", "accuracy_grid", "information", "RouteModel", "predict_route", "read_route", "route_points"]

@@ -1,0 +1,87 @@
+"""How well the correlator can fix a position anywhere on a map: the Cramer-Rao bound of a patch centred at each node.
+
+A sonar patch of ``h x w`` beams measures ``z_k = m(p_k + x) + d + e_k`` at its nodes ``p_k``: the map ``m`` shifted by
+the position error ``x``, plus a depth offset ``d`` (the tide, the vehicle's depth error: the correlator's mean
+compensation removes it) and noise ``e_k`` of variance ``s_k^2 = sigma_sonar^2 + sigma_map,k^2`` (the sonar's noise and
+the map's own uncertainty at that node). The Fisher information of ``x`` with ``d`` unknown (the Schur complement of
+the offset) is
+
+    I = sum_k g_k g_k^T / s_k^2  -  (sum_k g_k / s_k^2)(sum_k g_k / s_k^2)^T / (sum_k 1 / s_k^2),
+
+``g_k`` the map's gradient at ``p_k``: a plane's slope tells nothing, since shifting along it looks like an offset.
+The bound on the horizontal error is ``sqrt(trace(I^-1))`` (Nygren 2002, eq. 5.1; eq. 5.2 is its value for an AR(1)
+profile, which ``lost.host.nav.theory`` checks by Monte Carlo). Every sum is a box filter over the patch, so a
+2000 x 2000 map takes seconds. A node whose patch touches a hole, or whose information is singular (a flat or
+uniformly sloping patch), has no bound (infinity).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ..grid import Grid
+
+__all__ = ["SonarModel", "accuracy_grid", "information"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SonarModel:
+    """What the planner assumes of the sonar: the patch (nodes of the map) and its depth noise (1 sigma, metres)."""
+
+    shape: tuple[int, int] = (10, 10)
+    noise_m: float = 0.5
+
+    def __post_init__(self) -> None:
+        if len(self.shape) != 2 or min(self.shape) < 2:
+            raise ValueError(f"the sonar patch needs at least 2 x 2 nodes, got {self.shape!r}")
+        if not (np.isfinite(self.noise_m) and self.noise_m > 0):
+            raise ValueError(f"the sonar's noise must be a positive number of metres, got {self.noise_m!r}")
+
+
+def _box(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The sum over the ``shape`` patch centred at each node (zero beyond the map's edge)."""
+    return ndimage.uniform_filter(values, size=shape, mode="constant", cval=0.0) * (shape[0] * shape[1])
+
+
+def information(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The Fisher information of the position (``I_xx``, ``I_xy``, ``I_yy``, per square metre) at every node, and where it is defined.
+
+    ``map_sigma_m`` is the map's 1-sigma uncertainty per node (an array of the grid's shape) or one number.
+    """
+    depth = grid.depth_m
+    sigma = np.broadcast_to(np.asarray(map_sigma_m, dtype=np.float64), depth.shape)
+    if not np.all(np.isfinite(sigma[np.isfinite(depth)])) or np.any(sigma < 0):
+        raise ValueError("the map's uncertainty must be a finite, non-negative number of metres at every node with a depth")
+    holes = ~np.isfinite(depth)
+    filled = np.where(holes, np.nanmean(depth) if np.isfinite(depth).any() else 0.0, depth)
+    gy, gx = np.gradient(filled, grid.node_m)  # rows are northings, columns eastings
+    weight = np.where(holes, 0.0, 1.0 / (sonar.noise_m**2 + sigma**2))
+    shape = sonar.shape
+    w = _box(weight, shape)
+    sx, sy = _box(weight * gx, shape), _box(weight * gy, shape)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ixx = _box(weight * gx * gx, shape) - sx * sx / w
+        iyy = _box(weight * gy * gy, shape) - sy * sy / w
+        ixy = _box(weight * gx * gy, shape) - sx * sy / w
+    touched = _box(holes.astype(np.float64), shape) > 0.5
+    inside = np.zeros(depth.shape, dtype=bool)
+    h, wd = shape
+    inside[h // 2: depth.shape[0] - (h - 1 - h // 2), wd // 2: depth.shape[1] - (wd - 1 - wd // 2)] = True
+    return ixx, ixy, iyy, inside & ~touched
+
+
+def accuracy_grid(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | float = 0.0) -> Grid:
+    """The predicted 1-sigma horizontal error (metres) of one correlation centred at each node: ``sqrt(trace(I^-1))``.
+
+    Infinity where the patch leaves the map, touches a hole, or sees terrain that fixes no position (flat or a plane).
+    """
+    ixx, ixy, iyy, defined = information(grid, sonar, map_sigma_m)
+    det = ixx * iyy - ixy * ixy
+    scale = np.maximum(ixx + iyy, 1e-300)
+    ok = defined & np.isfinite(det) & (det > 1e-12 * scale * scale)
+    accuracy = np.full(grid.shape, np.inf)
+    accuracy[ok] = np.sqrt((ixx[ok] + iyy[ok]) / det[ok])
+    return Grid(depth_m=accuracy, x0_m=grid.x0_m, y0_m=grid.y0_m, node_m=grid.node_m, crs=grid.crs)
