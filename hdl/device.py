@@ -9,7 +9,7 @@ buffer), bytes beyond it are dropped. The device never waits for the host to rea
 * **Search area.** START copies the ``area_shape`` window at a tile node into the core's own map
   memory (two clocks a word), starts one correlation, stores the surface (one value a clock) and the
   best beat, and replies with the result. READ_SURFACE returns stored values.
-* **Core.** Any variant of :data:`lost.hdl.variants.VARIANTS`, built for the area and the patch,
+* **Core.** Any variant of :data:`lost.model.variants.VARIANTS`, built for the area and the patch,
   behind a reset that RESET pulses.
 
 The reply to START and READ_RESULT carries ``cycles``: clocks from the START request's dispatch to
@@ -24,11 +24,13 @@ from amaranth.lib.wiring import In, Out
 from amaranth.utils import bits_for
 
 from lost.model.protocol import ERROR, MAX_PAYLOAD, MAX_REPLY, PROTOCOL_VERSION, REPLY, Command, DeviceInfo, ErrorCode
+from lost.model.variants import DEFAULT_VARIANT
+from lost.model.variants import variant as lookup
 
 from .interface import CorrelatorParameters
 from .link import FrameReceiver, FrameSender
 from .uart import AsyncSerialRX, AsyncSerialTX
-from .variants import DEFAULT_VARIANT
+from .variants import build_core
 
 __all__ = ["CorrelatorDevice"]
 
@@ -85,7 +87,7 @@ class CorrelatorDevice(wiring.Component):
     Parameters
     ----------
     variant : str
-        The correlator variant (:func:`lost.hdl.variants.variant`).
+        The correlator variant (:func:`lost.model.variants.variant`).
     tile_shape, area_shape, patch_shape : (int, int)
         The map tile in block RAM, the search area correlated by one START (inside the tile), the patch.
     exclusion_radius : int
@@ -113,8 +115,6 @@ class CorrelatorDevice(wiring.Component):
 
     def __init__(self, *, variant: str = DEFAULT_VARIANT, tile_shape=(256, 256), area_shape=(70, 70), patch_shape=(10, 10),
                  exclusion_radius: int = 5, divisor: int = 8, frame_timeout: int = 250_000, clock_hz: int = 0):
-        from .variants import variant as lookup
-
         self._variant = lookup(variant)
         self._core_parameters = CorrelatorParameters(map_shape=area_shape, patch_shape=patch_shape,
                                                      lanes=self._variant.lanes, exclusion_radius=exclusion_radius)
@@ -142,7 +142,7 @@ class CorrelatorDevice(wiring.Component):
         receiver, sender = self._link(m)
         core_reset = Signal()
         (AH, AW), (h, w) = info.area_shape, info.patch_shape
-        core = self._variant.build(map_shape=(AH, AW), patch_shape=(h, w), exclusion_radius=info.exclusion_radius)
+        core = build_core(self._variant, map_shape=(AH, AW), patch_shape=(h, w), exclusion_radius=info.exclusion_radius)
         m.submodules.core = ResetInserter({"sync": core_reset})(core)
         payload, (tile_write, tile_read), (surface_write, surface_read) = self._memories(m, receiver)
         r = _Registers(m, info, receiver.request.payload, core_reset)

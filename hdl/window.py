@@ -201,7 +201,7 @@ class WindowCore(wiring.Component):
 
         Formed from both flags' next values, so it equals ``idle & ~reducer.busy`` on every cycle: the
         patch words' load enable then starts at a register, not at the state register's decode and the
-        reducer's flag (the 4-lane build's critical path, d7d03eb: 13.5 ns from ``fsm_state`` to the
+        reducer's flag (the critical path of d7d03eb's 4-lane build: 13.5 ns from ``fsm_state`` to the
         lanes' copies of the valid bits). Each lane's copy of the valid bits takes its own copy of it.
         The reducer's ``busy`` is set by a last surface beat's arrival and cleared by the best beat's
         transfer, which wins (:class:`~lost.hdl.reducer.BestFitReducer`).

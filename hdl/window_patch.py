@@ -153,8 +153,8 @@ class PatchPreparation(wiring.Component):
         loading = self.patch_in.valid & self.patch_in.ready
         # Each lane takes a copy of the valid bits, loaded with them from the same shifted value so that every
         # copy equals them (reset-less, as they are): a valid bit resets 33 of a lane's registers, and one
-        # register driving them in every lane was the 4-lane build's critical path (c984e45: 10.8 ns of
-        # routing to the last lane's quotient copy). Loaded only on a patch word, the copies need no LUT.
+        # register driving them in every lane is a chip-wide net (the critical path of c984e45's 4-lane build:
+        # 10.8 ns of routing to the last lane's quotient copy). Loaded only on a patch word, the copies need no LUT.
         # Named ``*_replica`` so that the synthesis flow keeps them apart.
         if self._lane_resets:
             lane_copies = [Signal(nodes, name=f"lane{q}_patch_invalid_replica", init=(1 << nodes) - 1, reset_less=True)
@@ -195,8 +195,8 @@ class PatchPreparation(wiring.Component):
         m.d.comb += lifting_next.eq(lifting)
         m.d.sync += lifting.eq(lifting_next)
         # The lifted patch's registers take a copy of ``lifting`` per row of the patch, loaded from the same next
-        # value so that every copy equals ``lifting``: one register enabling all of them was the 4-lane build's
-        # critical path (17.3 ns of routing to 1,700 clock enables).
+        # value so that every copy equals ``lifting``: one register enabling all of them is a chip-wide net (the
+        # critical path of f490ab4's 4-lane build: 17.3 ns of routing to 1,700 clock enables).
         copies = -(-nodes // LIFTING_COPY_NODES)
         m.submodules.lifting_copies = lifting_copies = Replicas(1, copies)
         m.d.comb += lifting_copies.i.eq(lifting_next)

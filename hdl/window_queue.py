@@ -82,8 +82,8 @@ class CreditQueue(wiring.Component):
         of :data:`SLICE_BITS`, each read at a copy of its own of the read pointer.
 
         The read pointer reaches every storage cell (distributed RAM, read without a clock); one register
-        driving them all was the 4-lane build's critical path (1b97a22: 11.8 ns of routing from it to the
-        queue's storage). The copies are loaded from the pointer's next value, so each equals it.
+        driving them all is a chip-wide net (the critical path of 1b97a22's 4-lane build: 11.8 ns of routing
+        from it to the queue's storage). The copies are loaded from the pointer's next value, so each equals it.
 
         Returns the queue's ``valid``, its head beat and whether the head is taken on this edge.
         """
@@ -105,8 +105,8 @@ class CreditQueue(wiring.Component):
         slices = [(start, min(start + SLICE_BITS, width)) for start in range(0, width, SLICE_BITS)]
         m.submodules.read_pointers = read_pointers = Replicas(consume.shape(), len(slices))
         m.d.comb += read_pointers.i.eq(consume_next)
-        # The write enable too reaches every slice beside every lane's output (6e39ad9's 4-lane critical
-        # path: 8.75 ns of it one net): a copy per slice, loaded from its next value so each equals it.
+        # The write enable too reaches every slice beside every lane's output (the critical path of 6e39ad9's
+        # 4-lane build, seed 1: 8.75 ns of it one net): a copy per slice, loaded from its next value so each equals it.
         m.submodules.write_enables = write_enables = Replicas(1, len(slices))
         m.d.comb += write_enables.i.eq(self.write_next)
         head = Signal(width)

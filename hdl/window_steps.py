@@ -141,7 +141,7 @@ class BeatMetadata(wiring.Component):
     within a row, the next row's first step for a row's last beat that wraps).
 
     The beat is formed in two step-synchronous stages from counters one step ahead (formed from the
-    step's row and group in one clock, it was the 3-lane build's critical path, 14 logic cells): its
+    step's row and group in one clock, it is 14 logic cells deep: the critical path of badd2e3's 3 lanes): its
     parts (whether the step completes a beat in its row or wraps, the beat's row and group, whether each
     is the last) load on the step before, the beat from them on the step itself. It then moves with the
     step through the ``quotient`` step-synchronous stages (:class:`~lost.hdl.window_lane.PipelineStages`)
@@ -175,8 +175,8 @@ class BeatMetadata(wiring.Component):
         The group (memory row within its map row) of the step being taken: the line buffers' write address.
     next_group : ``Out(range(G))``
         ``(group + 1) mod G``, the group of the step after it, in every cycle:
-        the line buffers' read address, a register (formed from ``group`` by an adder and a compare, it
-        was the 4-lane build's critical path, on its way to 36 block RAMs).
+        the line buffers' read address, a register (formed from ``group`` by an adder and a compare on its
+        way to 36 block RAMs, it is the critical path of 063d056's 4-lane build).
     beat : ``Out(beat_layout(parameters))``
         The beat of the step at the value stage.
     fresh : ``Out(1)``

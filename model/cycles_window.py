@@ -43,7 +43,7 @@ __all__ = ["QUOTIENT_STAGES", "WindowTiming", "completing_steps", "schedule", "w
 
 # The window core divides each placement's dividend by n in this many step-synchronous stages (the
 # count of a one-bit-a-stage divider for depths of up to 16 bits, whose quotients have 17; the gateware
-# now forms the quotient as a reciprocal product in the last stages and the dividend waits in the
+# forms the quotient as a reciprocal product in the last stages and the dividend waits in the
 # others), so that the schedule does not depend on the depth width nor on how the quotient is made.
 QUOTIENT_STAGES = 17
 

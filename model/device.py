@@ -190,10 +190,11 @@ def reference_info(
     clock_hz: int = 0,
 ) -> DeviceInfo:
     """A :class:`DeviceInfo` with the value width the core derives for the patch (16-bit words)."""
+    from .variants import variant_by_id
     from .widths import correlator_widths
 
     return DeviceInfo(
-        version=PROTOCOL_VERSION, variant=variant, lanes=max(variant, 1), depth_bits=16, tile_shape=tuple(tile_shape),
+        version=PROTOCOL_VERSION, variant=variant, lanes=variant_by_id(variant).lanes, depth_bits=16, tile_shape=tuple(tile_shape),
         area_shape=tuple(area_shape), patch_shape=tuple(patch_shape), exclusion_radius=exclusion_radius,
         value_bits=correlator_widths(*patch_shape).accumulator.bits, clock_hz=clock_hz,
     )

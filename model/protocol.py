@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .variants import variant_by_id
+
 __all__ = [
     "ERROR",
     "MAX_PAYLOAD",
@@ -221,8 +223,8 @@ class DeviceInfo:
 
     @property
     def variant_name(self) -> str:
-        """The variant's name in :data:`lost.hdl.variants.VARIANTS` (number 0 the recursive core, L the window core of L lanes)."""
-        return "recursive_correlator" if self.variant == 0 else f"window_correlator_l{self.variant}"
+        """The variant's name (:func:`lost.model.variants.variant_by_id`: 0 the recursive core, L the window core of L lanes)."""
+        return variant_by_id(self.variant).name
 
     @property
     def surface_shape(self) -> tuple[int, int]:

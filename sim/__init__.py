@@ -1,1 +1,1 @@
-"""Running the gateware: Amaranth simulator helpers, cocotb benches, the Verilator runner."""
+"""Running the gateware: Amaranth simulator testbench functions, cocotb benches, the Verilator runner."""

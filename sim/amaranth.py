@@ -1,7 +1,7 @@
-"""Async testbench helpers for the Amaranth simulator, shared by every gateware test.
+"""Async testbench functions for the Amaranth simulator, shared by every gateware test.
 
 Streams follow ``amaranth.lib.stream``: a beat transfers on a clock edge where ``valid`` and
-``ready`` are both high. Values cross these helpers as plain Python (ints, dicts and lists, see
+``ready`` are both high. Values cross these functions as plain Python (ints, dicts and lists, see
 :func:`lost.hdl.interface.decode_payload`), so tests compare them directly with :mod:`lost.model`.
 Idle patterns are iterables of truthy/falsy flags, one per cycle (e.g. ``itertools.cycle([1, 1, 0])``):
 a falsy flag keeps ``valid`` (sources) or ``ready`` (sinks) low for that cycle, as cocotbext-axi does.

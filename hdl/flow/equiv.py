@@ -54,7 +54,7 @@ __all__ = [
     "read_renames",
 ]
 
-#: Flattening as the throwaway proof of session 10 did: memories become one register per word, so that
+#: Flattening: memories become one register per word, so that
 #: a memory moved into a component pairs word by word like any register (and a big memory is slow).
 _PREPARE = "read_rtlil {il}\nhierarchy -top {top}\nproc\nflatten\nmemory -nomap\nmemory_map\nopt_clean\nhierarchy -top {top}\n"
 
@@ -430,8 +430,13 @@ if config["part"] == "reducer":
     from lost.hdl.reducer import BestFitReducer
     top = BestFitReducer(parameters=CorrelatorParameters(**sizes, lanes=config["lanes"]))
 else:
-    from lost.hdl.variants import variant
-    top = variant(config["variant"]).build(**sizes, memory=config["memory"])
+    try:
+        from lost.hdl.variants import build_core
+    except ImportError:  # revisions before the variant table moved to lost.model: a method of the variant
+        from lost.hdl.variants import variant
+        def build_core(name, **options):
+            return variant(name).build(**options)
+    top = build_core(config["variant"], **sizes, memory=config["memory"])
 # A port the component ties to a constant is not a port of the netlist (rtlil.convert refuses constants).
 from amaranth.hdl import Signal, Value
 ports = [value for _, _, port in top.signature.flatten(top) if isinstance(value := Value.cast(port), Signal)]
@@ -481,7 +486,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--gold", required=True, help="git revision before the change")
     parser.add_argument("--gate", help="git revision after the change (default: the working tree)")
     which = parser.add_mutually_exclusive_group()
-    which.add_argument("--variant", default="recursive_correlator", help="a variant of lost.hdl.variants (default recursive_correlator)")
+    which.add_argument("--variant", default="recursive_correlator", help="a variant of lost.model.variants (default recursive_correlator)")
     which.add_argument("--part", choices=["reducer"], help="a part instead of a whole variant: the best-fit reducer")
     parser.add_argument("--memory", choices=["on-chip", "external"], default="on-chip", help="the variant's map in block RAM or behind a port (the core)")
     parser.add_argument("--lanes", type=int, default=1, help="lanes of --part reducer")

@@ -23,11 +23,12 @@ from pathlib import Path
 from amaranth.back import verilog
 from amaranth.lib import wiring
 
-from lost.hdl.variants import VARIANTS, variant
+from lost.hdl.variants import build_core
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE
 from lost.model.shapes import shape_argument
+from lost.model.variants import VARIANTS, variant
 
-__all__ = ["VARIANTS", "compact_zero_initializers", "to_verilog", "variant", "write_verilog", "write_variants"]
+__all__ = ["compact_zero_initializers", "to_verilog", "write_verilog", "write_variants"]
 
 DEFAULT_MAP_SHAPE = PAPER_MAP_SHAPE
 DEFAULT_PATCH_SHAPE = PAPER_PATCH_SHAPE
@@ -100,7 +101,8 @@ def write_variants(
     chosen = [variant(name) for name in names]
     return [
         write_verilog(
-            v.build(
+            build_core(
+                v,
                 map_shape=tuple(map_shape),
                 patch_shape=tuple(patch_shape),
                 depth_bits=depth_bits,

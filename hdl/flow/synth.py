@@ -33,6 +33,7 @@ from pathlib import Path
 from amaranth.back import rtlil
 
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE, PAPER_SECONDS
+from lost.model.variants import Variant, of_kind
 
 from . import figures
 
@@ -142,7 +143,7 @@ class RouterStall:
     """Watches router2's log: a reason to stop once it has found no fewer overused wires for ``patience`` iterations
     while more than ``floor`` remain.
 
-    At 4 lanes router2 converges on some placements and not on others (docs/fpga.md, sessions 10 and 11): a run
+    At 4 lanes router2 converges on some placements and not on others (docs/fpga.md): a run
     that stalls would otherwise hold its core for hours, where the next seed may route. A run near the end may
     rest for many iterations on a few wires (6e39ad9, seed 1: 32 iterations at 1 or 2, then 0), hence the floor.
     """
@@ -420,9 +421,9 @@ def place_and_route(
     return RouteResult(**(asdict(result) | {"seconds": round(time.monotonic() - start, 1)}))
 
 
-# ---- the configurations the issue measures ----------------------------------------------------------
+# ---- the configurations measured --------------------------------------------------------------------
 
-#: The goals of the issue: the recursive variant at least matches the paper, the window one is 1000 times faster.
+#: The goals: the recursive variant at least matches the paper, the window one is 1000 times faster.
 GOAL_SECONDS = {"recursive": PAPER_SECONDS, "window": PAPER_SECONDS / 1000}
 #: The DP16KD block RAM of the ECP5: 18 kbit, of which 1024 words of 16 bits serve a depth word.
 EBR_DEPTH_WORDS = 1024
@@ -452,14 +453,9 @@ class Configuration:
     patch_shape: tuple[int, int] = PAPER_PATCH_SHAPE
 
     def __post_init__(self):
-        if self.variant not in GOAL_SECONDS:
-            raise ValueError(f"variant must be one of {sorted(GOAL_SECONDS)}, got {self.variant!r}")
+        of_kind(self.variant, self.lanes)  # a ValueError names a wrong kind or lane count
         if self.memory not in ("external", "on-chip"):
             raise ValueError(f"memory must be 'external' or 'on-chip', got {self.memory!r}")
-        if isinstance(self.lanes, bool) or not isinstance(self.lanes, int) or self.lanes < 1:
-            raise ValueError(f"lanes must be a positive integer, got {self.lanes!r}")
-        if self.variant == "recursive" and self.lanes != 1:
-            raise ValueError(f"The recursive variant has one lane, got lanes={self.lanes}.")
         object.__setattr__(self, "map_shape", tuple(self.map_shape))
         object.__setattr__(self, "patch_shape", tuple(self.patch_shape))
 
@@ -476,13 +472,15 @@ class Configuration:
         # The step enable reaches every step-synchronous register: on the ECP5, a global net; the lanes'
         # products keep their operands' registers inside the multipliers.
         options = {"enable_buffer": ecp5_global_buffer, "product": ECP5RegisteredProduct} if self.variant == "window" else {}
-        return self._registered().build(map_shape=self.map_shape, patch_shape=self.patch_shape,
-                                        memory=self.memory, **options)
+        from lost.hdl.variants import build_core
 
-    def _registered(self):
-        from lost.hdl.variants import variant, window_variant
+        return build_core(self.registered, map_shape=self.map_shape, patch_shape=self.patch_shape,
+                          memory=self.memory, **options)
 
-        return window_variant(self.lanes) if self.variant == "window" else variant("recursive_correlator")
+    @property
+    def registered(self) -> Variant:
+        """The variant table's entry of this kind and lane count (:mod:`lost.model.variants`)."""
+        return of_kind(self.variant, self.lanes)
 
     def design(self):
         """The core inside its :class:`~lost.hdl.flow.harness.MeasurementHarness`."""
@@ -492,7 +490,7 @@ class Configuration:
 
     def cycles(self) -> int:
         """Cycles from the start beat to the best beat of one full-patch correlation at the built sizes."""
-        return self._registered().schedule(self.map_shape, self.patch_shape).total
+        return self.registered.schedule(self.map_shape, self.patch_shape).total
 
 
 #: The window lane counts tried, in order, until one packs into more than :data:`MAX_LUT_PERCENT` of the LUT4s.

@@ -28,15 +28,14 @@ from cocotb.handle import HierarchyObject
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge, with_timeout
 
 from lost.hdl.interface import CorrelatorParameters, PatchWord, StartCommand, best_fit_payload, comparable_best
-from lost.hdl.variants import Variant, variant, window_variant
 from lost.model import best_fit, correlate
+from lost.model.variants import Variant, of_kind
 
 from .streams import Clocking, StreamSink, StreamSource, Transfer, pattern
 
 __all__ = ["BenchConfig", "ENVIRONMENT_VARIABLE", "expected_beats", "expected_cycles"]
 
 ENVIRONMENT_VARIABLE = "LOST_BENCH"
-VARIANTS = ("recursive", "window")
 
 
 @dataclass(frozen=True)
@@ -64,18 +63,15 @@ class BenchConfig:
         return 20 * (H * W + h * w + terms) + 10_000
 
     def __post_init__(self) -> None:
-        if self.variant not in VARIANTS:
-            raise ValueError(f"variant must be one of {VARIANTS}, got {self.variant!r}")
-        if self.variant == "recursive" and self.lanes != 1:
-            raise ValueError(f"the recursive core has one lane, got lanes={self.lanes}")
+        of_kind(self.variant, self.lanes)  # a ValueError names a wrong kind or lane count
         object.__setattr__(self, "map_shape", tuple(self.map_shape))
         object.__setattr__(self, "patch_shape", tuple(self.patch_shape))
         _ = self.parameters  # validates the rest
 
     @property
     def registered(self) -> Variant:
-        """The registry's entry of this variant and lane count (its module name, cycle model)."""
-        return window_variant(self.lanes) if self.variant == "window" else variant("recursive_correlator")
+        """The variant table's entry of this kind and lane count (its module name, cycle model)."""
+        return of_kind(self.variant, self.lanes)
 
     @property
     def parameters(self) -> CorrelatorParameters:

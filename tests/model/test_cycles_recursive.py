@@ -46,7 +46,7 @@ def test_refuses_bad_input(kwargs, message):
         schedule(**kwargs)
 
 
-def test_shared_helpers_refuse_bad_input():
+def test_shared_functions_refuse_bad_input():
     with pytest.raises(ValueError, match="lanes"):
         reducer_geometry((4, 4), 0, 1)
     with pytest.raises(ValueError, match="exclusion_radius"):

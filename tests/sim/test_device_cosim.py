@@ -92,7 +92,7 @@ def test_every_command_answers_as_the_reference_device(device):
 
 
 def test_start_takes_the_cycles_of_the_copy_and_the_cores_schedule(device):
-    from lost.hdl.variants import variant
+    from lost.model.variants import variant
 
     info = device.identify()
     rng = np.random.default_rng(2)

@@ -7,7 +7,8 @@ from amaranth.hdl import Module, unsigned
 from amaranth.lib import memory, wiring
 from amaranth.lib.wiring import In, Out
 
-from lost.hdl.flow.generate import VARIANTS, compact_zero_initializers, main, to_verilog, variant
+from lost.hdl.flow.generate import compact_zero_initializers, main, to_verilog
+from lost.model.variants import VARIANTS, variant
 from lost.sim.verilator import lint
 
 

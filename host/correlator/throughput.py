@@ -1,6 +1,6 @@
 """Throughput of the device per ping: bytes on the wire, round trips and device cycles, and the time at a baud rate.
 
-``python -m lost.sim.throughput`` prints, for the board's build (256 x 256 tile, 70 x 70 search area,
+``python -m lost.host.correlator.throughput`` prints, for the board's build (256 x 256 tile, 70 x 70 search area,
 10 x 10 patch: the navigation's default search of +/-300 m at 10 m nodes), a ping with the tile
 resident (patch upload, START, the 61 x 61 surface read back) and a tile reload:
 
@@ -21,10 +21,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from lost.hdl.variants import DEFAULT_VARIANT, variant
-from lost.host.correlator.driver import CorrelatorDriver
-from lost.host.correlator.transports import InProcessTransport
 from lost.model.device import DeviceModel, reference_info
+from lost.model.variants import DEFAULT_VARIANT, variant
+
+from .driver import CorrelatorDriver
+from .transports import InProcessTransport
 
 __all__ = ["measure", "main"]
 
@@ -92,7 +93,7 @@ def measure(*, tile_shape=(256, 256), area_shape=(70, 70), patch_shape=(10, 10),
 
 
 def _cosim_cycles(name, tile_shape, area_shape, patch_shape, exclusion_radius, mask) -> int:
-    from lost.host.correlator.transports import CosimTransport
+    from .transports import CosimTransport
 
     transport = CosimTransport(name, tile_shape=tile_shape, area_shape=area_shape, patch_shape=patch_shape,
                                exclusion_radius=exclusion_radius)
@@ -108,7 +109,7 @@ def _cosim_cycles(name, tile_shape, area_shape, patch_shape, exclusion_radius, m
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m lost.sim.throughput", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m lost.host.correlator.throughput", description=__doc__.splitlines()[0])
     parser.add_argument("--baud", type=int, default=3_000_000)
     parser.add_argument("--clock-mhz", type=float, default=60.0, help="the ULX3S bitstream's clock")
     parser.add_argument("--latency-ms", type=float, default=1.0, help="per request/reply round trip")
