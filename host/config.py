@@ -1,6 +1,7 @@
 """Settings with strict types, units and ranges: every scenario table and the navigation parameters.
 
-LOST's settings are frozen dataclasses (``lost.host.scenario``'s tables, ``lost.host.nav.NavParameters``).
+LOST's settings are frozen dataclasses (``lost.host.scenario``'s tables, ``lost.host.nav.NavParameters``, the tracker's and the
+USBL's); each package builds its own from here (``lost.host.nav.navigation_parameters``), so this module imports none of them.
 They stay plain dataclasses; this module validates what comes in from files and the command line
 *before* one is built, with pydantic v2 in strict mode (a model generated from the dataclass's own
 fields and type hints, so a new field is validated the moment it is declared):
@@ -35,7 +36,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 __all__ = [
-    "ConfigError", "validate_fields", "build", "read_toml", "navigation_parameters", "read_navigation_table",
+    "ConfigError", "validate_fields", "build", "read_toml", "read_navigation_table",
     "PositiveFloat", "NonNegativeFloat", "PositiveInt", "NonNegativeInt", "Fraction", "FiniteFloat",
 ]
 
@@ -142,24 +143,6 @@ def _describe(problem: Mapping[str, Any], where: str, hints: Mapping[str, Any]) 
     got = problem.get("input")
     shown = f"{got!r} ({type(got).__name__})" if isinstance(got, str | bool) or got is None else repr(got)
     return f"{path}{f' ({unit})' if unit else ''}: {message}, got {shown}"
-
-
-def navigation_parameters(table: Mapping[str, Any], where: str = "navigation"):
-    """A :class:`lost.host.nav.NavParameters` from settings validated strictly (names and types here, ranges by the class).
-
-    Raises
-    ------
-    ConfigError
-        A setting is unknown or of the wrong type (named by path), or NavParameters refuses its
-        value or range (its message, prefixed with ``where``).
-    """
-    from .nav import NavParameters
-
-    values = validate_fields(NavParameters, table, where)
-    try:
-        return NavParameters(**values)
-    except (TypeError, ValueError) as error:
-        raise ConfigError(f"[{where}]: {error}") from None
 
 
 def build(cls: type, table: Any, where: str) -> Any:

@@ -102,7 +102,8 @@ def _print_usbl(summary: dict) -> None:
 
 def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
     """The navigation parameters: ``base`` (a scenario's [navigation]), then --config's, --set, --backend/--matching; strictly validated."""
-    from ..config import navigation_parameters, read_navigation_table
+    from ..config import read_navigation_table
+    from ..nav import navigation_parameters
 
     configure_hardware(args)
     overrides = {key: value for key, value in (("backend", args.backend), ("matching", args.matching)) if value is not None}

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..config import ConfigError, build, navigation_parameters, read_toml, validate_fields
+from ..config import ConfigError, build, read_toml, validate_fields
+from ..nav.parameters import navigation_parameters
 from ..shipped import shipped_names, shipped_path
 from ..terrain import Feature
 from .map import check_before_simulating

@@ -35,7 +35,7 @@ from ..shipped import shipped_names, shipped_path
 from .filter import ImuNoise
 from .fix import UsblArray
 
-__all__ = ["TowSpec", "ImuSpec", "FaultSpec", "OceanSpec", "UsblScenario", "load_usbl_scenario", "load_processing_config", "builtin_usbl_scenarios",
+__all__ = ["TowSpec", "ImuSpec", "ReplyFaultSpec", "OceanSpec", "UsblScenario", "load_usbl_scenario", "load_processing_config", "builtin_usbl_scenarios",
            "shipped_cast_path"]
 
 DEG_PER_HOUR = np.radians(1.0) / 3600.0
@@ -93,7 +93,7 @@ class ImuSpec:
 
 
 @dataclass(frozen=True)
-class FaultSpec:
+class ReplyFaultSpec:
     """USBL dropouts and bad fixes per ping; the ``*_turning`` rates are added in proportion to the ship's turn
     rate over ``turn_rate_full_deg_s``. A bad fix is either a phase outlier (one channel off by
     ``bad_phase_rad``, a uniform range) or a multipath delay (``bad_delay_s``)."""
@@ -139,7 +139,7 @@ class UsblScenario:
     tow: TowSpec = field(default_factory=TowSpec)
     imu: ImuSpec = field(default_factory=ImuSpec)
     usbl: UsblArray = field(default_factory=UsblArray)
-    faults: FaultSpec = field(default_factory=FaultSpec)
+    faults: ReplyFaultSpec = field(default_factory=ReplyFaultSpec)
     ocean: OceanSpec = field(default_factory=OceanSpec)
     processing: dict[str, Any] = field(default_factory=dict)
     folder: Path | None = None
@@ -211,7 +211,7 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
     if not path.exists() and path.suffix == "":
         path = shipped_path("lost.host.usbl", path.name, what="usbl scenario, nor a scenario file,")
     table = read_toml(path, "usbl scenario file")
-    parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": FaultSpec, "ocean": OceanSpec}
+    parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": ReplyFaultSpec, "ocean": OceanSpec}
     built = {key: _build(cls, table.pop(key), path, key) for key, cls in parts.items() if key in table}
     if "processing" in table:
         built["processing"] = _processing_settings(table.pop("processing"), path, "processing")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from lost.host.config import ConfigError, navigation_parameters, read_navigation_table
+from lost.host.config import ConfigError, read_navigation_table
+from lost.host.nav import navigation_parameters
 from lost.host.scenario import load_scenario
 
 from .conftest import TINY_SCENARIO

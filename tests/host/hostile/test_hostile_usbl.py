@@ -12,7 +12,7 @@ import pytest
 from lost.host.config import ConfigError
 from lost.host.usbl.checks import UsblLogError
 from lost.host.usbl.pipeline import UsblConfig, process, read_imu, read_log
-from lost.host.usbl.scenario import FaultSpec, TowSpec, UsblScenario, load_processing_config, load_usbl_scenario
+from lost.host.usbl.scenario import ReplyFaultSpec, TowSpec, UsblScenario, load_processing_config, load_usbl_scenario
 from lost.host.usbl.simulate import LOG_COLUMNS, simulate_tow
 from lost.host.usbl.sound import CastError, read_cast
 
@@ -107,7 +107,7 @@ def test_a_doubled_column_is_refused_by_name(tmp_path, header):
 def tow():
     """Two minutes of straight tow at 300 m, every reply good: the log, the IMU samples and the cast."""
     scenario = UsblScenario(name="hostile", seed=5, duration_s=120.0, tow=TowSpec(depth_m=300.0, layback_m=200.0, course=((120.0, 0.0),)),
-                            faults=FaultSpec(dropout_rate=0.0, dropout_rate_turning=0.0, bad_fix_rate=0.0, bad_fix_rate_turning=0.0))
+                            faults=ReplyFaultSpec(dropout_rate=0.0, dropout_rate_turning=0.0, bad_fix_rate=0.0, bad_fix_rate_turning=0.0))
     return scenario, simulate_tow(scenario)
 
 

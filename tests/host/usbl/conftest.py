@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from lost.host.usbl.ins import ImuSamples
-from lost.host.usbl.scenario import FaultSpec, TowSpec, UsblScenario
+from lost.host.usbl.scenario import ReplyFaultSpec, TowSpec, UsblScenario
 
 
 def short_scenario(**changes) -> UsblScenario:
     """Five minutes of straight tow at 600 m, with the shipped scenario's instruments."""
     settings = dict(name="short", seed=3, duration_s=300.0, tow=TowSpec(depth_m=600.0, layback_m=400.0, course=((300.0, 0.0),)),
-                    faults=FaultSpec(dropout_rate=0.05, dropout_rate_turning=0.0, bad_fix_rate=0.05, bad_fix_rate_turning=0.0))
+                    faults=ReplyFaultSpec(dropout_rate=0.05, dropout_rate_turning=0.0, bad_fix_rate=0.05, bad_fix_rate_turning=0.0))
     settings.update(changes)
     return UsblScenario(**settings)
 

@@ -94,10 +94,10 @@ def test_loaders_refuse_unknown_keys(tmp_path):
 
 
 def test_a_turn_makes_more_dropouts_and_bad_fixes(short_scenario):
-    from lost.host.usbl.scenario import FaultSpec, TowSpec
+    from lost.host.usbl.scenario import ReplyFaultSpec, TowSpec
     from lost.host.usbl.simulate import simulate_tow
 
-    faults = FaultSpec(dropout_rate=0.0, dropout_rate_turning=0.5, bad_fix_rate=0.0, bad_fix_rate_turning=0.5)
+    faults = ReplyFaultSpec(dropout_rate=0.0, dropout_rate_turning=0.5, bad_fix_rate=0.0, bad_fix_rate_turning=0.5)
     turning = TowSpec(depth_m=300.0, layback_m=150.0, course=((100.0, 0.0), (200.0, 0.3)))
     log = simulate_tow(short_scenario(tow=turning, faults=faults)).log
     ship_turning = log.time_s.to_numpy() + 100.0 > 100.0  # the ship is 100 s ahead on the track
@@ -158,7 +158,7 @@ def test_a_step_in_the_cast_with_a_long_layback_loses_no_reply_and_writes_every_
     """+40 m/s over a metre at 200 m, the towfish 2 km behind at 1000 m: rays near the step's grazing angle."""
     from lost.host.usbl.pipeline import process
     from lost.host.usbl.report import summarize, write_outputs
-    from lost.host.usbl.scenario import FaultSpec, TowSpec
+    from lost.host.usbl.scenario import ReplyFaultSpec, TowSpec
     from lost.host.usbl.simulate import simulate_tow
 
     depth = np.concatenate(([0.0, 200.0, 201.0], np.arange(250.0, 1501.0, 50.0)))
@@ -166,7 +166,7 @@ def test_a_step_in_the_cast_with_a_long_layback_loses_no_reply_and_writes_every_
     cast = tmp_path / "step.csv"
     cast.write_text("# latitude = 18\n# longitude = 115.5\ndepth_m,sound_speed_m_s\n" + "".join(f"{a},{b}\n" for a, b in zip(depth, speed)))
     scenario = short_scenario(duration_s=120.0, cast=str(cast), tow=TowSpec(depth_m=1000.0, layback_m=2000.0, course=((120.0, 0.0),)),
-                              faults=FaultSpec(dropout_rate=0.0, dropout_rate_turning=0.0, bad_fix_rate=0.0, bad_fix_rate_turning=0.0))
+                              faults=ReplyFaultSpec(dropout_rate=0.0, dropout_rate_turning=0.0, bad_fix_rate=0.0, bad_fix_rate_turning=0.0))
     sim = simulate_tow(scenario)
     run = process(sim.log, imu_samples(sim.imu), sim.cast, scenario.processing_config())
     summary = summarize(run, name="step", run_time_s=0.0)
