@@ -130,7 +130,10 @@ def hardware_options(sub: argparse.ArgumentParser) -> None:
     """``--port``, ``--baud`` (the board) and ``--variant`` (the co-simulated device)."""
     sub.add_argument("--port", default=None, help="serial port of the board, for --backend fpga (e.g. /dev/ttyUSB0)")
     sub.add_argument("--baud", type=int, default=3_000_000, help="the board's UART rate (default 3000000)")
-    sub.add_argument("--variant", default=None, help="gateware variant of the co-simulated device, for --backend rtl (default window_correlator_l1)")
+    from lost.model.variants import DEFAULT_VARIANT, VARIANTS
+
+    sub.add_argument("--variant", default=None, choices=sorted(VARIANTS),
+                     help=f"gateware variant of the co-simulated device, for --backend rtl (default {DEFAULT_VARIANT})")
 
 
 def configure_hardware(args: argparse.Namespace) -> None:

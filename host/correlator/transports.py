@@ -127,7 +127,7 @@ class CosimTransport(Transport):
     Parameters
     ----------
     variant : str, optional
-        A name of :data:`lost.hdl.variants.VARIANTS` (default :data:`~lost.hdl.variants.DEFAULT_VARIANT`).
+        A name of :data:`lost.model.variants.VARIANTS` (default :data:`~lost.model.variants.DEFAULT_VARIANT`).
     build_dir : Path, optional
         Where builds are kept (default ``~/.cache/lost/cosim``).
     sizes : dict
