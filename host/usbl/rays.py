@@ -237,6 +237,35 @@ _GRAZING = 1e-12
 _TURNING_SAMPLES = 64
 
 
+def _turning_rays(profile: SoundSpeedProfile, top: float, target: float, travel_time_s: float, p_low: float, p_high: float,
+                  solve) -> list[tuple[float, float, float | None, int]]:
+    """The rays that pass the target's depth, turn under it and come back up to it in ``travel_time_s`` (sampled brackets)."""
+    def turning(p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        offset, time = _direct_many(profile, p, top, target)
+        loop_offset, loop_time, turn = _dives(profile, p, target)
+        return offset + loop_offset, time + loop_time - travel_time_s, turn
+
+    found = []
+    grid = np.linspace(p_low, p_high, _TURNING_SAMPLES + 1)[1:]
+    values = turning(grid)[1]
+    for k in np.flatnonzero(np.isfinite(values[:-1]) & np.isfinite(values[1:]) & (np.sign(values[:-1]) != np.sign(values[1:]))):
+        p, calls = solve(lambda q: float(turning(np.array([q]))[1][0]), grid[k], grid[k + 1])
+        offset, _, turn = turning(np.array([p]))
+        found.append((p, float(offset[0]), float(turn[0]), calls + _TURNING_SAMPLES))
+    return found
+
+
+def _no_ray(profile: SoundSpeedProfile, top: float, target: float, travel_time_s: float, p_high: float, c_top: float, c_max: float,
+            z_max: float, c_below: float, longest: float) -> str:
+    """Why no ray takes ``travel_time_s``: the limiting direct ray, and whether any ray turns under the target."""
+    below = ("no ray that turns under the target takes that time" if c_below > c_max else
+             f"under the target the speed stays below {c_max:.2f} m/s down to the profile's {profile.bottom_m:.0f} m, so no ray turns back up to it")
+    return (f"no ray reaches {target:.2f} m in {travel_time_s:.5f} s: the flattest direct ray (launched "
+            f"{np.degrees(np.arcsin(min(1.0, p_high * c_top))):.3f} deg from the vertical, grazing the speed maximum {c_max:.2f} m/s "
+            f"at {z_max:.1f} m) arrives in {longest:.5f} s at {_direct_many(profile, [p_high], top, target)[0][0]:.1f} m; a longer time needs "
+            f"a ray trapped above {z_max:.1f} m (surface-reflected paths are not modelled), and {below}")
+
+
 def solve_ray(profile: SoundSpeedProfile, start_depth_m: float, target_depth_m: float, travel_time_s: float, *,
               tolerance_m: float = 1e-3, max_iterations: int = 100, initial_angle_rad: float | None = None) -> RaySolution:
     """The ray from the transducer to a target at a known depth for a measured one-way travel time.
@@ -306,24 +335,9 @@ def solve_ray(profile: SoundSpeedProfile, start_depth_m: float, target_depth_m: 
         found.append((p, float(_direct_many(profile, [p], top, target)[0][0]), None, calls))
     c_below = _speed_maximum(profile, target, profile.bottom_m)[0] if target < profile.bottom_m else c_max
     if c_below > c_max:  # rays flatter than 1 / c_below turn under the target and come back up to it
-        def turning(p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            offset, time = _direct_many(profile, p, top, target)
-            loop_offset, loop_time, turn = _dives(profile, p, target)
-            return offset + loop_offset, time + loop_time - travel_time_s, turn
-
-        grid = np.linspace(1.0 / c_below, p_high, _TURNING_SAMPLES + 1)[1:]
-        values = turning(grid)[1]
-        for k in np.flatnonzero(np.isfinite(values[:-1]) & np.isfinite(values[1:]) & (np.sign(values[:-1]) != np.sign(values[1:]))):
-            p, calls = solve(lambda q: float(turning(np.array([q]))[1][0]), grid[k], grid[k + 1])
-            offset, _, turn = turning(np.array([p]))
-            found.append((p, float(offset[0]), float(turn[0]), calls + _TURNING_SAMPLES))
+        found += _turning_rays(profile, top, target, travel_time_s, 1.0 / c_below, p_high, solve)
     if not found:
-        below = ("no ray that turns under the target takes that time" if c_below > c_max else
-                 f"under the target the speed stays below {c_max:.2f} m/s down to the profile's {profile.bottom_m:.0f} m, so no ray turns back up to it")
-        raise NoRayError(f"no ray reaches {target:.2f} m in {travel_time_s:.5f} s: the flattest direct ray (launched "
-                         f"{np.degrees(np.arcsin(min(1.0, p_high * c_top))):.3f} deg from the vertical, grazing the speed maximum {c_max:.2f} m/s "
-                         f"at {z_max:.1f} m) arrives in {longest:.5f} s at {_direct_many(profile, [p_high], top, target)[0][0]:.1f} m; a longer time needs "
-                         f"a ray trapped above {z_max:.1f} m (surface-reflected paths are not modelled), and {below}")
+        raise NoRayError(_no_ray(profile, top, target, travel_time_s, p_high, c_top, c_max, z_max, c_below, longest))
     launch = lambda p: float(np.arcsin(min(1.0, p * c_top)))  # noqa: E731
     if initial_angle_rad is not None:
         p, horizontal, turn, calls = min(found, key=lambda ray: abs(launch(ray[0]) - initial_angle_rad))
