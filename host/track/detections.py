@@ -238,6 +238,21 @@ def _check_units(pings: Sequence[Ping], sonar: Sonar, path: Path) -> None:
         )
 
 
+def _add_detection(current: _PingBuilder, cells: dict[str, str], where: str, sonar: Sonar, counts: dict[str, int]) -> None:
+    """One detection row into its ping, or counted by the reason it lies outside the sector."""
+    range_m = _number(cells["range_m"], "range_m", where)
+    bearing_deg = _number(cells["bearing_deg"], "bearing_deg", where)
+    strength = _number(cells["strength_db"], "strength_db", where) if cells.get("strength_db") else math.nan
+    if range_m < 0:
+        counts["negative_range"] += 1
+    elif range_m > sonar.max_range_m:
+        counts["beyond_range"] += 1
+    elif abs(bearing_deg) > sonar.half_fov_deg:
+        counts["outside_field_of_view"] += 1
+    else:
+        current.detections.append((range_m, bearing_deg, strength))
+
+
 def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None, crs: str | None = None) -> tuple[list[Ping], DetectionReport]:
     """Read a detection log (layout in the module docstring) into pings and a report.
 
@@ -306,17 +321,7 @@ def read_detections(path: str | os.PathLike, *, sonar: Sonar | None = None, crs:
                 current.add(values, where)
             if cells["range_m"] == "" and cells["bearing_deg"] == "":
                 continue  # a quiet ping
-            range_m = _number(cells["range_m"], "range_m", where)
-            bearing_deg = _number(cells["bearing_deg"], "bearing_deg", where)
-            strength = _number(cells["strength_db"], "strength_db", where) if cells.get("strength_db") else math.nan
-            if range_m < 0:
-                counts["negative_range"] += 1
-            elif range_m > sonar.max_range_m:
-                counts["beyond_range"] += 1
-            elif abs(bearing_deg) > sonar.half_fov_deg:
-                counts["outside_field_of_view"] += 1
-            else:
-                current.detections.append((range_m, bearing_deg, strength))
+            _add_detection(current, cells, where, sonar, counts)
     if current is not None:
         pings.append(current.build())
     if not pings:
