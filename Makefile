@@ -46,6 +46,11 @@ bench-sim: setup
 bench-plan: setup
 	$(BIN)/python benchmarks/plan_speed.py
 
+# The navigation over ten seeds a case on the campaign engine (two local workers): map = floor and survey-made maps;
+# build/bench/nav-seeds/results.parquet and summary.json (medians and 90th percentiles per case and estimator).
+bench-nav-seeds: setup
+	$(BIN)/lost campaign benchmarks/campaigns/nav.toml --out build/bench/nav-seeds --workers 2
+
 # The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
 # build/bench/nav_filters.json.
 bench-nav: setup

@@ -115,7 +115,7 @@ def _execute(todo: list[RunTask], out: Path, scheduler: str | None, workers: int
             try:
                 rows = future.result()
             except Exception as error:  # the worker died under it every time it was tried (KilledWorker), or it could not be sent
-                rows = [{"run_id": run.run_id, "scenario": run.scenario, "seed": run.seed, "estimator": None,
+                rows = [{"run_id": run.run_id, "case": run.case, "scenario": run.scenario, "seed": run.seed, "estimator": None,
                          "error": f"{type(error).__name__}: {error}", **{f"param.{k}": v for k, v in run.values.items()}}]
             _write_atomic(out / "rows" / f"{run.run_id}.json", json.dumps(rows, default=str) + "\n")
 
@@ -147,13 +147,13 @@ def _finish(spec: CampaignSpec, out: Path, runs: int, ran: int) -> dict[str, Any
 
 
 def _distributions(table) -> list[dict[str, Any]]:
-    """Median and 90th percentile of each figure per scenario and estimator, over seeds and values."""
+    """Median and 90th percentile of each figure per case and estimator, over seeds and values."""
     if table.empty or "estimator" not in table:
         return []
     ok = table[table["error"].isna() & table["estimator"].notna()]
     result = []
-    for (scenario, estimator), group in ok.groupby(["scenario", "estimator"]):
-        entry: dict[str, Any] = {"scenario": scenario, "estimator": estimator, "runs": int(len(group))}
+    for (case, estimator), group in ok.groupby(["case", "estimator"]):
+        entry: dict[str, Any] = {"case": case, "estimator": estimator, "runs": int(len(group))}
         for figure in ("rms_m", "rms_nodes", "nees_in_band", "false_fixes", "ms_per_update"):
             values = group[figure].dropna().astype(float) if figure in group else []
             entry[figure] = None if not len(values) else {"median": float(values.median()), "p90": float(values.quantile(0.9))}

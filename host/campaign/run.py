@@ -99,7 +99,7 @@ def _rows(task: RunTask) -> list[dict[str, Any]]:
 
 def run_task(task: RunTask) -> list[dict[str, Any]]:
     """The rows of one run: one per estimator, or one with the error when the run failed."""
-    base = {"run_id": task.run_id, "scenario": task.scenario, "seed": task.seed, "commit": _commit(),
+    base = {"run_id": task.run_id, "case": task.case, "scenario": task.scenario, "seed": task.seed, "commit": _commit(),
             **{f"param.{name}": value for name, value in task.values.items()}}
     start = time.perf_counter()
     try:

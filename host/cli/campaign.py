@@ -23,15 +23,16 @@ def run_campaign_command(args: argparse.Namespace) -> int:
         raise UsageError(f"--workers must be at least 1, got {args.workers}")
     spec = load_campaign(args.spec)
     tasks = spec.tasks()
-    print(f"{spec.name}: {len(tasks)} runs ({len(spec.scenarios)} scenarios x {len(spec.seed_list())} seeds x "
-          f"{len(tasks) // max(len(spec.scenarios) * len(spec.seed_list()), 1)} parameter combinations), estimators {', '.join(spec.estimators)}")
+    cases = len(spec.all_cases())
+    print(f"{spec.name}: {len(tasks)} runs ({cases} cases x {len(spec.seed_list())} seeds x "
+          f"{len(tasks) // max(cases * len(spec.seed_list()), 1)} parameter combinations), estimators {', '.join(spec.estimators)}")
     out = args.out = args.out or Path("runs") / "campaign" / spec.name
     progress = lambda finished: bar_over(finished, len(tasks))  # noqa: E731 (always a bar: a campaign is long even with few runs)
     summary = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers, progress=progress)
     print(f"ran {summary['ran_now']} now; {summary['finished']} of {summary['runs']} runs finished, {summary['failed_runs']} failed")
     for entry in summary["distributions"]:
         rms, nees = entry["rms_nodes"], entry["nees_in_band"]
-        print(f"  {entry['scenario']:>16s} {entry['estimator']:>5s}: {entry['runs']} runs, RMS "
+        print(f"  {entry['case']:>24s} {entry['estimator']:>5s}: {entry['runs']} runs, RMS "
               + ("-" if rms is None else f"median {rms['median']:.3f} / p90 {rms['p90']:.3f} nodes")
               + ("" if nees is None else f", NEES in band median {nees['median']:.2f}"))
     for error in summary["errors"]:

@@ -48,7 +48,7 @@ def _models(args: argparse.Namespace, node_m: float):
 def run_plan(args: argparse.Namespace) -> int:
     """The handler of ``lost plan``."""
     from ..io import read_grid
-    from ..plan import accuracy_grid, predict_route, read_route
+    from ..plan import accuracy_grid, map_sigma, predict_route, read_route
     from ..plan.output import plan_plots, write_accuracy_netcdf, write_route_csv
     from ..plotting import draw_plots
 
@@ -58,7 +58,7 @@ def run_plan(args: argparse.Namespace) -> int:
         sonar, model = _models(args, grid.node_m)
         waypoints = read_route(args.route) if args.route is not None else None
         start = time.perf_counter()
-        accuracy = accuracy_grid(grid, sonar, args.map_sigma_m)
+        accuracy = accuracy_grid(grid, sonar, map_sigma(grid, args.map_sigma_m))
         route = None if waypoints is None else predict_route(accuracy, waypoints, model)
         elapsed = time.perf_counter() - start
         write_accuracy_netcdf(folder / "accuracy.nc", accuracy)
@@ -75,7 +75,7 @@ def run_plan(args: argparse.Namespace) -> int:
 def _summary(args, grid, accuracy, sonar, model, route, elapsed: float) -> dict:
     bound = accuracy.depth_m[np.isfinite(accuracy.depth_m)]
     summary = {"map": str(args.map), "shape": list(grid.shape), "node_m": grid.node_m, "crs": grid.crs, "sonar": {"shape": list(sonar.shape),
-               "noise_m": sonar.noise_m}, "map_sigma_m": args.map_sigma_m, "compute_s": round(elapsed, 3),
+               "noise_m": sonar.noise_m}, "survey_sigma_m": args.map_sigma_m, "compute_s": round(elapsed, 3),
                "nodes_with_a_bound": int(bound.size), "usable_sigma_m": model.usable_sigma_m,
                "usable_share": float(np.mean(accuracy.depth_m <= model.usable_sigma_m)),
                "bound_m": None if not bound.size else {q: float(np.percentile(bound, p)) for q, p in (("p10", 10), ("median", 50), ("p90", 90))}}
@@ -108,7 +108,9 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     sub.add_argument("--route", type=Path, default=None, help="waypoints CSV (east_m, north_m in the map's CRS): the predicted error along it")
     sub.add_argument("--config", type=Path, default=None, help="a scenario TOML: its sonar patch and noise, ship speed and [navigation]")
     sub.add_argument("--node-m", type=positive_metres, default=None, help="node spacing of the map, metres (default: the file's)")
-    sub.add_argument("--map-sigma-m", type=float, default=0.0, help="the map's own 1-sigma depth uncertainty, metres (default 0)")
+    sub.add_argument("--map-sigma-m", type=float, default=None,
+                     help="the map's survey noise, 1 sigma, metres, when the grid carries no uncertainty layer (default 0.5); the slope and "
+                          "relief a node cannot show are added from the map itself, as the filters do")
     sub.add_argument("--sonar-noise-m", type=positive_metres, default=None, help="the sonar's 1-sigma depth noise, metres (default 0.5, or the scenario's)")
     sub.add_argument("--speed-mps", type=positive_metres, default=None, help="speed along the route, m/s (default 1.5, or the scenario ship's)")
     output_options(sub, "runs/plan/MAP")

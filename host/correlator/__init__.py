@@ -19,7 +19,7 @@ import numpy as np
 from lost import model
 
 from .backends import Backend, DeviceBackend, FunctionBackend, model_surface, software_surface
-from .result import Area, Correlation, Outcome, choose_fit, valid_placements
+from .result import Area, Correlation, Outcome, choose_fit, placed, valid_placements
 
 __all__ = ["BACKENDS", "Backend", "Correlation", "Outcome", "configure_backend", "correlate", "correlation", "valid_placements"]
 
@@ -173,9 +173,5 @@ def correlation(
         surface = np.zeros((rows, cols), dtype=np.int64)
     if fit is None:
         fit = choose_fit(surface, valid, radius)
-    best = runner_up = None
-    if fit is not None:
-        best = model.Placement(fit.i + i0, fit.j + j0, fit.value)
-        ru = fit.runner_up
-        runner_up = None if ru is None else model.Placement(ru.i + i0, ru.j + j0, ru.value)
+    best, runner_up = placed(fit, (i0, j0))
     return Correlation(surface, valid, best, runner_up, radius, (i0, j0), chosen.name, best_from, cycles)

@@ -23,7 +23,7 @@ from lost import model
 
 from . import _backend
 from .backends import Backend
-from .result import Area, Correlation, choose_fit, valid_placements
+from .result import Area, Correlation, choose_fit, placed, valid_placements
 
 __all__ = ["ResidentCorrelator"]
 
@@ -108,11 +108,7 @@ class ResidentCorrelator:
         valid = valid_placements((H, W), (h, w), (i0, j0, rows, cols), self._holes)
         radius = max(h, w) // 2 if exclusion_radius is None else int(exclusion_radius)
         fit = choose_fit(surface, valid, radius)
-        best = runner_up = None
-        if fit is not None:
-            best = model.Placement(fit.i + i0, fit.j + j0, fit.value)
-            ru = fit.runner_up
-            runner_up = None if ru is None else model.Placement(ru.i + i0, ru.j + j0, ru.value)
+        best, runner_up = placed(fit, (i0, j0))
         return Correlation(surface, valid, best, runner_up, radius, (i0, j0), self._backend.name, "host", None)
 
     def _load(self, patch: np.ndarray, mask: np.ndarray) -> None:

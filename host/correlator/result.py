@@ -14,7 +14,7 @@ import numpy as np
 
 from lost.model import BestFit, Placement
 
-__all__ = ["Area", "Correlation", "Outcome", "choose_fit", "valid_placements"]
+__all__ = ["Area", "Correlation", "Outcome", "choose_fit", "valid_placements", "placed"]
 
 #: ``(i0, j0, rows, cols)``: the placements ``i0 .. i0+rows-1`` by ``j0 .. j0+cols-1`` of a search.
 Area = tuple[int, int, int, int]
@@ -174,3 +174,12 @@ def choose_fit(surface: np.ndarray, valid: np.ndarray, exclusion_radius: int) ->
     second = _first_min(surface, valid, range(rows), box)
     runner_up = None if second is None else Placement(second[1], second[2], second[0])
     return BestFit(i, j, value, runner_up, r)
+
+
+def placed(fit: BestFit | None, origin: tuple[int, int]) -> tuple[Placement | None, Placement | None]:
+    """The best fit and runner-up of a sub-surface whose (0, 0) is the map's ``origin``, as map placements."""
+    if fit is None:
+        return None, None
+    i0, j0 = origin
+    ru = fit.runner_up
+    return Placement(fit.i + i0, fit.j + j0, fit.value), None if ru is None else Placement(ru.i + i0, ru.j + j0, ru.value)

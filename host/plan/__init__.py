@@ -5,7 +5,7 @@ the predicted error along a route with the dead reckoning's growth between infor
 :mod:`lost.host.plan.output`: the files of ``lost plan``.
 """
 
-from .accuracy import SonarModel, accuracy_grid, information
-from .route import RouteModel, predict_route, read_route, route_points
+from .accuracy import SonarModel, accuracy_grid, information, map_sigma
+from .route import RouteModel, predict_along, predict_route, read_route, route_points
 
-__all__ = ["SonarModel", "accuracy_grid", "information", "RouteModel", "predict_route", "read_route", "route_points"]
+__all__ = ["SonarModel", "accuracy_grid", "information", "map_sigma", "RouteModel", "predict_along", "predict_route", "read_route", "route_points"]

@@ -24,7 +24,7 @@ from scipy import ndimage
 
 from ..grid import Grid
 
-__all__ = ["SonarModel", "accuracy_grid", "information"]
+__all__ = ["SonarModel", "accuracy_grid", "information", "map_sigma"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -39,6 +39,21 @@ class SonarModel:
             raise ValueError(f"the sonar patch needs at least 2 x 2 nodes, got {self.shape!r}")
         if not (np.isfinite(self.noise_m) and self.noise_m > 0):
             raise ValueError(f"the sonar's noise must be a positive number of metres, got {self.noise_m!r}")
+
+
+def map_sigma(grid: Grid, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray:
+    """The map's own 1-sigma error at every node, as the filters' likelihood takes it (``lost.host.nav.maperror``): survey
+    noise (the grid's ``sigma_m`` when it carries one, else ``survey_sigma_m``, else NavParameters' default), the slope
+    the node cannot place and the relief it cannot show."""
+    from ..nav.maperror import node_variance
+    from ..nav.parameters import NavParameters
+
+    survey = getattr(grid, "sigma_m", None)
+    if survey is None:
+        survey = NavParameters().survey_sigma_m if survey_sigma_m is None else survey_sigma_m
+    else:
+        survey = np.where(np.isfinite(survey), survey, np.nanmedian(survey) if np.isfinite(survey).any() else 0.0)
+    return np.sqrt(node_variance(grid.depth_m, grid.node_m, survey))
 
 
 def _box(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:

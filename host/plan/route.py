@@ -20,7 +20,7 @@ import numpy as np
 
 from ..grid import Grid
 
-__all__ = ["RouteModel", "read_route", "route_points", "predict_route"]
+__all__ = ["RouteModel", "read_route", "route_points", "predict_route", "predict_along"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,25 +78,31 @@ def route_points(waypoints: np.ndarray, model: RouteModel) -> tuple[np.ndarray, 
 
 
 def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel) -> dict[str, np.ndarray]:
-    """The predicted 1-sigma horizontal error at every update along the route, with the map's bound there."""
+    """The predicted 1-sigma horizontal error at every update along the waypoints, with the map's bound there."""
+    t, xy = route_points(waypoints, model)
+    return predict_along(accuracy, t, xy, model)
+
+
+def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel) -> dict[str, np.ndarray]:
+    """The predicted 1-sigma horizontal error at updates at times ``t`` and positions ``xy`` (a track already known)."""
     from ..nav.trust import ins_position_sigma
 
-    t, xy = route_points(waypoints, model)
     row, col = accuracy.row_col(xy[:, 0], xy[:, 1])
-    r, c = np.rint(row).astype(int), np.rint(col).astype(int)
-    on_map = (r >= 0) & (r < accuracy.shape[0]) & (c >= 0) & (c < accuracy.shape[1])
+    finite = np.isfinite(row) & np.isfinite(col)
+    r, c = np.rint(np.where(finite, row, -1)).astype(int), np.rint(np.where(finite, col, -1)).astype(int)
+    on_map = finite & (r >= 0) & (r < accuracy.shape[0]) & (c >= 0) & (c < accuracy.shape[1])
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
     usable = bound <= model.usable_sigma_m
     variance = np.empty(len(t))  # per axis
-    p = model.initial_sigma_m**2 / 2
-    p_fix, last_fix = p, 0.0
+    p_fix, last_fix, previous = model.initial_sigma_m**2 / 2, float(t[0]) if len(t) else 0.0, None
     for n, time_s in enumerate(t):
         since = time_s - last_fix
+        step = model.interval_s if previous is None else max(time_s - previous, 0.0)
         ins = float(ins_position_sigma(since, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
-        p = p_fix + model.velocity_noise_mps**2 * since * model.interval_s + ins**2
+        p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2
         if usable[n]:
             p = max(1.0 / (1.0 / p + 2.0 / bound[n] ** 2), model.floor_m**2 / 2)  # the bound is horizontal: half its variance on each axis
             p_fix, last_fix = p, time_s
-        variance[n] = p
-    return {"t_s": t, "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": np.sqrt(2.0 * variance)}
+        variance[n], previous = p, time_s
+    return {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": np.sqrt(2.0 * variance)}

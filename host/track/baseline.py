@@ -66,22 +66,11 @@ def _detections(ping: Ping, timestamp: datetime.datetime, noise: np.ndarray) -> 
             for r, b in zip(ping.range_m, ping.bearing_deg)}
 
 
-def run_gm_phd(pings: Sequence[Ping], *, sonar: Sonar, tracker: TrackerParameters, phd: PHDParameters | None = None) -> list[list[Estimate]]:
-    """Run Stone Soup's GM-PHD tracker over ``pings``; the contacts it reports at each ping."""
+def _ping_reader(pings: Sequence[Ping], tracker: TrackerParameters):
+    """The pings' timestamps and a Stone Soup detection reader that yields them (range/bearing with the tracker's noise)."""
     from stonesoup.buffered_generator import BufferedGenerator
-    from stonesoup.hypothesiser.distance import DistanceHypothesiser
-    from stonesoup.hypothesiser.gaussianmixture import GaussianMixtureHypothesiser
-    from stonesoup.measures import Mahalanobis
-    from stonesoup.mixturereducer.gaussianmixture import GaussianMixtureReducer
-    from stonesoup.models.transition.linear import CombinedLinearGaussianTransitionModel, ConstantVelocity
-    from stonesoup.predictor.kalman import KalmanPredictor
     from stonesoup.reader import DetectionReader
-    from stonesoup.tracker.pointprocess import PointProcessMultiTargetTracker
-    from stonesoup.types.state import TaggedWeightedGaussianState
-    from stonesoup.updater.kalman import ExtendedKalmanUpdater
-    from stonesoup.updater.pointprocess import PHDUpdater
 
-    phd = phd or PHDParameters()
     noise = np.diag([math.radians(tracker.bearing_sigma_deg) ** 2, tracker.range_sigma_m**2])
     stamps = [EPOCH + datetime.timedelta(seconds=p.t_s) for p in pings]
 
@@ -90,6 +79,25 @@ def run_gm_phd(pings: Sequence[Ping], *, sonar: Sonar, tracker: TrackerParameter
         def detections_gen(self):
             for ping, stamp in zip(pings, stamps):
                 yield stamp, _detections(ping, stamp, noise)
+
+    return stamps, PingReader()
+
+
+def run_gm_phd(pings: Sequence[Ping], *, sonar: Sonar, tracker: TrackerParameters, phd: PHDParameters | None = None) -> list[list[Estimate]]:
+    """Run Stone Soup's GM-PHD tracker over ``pings``; the contacts it reports at each ping."""
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.hypothesiser.gaussianmixture import GaussianMixtureHypothesiser
+    from stonesoup.measures import Mahalanobis
+    from stonesoup.mixturereducer.gaussianmixture import GaussianMixtureReducer
+    from stonesoup.models.transition.linear import CombinedLinearGaussianTransitionModel, ConstantVelocity
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.tracker.pointprocess import PointProcessMultiTargetTracker
+    from stonesoup.types.state import TaggedWeightedGaussianState
+    from stonesoup.updater.kalman import ExtendedKalmanUpdater
+    from stonesoup.updater.pointprocess import PHDUpdater
+
+    phd = phd or PHDParameters()
+    stamps, reader = _ping_reader(pings, tracker)
 
     transition = CombinedLinearGaussianTransitionModel([ConstantVelocity(tracker.accel_sigma**2)] * 2)
     predictor = KalmanPredictor(transition)
@@ -105,7 +113,7 @@ def run_gm_phd(pings: Sequence[Ping], *, sonar: Sonar, tracker: TrackerParameter
         [centre[0], 0.0, centre[1], 0.0],
         np.diag([phd.birth_sigma_m**2, phd.birth_speed_sigma_mps**2] * 2),
         weight=phd.birth_weight, tag=TaggedWeightedGaussianState.BIRTH, timestamp=stamps[0])
-    ss_tracker = PointProcessMultiTargetTracker(detector=PingReader(), updater=phd_updater, hypothesiser=hypothesiser,
+    ss_tracker = PointProcessMultiTargetTracker(detector=reader, updater=phd_updater, hypothesiser=hypothesiser,
                                                 reducer=reducer, birth_component=birth, extraction_threshold=phd.extraction_weight)
     out: list[list[Estimate]] = []
     ids: dict = {}
@@ -142,7 +150,6 @@ class JPDAParameters:
 
 def run_jpda(pings: Sequence[Ping], *, sonar: Sonar, tracker: TrackerParameters, jpda: JPDAParameters | None = None) -> list[list[Estimate]]:
     """Run Stone Soup's JPDA tracker with an M-of-N initiator over ``pings``; the tracks it holds at each ping."""
-    from stonesoup.buffered_generator import BufferedGenerator
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
     from stonesoup.dataassociator.probability import JPDA
     from stonesoup.deleter.error import CovarianceBasedDeleter
@@ -154,20 +161,12 @@ def run_jpda(pings: Sequence[Ping], *, sonar: Sonar, tracker: TrackerParameters,
     from stonesoup.measures import Mahalanobis
     from stonesoup.models.transition.linear import CombinedLinearGaussianTransitionModel, ConstantVelocity
     from stonesoup.predictor.kalman import KalmanPredictor
-    from stonesoup.reader import DetectionReader
     from stonesoup.tracker.simple import MultiTargetMixtureTracker
     from stonesoup.types.state import GaussianState
     from stonesoup.updater.kalman import ExtendedKalmanUpdater
 
     jpda = jpda or JPDAParameters()
-    noise = np.diag([math.radians(tracker.bearing_sigma_deg) ** 2, tracker.range_sigma_m**2])
-    stamps = [EPOCH + datetime.timedelta(seconds=p.t_s) for p in pings]
-
-    class PingReader(DetectionReader):
-        @BufferedGenerator.generator_method
-        def detections_gen(self):
-            for ping, stamp in zip(pings, stamps):
-                yield stamp, _detections(ping, stamp, noise)
+    stamps, reader = _ping_reader(pings, tracker)
 
     predictor = KalmanPredictor(CombinedLinearGaussianTransitionModel([ConstantVelocity(tracker.accel_sigma**2)] * 2))
     updater = ExtendedKalmanUpdater(measurement_model=None)
@@ -181,7 +180,7 @@ def run_jpda(pings: Sequence[Ping], *, sonar: Sonar, tracker: TrackerParameters,
         updater=updater, min_points=jpda.min_points)
     deleter = CompositeDeleter([UpdateTimeStepsDeleter(jpda.delete_misses),
                                 CovarianceBasedDeleter(covar_trace_thresh=2 * jpda.max_position_sigma_m**2, mapping=[0, 2])], intersect=False)
-    ss_tracker = MultiTargetMixtureTracker(initiator=initiator, deleter=deleter, detector=PingReader(), data_associator=JPDA(hypothesiser),
+    ss_tracker = MultiTargetMixtureTracker(initiator=initiator, deleter=deleter, detector=reader, data_associator=JPDA(hypothesiser),
                                            updater=updater)
     out: list[list[Estimate]] = []
     ids: dict = {}

@@ -50,12 +50,18 @@ def test_a_spec_expands_to_every_combination_with_stable_identities(tmp_path):
     tasks = spec.tasks()
     assert len(tasks) == 2 * 3 * 2 and len({t.run_id for t in tasks}) == len(tasks)
     assert {t.seed for t in tasks} == {0, 1, 2} and {t.values["navigation.k"] for t in tasks} == {100.0, 300.0}
+    assert all(t.values["terrain.seed"] is None and t.values["map.seed"] is None for t in tasks)  # each seed a new floor
     assert [t.run_id for t in tasks] == [t.run_id for t in load_campaign(tmp_path / "campaign.toml").tasks()]
     assert _spec(tmp_path, 'scenarios = ["short"]\nseeds = [4, 9]\n').estimators == ("lost", "pmf", "pf")
+    cased = _spec(tmp_path, 'scenarios = ["short"]\nvary_floor = false\n[[case]]\nname = "survey"\nscenario = "short"\n'
+                            'values = { "map.noise_m" = 0.7 }\n')
+    assert [(t.case, t.values) for t in cased.tasks()] == [("short", {}), ("survey", {"map.noise_m": 0.7})]
 
 
 @pytest.mark.parametrize(("text", "message"), [
     ('scenarios = []', "needs at least one scenario"),
+    ('scenarios = ["short"]\n[[case]]\nname = "short"\nscenario = "short"', "case names must differ"),
+    ('[[case]]\nname = "a"', "case[0]: needs a name and a scenario"),
     ('scenarios = ["short"]\nseed = 3', "unknown field(s) ['seed']"),
     ('scenarios = ["short"]\nseeds = 0', "seeds"),
     ('scenarios = ["short"]\nestimators = ["kalman"]', "['kalman'] are not estimators of LOST"),
@@ -83,11 +89,11 @@ def test_values_replace_fields_by_path_and_are_checked_strictly():
 
 def test_a_run_gives_a_row_per_estimator_and_a_failed_run_a_row_with_its_error(tmp_path):
     (tmp_path / "tiny.toml").write_text(TINY)
-    rows = run_task(RunTask(scenario="tiny.toml", seed=1, values={"navigation.k": 300.0}, estimators=("pmf", "pf"), base_dir=str(tmp_path)))
+    rows = run_task(RunTask(case="tiny", scenario="tiny.toml", seed=1, values={"navigation.k": 300.0}, estimators=("pmf", "pf"), base_dir=str(tmp_path)))
     assert [r["estimator"] for r in rows] == ["pmf", "pf"] and all(r["error"] is None for r in rows)
     assert all(r["param.navigation.k"] == 300.0 and r["seed"] == 1 and r["node_m"] == 10.0 for r in rows)
     assert all(r["records"] == 60 and r["ms_per_update"] is not None and r["ms_per_update"] > 0 for r in rows)
-    bad = run_task(RunTask(scenario="tiny.toml", seed=1, values={"navigation.k": -5.0}, estimators=("pmf",), base_dir=str(tmp_path)))
+    bad = run_task(RunTask(case="tiny", scenario="tiny.toml", seed=1, values={"navigation.k": -5.0}, estimators=("pmf",), base_dir=str(tmp_path)))
     assert len(bad) == 1 and bad[0]["estimator"] is None and "k" in bad[0]["error"]
 
 
@@ -95,7 +101,7 @@ def _quick(task: RunTask) -> list[dict]:
     """A stand-in run: its rows at once, without simulating."""
     if task.values.get("fail"):
         raise RuntimeError("a stand-in failure")
-    return [{"run_id": task.run_id, "scenario": task.scenario, "seed": task.seed, "estimator": "pmf", "rms_m": float(task.seed),
+    return [{"run_id": task.run_id, "case": task.case, "scenario": task.scenario, "seed": task.seed, "estimator": "pmf", "rms_m": float(task.seed),
              "rms_nodes": task.seed / 10.0, "nees_in_band": 0.9, "false_fixes": 0, "ms_per_update": 1.0, "error": None}]
 
 
@@ -103,7 +109,7 @@ def _quick_with_errors(task: RunTask) -> list[dict]:
     try:
         return _quick(task)
     except RuntimeError as error:
-        return [{"run_id": task.run_id, "scenario": task.scenario, "seed": task.seed, "estimator": None, "error": str(error)}]
+        return [{"run_id": task.run_id, "case": task.case, "scenario": task.scenario, "seed": task.seed, "estimator": None, "error": str(error)}]
 
 
 def test_a_campaign_runs_on_a_local_cluster_resumes_and_keeps_failures_as_rows(tmp_path):
@@ -113,7 +119,7 @@ def test_a_campaign_runs_on_a_local_cluster_resumes_and_keeps_failures_as_rows(t
     assert (summary["runs"], summary["ran_now"], summary["finished"], summary["failed_runs"]) == (16, 16, 16, 8)
     table = pd.read_parquet(out / "results.parquet")
     assert len(table) == 16 and set(table[table.error.notna()].error) == {"a stand-in failure"}
-    assert {e["scenario"]: e["rms_m"]["median"] for e in summary["distributions"]} == {"a": 1.5, "b": 1.5}
+    assert {e["case"]: e["rms_m"]["median"] for e in summary["distributions"]} == {"a": 1.5, "b": 1.5}
     assert (out / "distributions.png").stat().st_size > 0 and json.loads((out / CAMPAIGN_MARKER).read_text())["campaign"] == "c"
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "rows").iterdir()}
     again = run_campaign(spec, out, workers=1, task=_quick_with_errors)

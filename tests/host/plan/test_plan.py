@@ -11,7 +11,7 @@ import pytest
 from lost.host.cli import EXIT_ERROR, EXIT_OK, main
 from lost.host.grid import Grid
 from lost.host.io import read_grid, write_npz
-from lost.host.plan import RouteModel, SonarModel, accuracy_grid, predict_route, read_route
+from lost.host.plan import RouteModel, SonarModel, accuracy_grid, map_sigma, predict_route, read_route
 
 
 def _rough(shape=(60, 80), seed=1) -> Grid:
@@ -95,7 +95,7 @@ def test_lost_plan_writes_a_grid_read_grid_reads_back_node_for_node(tmp_path):
     (tmp_path / "route.csv").write_text("east_m,north_m\n1200,2300\n1600,2300\n")
     out = tmp_path / "plan"
     assert main(["plan", str(tmp_path / "map.npz"), "--route", str(tmp_path / "route.csv"), "--out", str(out)]) == EXIT_OK
-    expected = accuracy_grid(grid, SonarModel()).depth_m
+    expected = accuracy_grid(grid, SonarModel(), map_sigma(grid)).depth_m
     back = read_grid(out / "accuracy.nc", variable="accuracy_m")
     assert back.shape == grid.shape and (back.x0_m, back.y0_m, back.node_m) == (1000.0, 2000.0, 10.0)
     np.testing.assert_allclose(back.depth_m, np.where(np.isfinite(expected), expected, np.nan), rtol=1e-12)
@@ -113,3 +113,14 @@ def test_a_bad_route_is_named(tmp_path, capsys, text, message):
     (tmp_path / "route.csv").write_text(text)
     assert main(["plan", str(tmp_path / "map.npz"), "--route", str(tmp_path / "route.csv"), "--out", str(tmp_path / "p")]) == EXIT_ERROR
     assert message in capsys.readouterr().err and not (tmp_path / "p").exists()
+
+
+def test_the_map_error_is_the_filters_own_and_a_grid_layer_wins():
+    from lost.host.nav.maperror import node_variance
+
+    grid = _rough()
+    assert np.allclose(map_sigma(grid, 0.3) ** 2, node_variance(grid.depth_m, grid.node_m, 0.3))
+    layered = Grid(depth_m=grid.depth_m, x0_m=0.0, y0_m=0.0, node_m=10.0, sigma_m=np.full(grid.shape, 2.0))
+    assert np.allclose(map_sigma(layered, 0.3) ** 2, node_variance(grid.depth_m, grid.node_m, 2.0))
+    assert np.all(accuracy_grid(layered, SonarModel(), map_sigma(layered)).depth_m[20:40, 20:60]
+                  > accuracy_grid(grid, SonarModel(), map_sigma(grid, 0.3)).depth_m[20:40, 20:60])
