@@ -35,7 +35,7 @@ class NavParameters:
         The patent's k = sigma_x / sigma_z of eqs. 2-3 (nominal 100-1000; larger for rough terrain,
         smaller when the data are suspect); the depth term is weighted by k**2 (see
         ``point_likelihood``). Default 100, the low end: on the shipped scenarios 300 and 1000 let
-        single ambiguous matches on smooth terrain pull the estimate (measured, see the README).
+        single ambiguous matches on smooth terrain pull the estimate (docs/patent.md).
     u : float
         CAT adaptive constant (patent nominal 0.001-0.01). Default 0.01.
     max_cross_accel_mps2, max_cross_speed_mps : float
@@ -63,8 +63,8 @@ class NavParameters:
         peaks); otherwise the record dead-reckons (counted as ``patch_ambiguous``). The default 1
         rejects only a match where a distant placement fits the patch better than the chosen one,
         i.e. the distance prior outweighed the terrain; 0 disables the test. Higher values skip
-        more matches where the floor turns smooth (measured on ``two_hour``, see the README: 1.2
-        changes the RMS by a few tenths of a metre either way). Not in the patent.
+        more matches where the floor turns smooth (on ``two_hour`` 1.2 changes the RMS by a few tenths of a
+        metre either way, docs/patent.md). Not in the patent.
     use_slant_range : bool
         Apply the SRC when a slant range is measured.
     slant_range_gate_m : float
@@ -155,7 +155,7 @@ class NavParameters:
     pmf_sigmas : float
         The grid's half-width in standard deviations of the density. Default 4.
     pmf_min_cell_m : float or None
-        Smallest cell, metres; None: a tenth of a map node.
+        Smallest cell, metres; None: the coarser of a tenth of a map node and half the density's floor width.
     pf_particles : int
         Particles of the particle filter. Default 10,000.
     gate_nis : float
@@ -186,7 +186,7 @@ class NavParameters:
         filter (counted ``reinitialized_elsewhere``). Default 0.5 (measured on ``offset`` over six terrain
         seeds: -1 to -3 on a wrong lock, never below 0 at the true place).
     reinit_after : int
-        Terrain updates refused in a row before the filter re-initializes. Default 10.
+        Terrain updates refused among the last ``2 reinit_after`` before the filter re-initializes. Default 10.
     off_map_usable_s : float
         Off the map (a patch or depth wholly off it, or a narrow density at its edge) a filter
         dead-reckons; once it has had neither a terrain update nor a position fix for this long it is
