@@ -229,7 +229,7 @@ def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_ga
 
 
 def write_npz(grid: Grid, path: str | os.PathLike) -> Path:
-    """Cache a grid as ``.npz`` (keys ``depth_m``, ``x0_m``, ``y0_m``, ``node_m``, ``crs``).
+    """Cache a grid as ``.npz`` (keys ``depth_m``, ``x0_m``, ``y0_m``, ``node_m``, ``crs``, and ``sigma_m`` when it has one).
 
     :func:`read_grid` reads it back bit for bit. Returns the path written (``.npz`` is appended by
     NumPy when missing, so the returned path is the one to read).
@@ -244,6 +244,7 @@ def write_npz(grid: Grid, path: str | os.PathLike) -> Path:
         y0_m=np.float64(grid.y0_m),
         node_m=np.float64(grid.node_m),
         crs=np.str_(grid.crs or ""),
+        **({} if getattr(grid, "sigma_m", None) is None else {"sigma_m": grid.sigma_m}),
     )
     return path
 
@@ -306,4 +307,5 @@ def _read_npz(path: Path) -> Grid:
             y0_m=float(data["y0_m"]),
             node_m=float(data["node_m"]),
             crs=crs or None,
+            sigma_m=np.array(data["sigma_m"], dtype=np.float64) if "sigma_m" in data.files else None,
         )

@@ -503,3 +503,11 @@ def test_projected_grid_to_another_projected_crs(tmp_path):
     finite = np.isfinite(grid.depth_m)
     assert finite.mean() > 0.8
     np.testing.assert_allclose(grid.depth_m[finite], (300.0 + 0.01 * (sx - west) - 0.02 * (sy - north))[finite], atol=1e-6)
+
+
+def test_npz_keeps_the_maps_uncertainty_layer(tmp_path):
+    depth = np.arange(12.0).reshape(3, 4) + 100.0
+    sigma = np.where(depth > 105.0, 0.4, 0.25)
+    back = read_grid(write_npz(Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=5.0, sigma_m=sigma), tmp_path / "a.npz"))
+    np.testing.assert_array_equal(back.sigma_m, sigma)
+    assert read_grid(write_npz(Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=5.0), tmp_path / "b.npz")).sigma_m is None
