@@ -19,26 +19,17 @@ from lost.host.config import ConfigError
 from lost.host.runfolder import RunFolderError
 from lost.host.scenario import builtin_scenario_path, load_scenario
 
-TINY = """
-name = "tiny"
-seed = 3
-duration_s = 60
-[terrain]
-shape = [120, 160]
-node_m = 10.0
-roughness_m = 10.0
-hurst = 0.5
-[ship]
-waypoints_m = [[900.0, 600.0], [1500.0, 600.0]]
-[cable]
-out_m = 1200.0
-[navigation]
-search_half_width_m = 100.0
-"""
+
+def _tiny(folder: Path) -> None:
+    # Imported here, not at the top: a dask worker started on its own imports this module by name to run the stand-in
+    # tasks below, and the tests' shared inputs are not on its path.
+    from tiny import TINY_SCENARIO
+
+    (folder / "tiny.toml").write_text(TINY_SCENARIO)
 
 
 def _spec(tmp_path: Path, text: str) -> CampaignSpec:
-    (tmp_path / "tiny.toml").write_text(TINY)
+    _tiny(tmp_path)
     path = tmp_path / "campaign.toml"
     path.write_text(text)
     return load_campaign(path)
@@ -88,7 +79,7 @@ def test_values_replace_fields_by_path_and_are_checked_strictly():
 
 
 def test_a_run_gives_a_row_per_estimator_and_a_failed_run_a_row_with_its_error(tmp_path):
-    (tmp_path / "tiny.toml").write_text(TINY)
+    _tiny(tmp_path)
     rows = run_task(RunTask(case="tiny", scenario="tiny.toml", seed=1, values={"navigation.k": 300.0}, estimators=("pmf", "pf"), base_dir=str(tmp_path)))
     assert [r["estimator"] for r in rows] == ["pmf", "pf"] and all(r["error"] is None for r in rows)
     assert all(r["param.navigation.k"] == 300.0 and r["seed"] == 1 and r["node_m"] == 10.0 for r in rows)
@@ -162,7 +153,7 @@ def test_the_same_spec_runs_on_a_real_scheduler_and_worker(tmp_path):
     try:
         spec = CampaignSpec(name="remote", scenarios=("a",), seeds=3, estimators=("pmf",))
         summary = run_campaign(spec, tmp_path / "out", scheduler=address, task=_quick)
-        assert summary["finished"] == 3 and summary["failed_runs"] == 0
+        assert summary["finished"] == 3 and summary["failed_runs"] == 0, summary["errors"]
     finally:
         for process in (worker, scheduler):
             process.terminate()
