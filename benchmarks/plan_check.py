@@ -56,10 +56,8 @@ def check(name: str, seeds: int, segment_s: float, workers: int) -> dict:
     accuracy = accuracy_grid(grid, sonar, map_sigma(grid, params.survey_sigma_m))
     t = np.asarray(runs[0]["t_s"])
     truth = np.asarray(runs[0]["truth"])
-    model = RouteModel(speed_mps=scenario.ship.speed_kn * 1852 / 3600, interval_s=spec.interval_s, velocity_noise_mps=params.velocity_noise_mps,
-                       gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2,
-                       usable_sigma_m=params.usable_sigma_nodes * grid.node_m, initial_sigma_m=params.initial_sigma_m,
-                       floor_m=float(np.hypot(params.position_floor_nodes * grid.node_m, params.position_floor_tracking_m)))
+    model = RouteModel.from_navigation(params, grid.node_m, speed_mps=scenario.ship.speed_kn * 1852 / 3600, interval_s=spec.interval_s,
+                                       initial_sigma_m=params.initial_sigma_m)
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
     sonar_xy = truth[np.searchsorted(t, sonar_times)]
     predicted = np.interp(t, sonar_times, predict_along(accuracy, sonar_times, sonar_xy, model)["predicted_m"])

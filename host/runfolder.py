@@ -38,14 +38,14 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", "write_summary", "folder_lock", "writable_parent", "RUN_MARKER",
+__all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", "write_summary", "atomic_write", "folder_lock", "writable_parent", "RUN_MARKER",
            "MIN_FREE_BYTES"]
 
 #: The file that marks a folder as a LOST run (:func:`run_folder` writes it into every run).
@@ -65,6 +65,22 @@ def holds_a_run(folder: Path) -> bool:
         return json.loads((folder / RUN_MARKER).read_text(encoding="utf-8")).get("lost_run") == 1
     except (OSError, ValueError, AttributeError):
         return False
+
+
+def atomic_write(path: Path, write: Callable[[Any], object]) -> Path:
+    """Call ``write(handle)`` on a temporary file beside ``path``, then move it onto ``path``."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
+    try:
+        with os.fdopen(fd, "w", newline="") as handle:
+            write(handle)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; the result is an ordinary file
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
 
 
 def write_summary(path: Path, summary: Mapping[str, Any]) -> Path:

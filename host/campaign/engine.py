@@ -24,7 +24,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from ..runfolder import RunFolderError, folder_lock, writable_parent, write_summary
+from ..runfolder import RunFolderError, atomic_write, folder_lock, writable_parent, write_summary
 from .run import run_task
 from .spec import CampaignSpec, RunTask
 
@@ -32,17 +32,6 @@ __all__ = ["run_campaign", "read_rows", "CAMPAIGN_MARKER"]
 
 #: The file that marks a folder as a LOST campaign.
 CAMPAIGN_MARKER = "lost-campaign.json"
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _claim(out: Path, spec: CampaignSpec) -> None:
@@ -59,7 +48,8 @@ def _claim(out: Path, spec: CampaignSpec) -> None:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise RunFolderError(f"--out {out} is not an empty folder and holds no LOST campaign (no {CAMPAIGN_MARKER}); choose a new folder")
     (out / "rows").mkdir(parents=True, exist_ok=True)
-    _write_atomic(marker, json.dumps({"lost_campaign": 1, "campaign": spec.name, "started": datetime.now(UTC).isoformat(timespec="seconds")}) + "\n")
+    started = {"lost_campaign": 1, "campaign": spec.name, "started": datetime.now(UTC).isoformat(timespec="seconds")}
+    atomic_write(marker, lambda handle: handle.write(json.dumps(started) + "\n"))
 
 
 def read_rows(out: Path) -> list[dict[str, Any]]:
@@ -122,7 +112,7 @@ def _execute(todo: list[RunTask], out: Path, scheduler: str | None, workers: int
             except Exception as error:  # the worker died under it every time it was tried (KilledWorker), or it could not be sent
                 rows = [{"run_id": run.run_id, "case": run.case, "scenario": run.scenario, "seed": run.seed, "estimator": None,
                          "error": f"{type(error).__name__}: {error}", **{f"param.{k}": v for k, v in run.values.items()}}]
-            _write_atomic(out / "rows" / f"{run.run_id}.json", json.dumps(rows, default=str) + "\n")
+            atomic_write(out / "rows" / f"{run.run_id}.json", lambda handle, rows=rows: handle.write(json.dumps(rows, default=str) + "\n"))
 
 
 def _finish(spec: CampaignSpec, out: Path, runs: int, ran: int) -> dict[str, Any]:

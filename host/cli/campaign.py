@@ -11,6 +11,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import UsageError
+from .common import progress_bar
 
 __all__ = ["register", "run_campaign_command"]
 
@@ -27,7 +28,7 @@ def run_campaign_command(args: argparse.Namespace) -> int:
     print(f"{spec.name}: {len(tasks)} runs ({cases} cases x {len(spec.seed_list())} seeds x "
           f"{len(tasks) // max(cases * len(spec.seed_list()), 1)} parameter combinations), estimators {', '.join(spec.estimators)}")
     out = args.out = args.out or Path("runs") / "campaign" / spec.name
-    progress = lambda finished: bar_over(finished, len(tasks))  # noqa: E731 (always a bar: a campaign is long even with few runs)
+    progress = progress_bar(len(tasks), "runs", minimum=0)  # a campaign is long even with few runs
     summary = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers, progress=progress)
     print(f"ran {summary['ran_now']} now; {summary['finished']} of {summary['runs']} runs finished, {summary['failed_runs']} failed")
     for entry in summary["distributions"]:
@@ -39,14 +40,6 @@ def run_campaign_command(args: argparse.Namespace) -> int:
         print(f"  failed: {error}")
     print(f"wrote {out}/results.parquet, summary.json" + (", distributions.png" if (out / "distributions.png").is_file() else ""))
     return 0
-
-
-def bar_over(finished, total: int):
-    """A rich progress bar over the runs as they finish."""
-    from rich.console import Console
-    from rich.progress import track
-
-    return track(finished, total=total, description="runs", console=Console(stderr=True), transient=True)
 
 
 def register(commands, parents: list[argparse.ArgumentParser]) -> None:

@@ -28,9 +28,9 @@ __all__ = [
 PROGRESS_ITEMS = 1000
 
 
-def progress_bar(total: int, description: str) -> Callable[[Iterable], Iterable] | None:
-    """A progress bar on stderr over ``total`` items (records, pings), or None for a run too short to need one."""
-    if total <= PROGRESS_ITEMS:
+def progress_bar(total: int, description: str, *, minimum: int = PROGRESS_ITEMS) -> Callable[[Iterable], Iterable] | None:
+    """A progress bar on stderr over ``total`` items (records, pings, runs), or None for fewer than ``minimum``."""
+    if total <= minimum:
         return None
     from rich.console import Console
     from rich.progress import track

@@ -21,28 +21,23 @@ __all__ = ["register", "run_plan"]
 
 def _models(args: argparse.Namespace, node_m: float):
     """The sonar and route models: the defaults, a scenario's sonar, ship and navigation (``--config``), then the options."""
+    from ..nav import NavParameters
     from ..plan import RouteModel, SonarModel
 
-    sonar, route = {}, {}
+    sonar, motion, params = {}, {}, NavParameters()
     if args.config is not None:
-        from ..nav import NavParameters
         from ..scenario import load_scenario
 
         scenario = load_scenario(args.config)
         spec = scenario.sensors["sonar"]
         params = NavParameters(**scenario.navigation)
         sonar = {"shape": tuple(spec.shape), "noise_m": max(spec.noise, 1e-3)}
-        route = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": spec.interval_s, "velocity_noise_mps": params.velocity_noise_mps,
-                 "gyro_bias_rps": params.gyro_bias_rps, "accel_bias_mps2": params.accel_bias_mps2,
-                 "usable_sigma_m": params.usable_sigma_nodes * node_m,
-                 "floor_m": float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m))}
+        motion = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": spec.interval_s}
     if args.sonar_noise_m is not None:
         sonar["noise_m"] = args.sonar_noise_m
     if args.speed_mps is not None:
-        route["speed_mps"] = args.speed_mps
-    route.setdefault("usable_sigma_m", node_m)
-    route.setdefault("floor_m", float(np.hypot(0.1 * node_m, 0.8)))  # NavParameters' defaults
-    return SonarModel(**sonar), RouteModel(**route)
+        motion["speed_mps"] = args.speed_mps
+    return SonarModel(**sonar), RouteModel.from_navigation(params, node_m, **motion)
 
 
 def run_plan(args: argparse.Namespace) -> int:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,14 @@ class RouteModel:
     accel_bias_mps2: float = 10e-6 * 9.81
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
+
+    @classmethod
+    def from_navigation(cls, params: Any, node_m: float, **motion: float) -> RouteModel:
+        """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m``: its dead reckoning's
+        noise and biases, its usable threshold and its density's floor; ``motion`` sets speed_mps, interval_s and initial_sigma_m."""
+        return cls(velocity_noise_mps=params.velocity_noise_mps, gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2,
+                   usable_sigma_m=params.usable_sigma_nodes * node_m,
+                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), **motion)
 
     def __post_init__(self) -> None:
         for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m"):

@@ -8,34 +8,17 @@ from __future__ import annotations
 
 import csv
 import math
-import os
-import tempfile
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
+from ..runfolder import atomic_write
 from .tracker import TrackReport
 
-__all__ = ["TRACK_COLUMNS", "write_tracks_csv", "track_table", "atomic_write"]
+__all__ = ["TRACK_COLUMNS", "write_tracks_csv", "track_table"]
 
 TRACK_COLUMNS = ("ping", "t_s", "track_id", "status", "existence", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "speed_mps",
                  "heading_deg", "range_m", "bearing_deg", "class", "cpa_m", "t_cpa_s", "time_to_reach_s")
-
-
-def atomic_write(path: Path, write) -> Path:
-    """Call ``write(handle)`` on a temporary file beside ``path``, then move it onto ``path``."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
-    try:
-        with os.fdopen(fd, "w", newline="") as handle:
-            write(handle)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; the result is an ordinary file
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def _cell(value: float) -> str:
