@@ -158,6 +158,12 @@ _RECORDED_ONLY = ("sonar", "node_m", "crs", "source_crs", "positive", "nodata")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    if args.list:
+        from ..scenario import builtin_descriptions
+
+        for name, description in builtin_descriptions().items():
+            print(f"{name:<18} {description}")
+        return 0
     if args.scenario is not None:
         if args.log or args.bathy:
             raise UsageError("give either a scenario or --log and --bathy, not both")
@@ -212,6 +218,7 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost run`` and ``lost demo``."""
     run = commands.add_parser("run", parents=parents, help="navigate a simulated or recorded tow")
     run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")
+    run.add_argument("--list", action="store_true", help="list the built-in scenarios with their descriptions, and stop")
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
     run.add_argument("--sonar", help="sonar soundings side file of the log")
