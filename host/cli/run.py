@@ -235,7 +235,7 @@ def _run_survey(args: argparse.Namespace) -> int:
     """``lost run --survey FILE... --bathy GRID``: navigate a recorded multibeam survey against its map."""
     from ..io import read_grid
     from ..io.survey import open_survey
-    from ..io.survey_records import SurveyRecorder, check_survey_on_map, survey_records
+    from ..io.survey_records import DEFAULT_RECORD_S, SurveyRecorder, check_survey_on_map, survey_records
 
     params = _parameters(args, {})
     files = [Path(f) for f in args.survey]
@@ -247,7 +247,7 @@ def _run_survey(args: argparse.Namespace) -> int:
             raise ValueError(f"{args.bathy} has no CRS: a survey's positions (latitude, longitude) cannot be placed on it")
         grid, extra = _map_uncertainty(grid, params)
         survey = open_survey(files, crs=grid.crs)
-        interval = args.record_s if args.record_s is not None else 5.0
+        interval = args.record_s if args.record_s is not None else DEFAULT_RECORD_S
         recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=args.patch_shape, interval_s=interval, window_s=args.window_s,
                                   dr_bias_mps=args.dr_bias or (0.0, 0.0), start_offset_m=args.start_offset or (0.0, 0.0),
                                   patch_centre=args.patch_centre)

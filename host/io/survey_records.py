@@ -42,9 +42,11 @@ from .errors import DifferentShipsError, NoPingsError, SurveyOffMapError
 from .sonar import grid_soundings, soundings_centre
 from .survey import Ping, Survey
 
-__all__ = ["SurveyRecord", "SurveyRecorder", "survey_records", "check_survey_on_map", "SURVEY_PATCH_CENTRES"]
+__all__ = ["SurveyRecord", "SurveyRecorder", "survey_records", "check_survey_on_map", "SURVEY_PATCH_CENTRES", "DEFAULT_RECORD_S"]
 
 SURVEY_PATCH_CENTRES = ("vehicle", "soundings")
+#: Seconds of pings per record when the caller names none (``lost run --survey``'s ``--record-s``).
+DEFAULT_RECORD_S = 5.0
 
 
 @dataclass(frozen=True)
