@@ -1,6 +1,6 @@
 """A simulated tow exported as Kongsberg .all and navigated as a recorded survey, against the scenario's own run, over seeds.
 
-    python benchmarks/read_survey_nav.py [--scenario short] [--seeds 10] [--out build/bench/read_survey_nav.json]
+    python benchmarks/read_survey_nav.py [--scenario short_exact_map] [--seeds 10] [--out build/bench/read_survey_nav.json]
 
 Per seed (the scenario's ``seed`` set to 1..N): the tow's pings (``lost.host.io.simulated``) are written as
 ``.all`` and read back through ``open_survey``; their records (``lost.host.io.survey_records``, what
@@ -76,7 +76,7 @@ def main() -> None:
     from lost.host.scenario import builtin_scenario_path, load_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", default="short")
+    parser.add_argument("--scenario", default="short_exact_map")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--out", type=Path, default=ROOT / "build" / "bench" / "read_survey_nav.json")
     args = parser.parse_args()
