@@ -84,7 +84,9 @@ def test_the_error_grows_where_the_terrain_says_too_little_and_shrinks_where_it_
     blind = (column >= 80) & (column < 140)
     assert np.array_equal(route["usable"], ~blind)
     assert np.all(np.diff(route["predicted_m"][blind]) > 0)
-    assert route["predicted_m"][0] < 1.0 and route["predicted_m"][-1] < 1.0  # fused at once where it fixes
+    assert route["predicted_m"][0] < 1.0  # the first patch is wholly new: fused at once
+    before = route["predicted_m"][np.flatnonzero(blind)[0] - 1]  # then each update adds the new share of its patch: a steady level
+    assert route["predicted_m"][-1] == pytest.approx(before, rel=0.02)
     assert route["predicted_m"][blind].max() > 3 * route["predicted_m"][0]
     assert route["predicted_m"].min() >= 0.5 - 1e-12  # the filters' floor
 
@@ -94,7 +96,7 @@ def test_lost_plan_writes_a_grid_read_grid_reads_back_node_for_node(tmp_path):
     write_npz(grid, tmp_path / "map.npz")
     (tmp_path / "route.csv").write_text("east_m,north_m\n1200,2300\n1600,2300\n")
     out = tmp_path / "plan"
-    assert main(["plan", str(tmp_path / "map.npz"), "--route", str(tmp_path / "route.csv"), "--out", str(out)]) == EXIT_OK
+    assert main(["plan", str(tmp_path / "map.npz"), "--route", str(tmp_path / "route.csv"), "--out", str(out), "--lookalike-radius-m", "100"]) == EXIT_OK
     expected = accuracy_grid(grid, SonarModel(), map_sigma(grid)).depth_m
     back = read_grid(out / "accuracy.nc", variable="accuracy_m")
     assert back.shape == grid.shape and (back.x0_m, back.y0_m, back.node_m) == (1000.0, 2000.0, 10.0)
