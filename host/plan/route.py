@@ -5,10 +5,10 @@ mixture of two states, as a Monte Carlo of the filters shows them:
 
 - Holding the lock: a Gaussian error (per axis variance ``P``). Between updates it grows as the dead reckoning's does:
   the velocity noise as a random walk (``velocity_noise_mps``) and a free INS's bias terms (Nygren eq. 6.2,
-  ``lost.host.nav.trust.ins_position_sigma``) from the last update. An update whose effective bound (the bound of
-  :mod:`lost.host.plan.accuracy` times ``sqrt(evidence_scale)``) is within ``usable_sigma_m`` fuses as a Gaussian
-  measurement of the share of its patch that is new (the filters temper each patch so: ``1/P += 2 share /
-  bound_eff^2``, the bound being horizontal); a larger bound is no fix and the error keeps growing. The filters keep
+  ``lost.host.nav.trust.ins_position_sigma``) from the last update. An update whose bound (:mod:`lost.host.plan.accuracy`)
+  is within ``usable_sigma_m`` fuses as a Gaussian measurement of the share of its patch that is new (the filters
+  temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
+  error keeps growing. The filters keep
   their density at least ``floor_m`` wide, so no update takes ``P`` below it.
 - Not holding it (probability ``unlocked``): the filter sits on another placement, at a mean square distance that
   starts at the initial search's (``2 initial_sigma_m^2``) and drifts with the dead reckoning.
@@ -16,8 +16,9 @@ mixture of two states, as a Monte Carlo of the filters shows them:
 The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr`` and distance)
 move the probability between the states. A patch prefers a placement of separation ``snr`` at distance ``d`` over
 the truth with probability ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c = evidence_scale``: how much less
-the filters' likelihood makes of a patch than the ideal one, its misfit level and map error learned from the data;
-``d^2 / 2P`` the locked density's own odds against a jump). A lock slips with that probability, summed over the rings
+the filters make of a patch's contrast against a look-alike than independent Gaussian residuals would, the map's errors
+being correlated over the patch and the filters' misfit level learned from the data; ``d^2 / 2P`` the locked density's
+own odds against a jump). A lock slips with that probability, summed over the rings
 beyond three sigma, per new patch; the error is then the look-alike's distance. A filter without the lock finds it
 where the terrain fixes the position and no look-alike within twice its error competes: per new patch, one minus the
 summed probability that one of the ring's look-alikes (as many as patches fit in the ring) wins, with
@@ -49,7 +50,8 @@ class RouteModel:
 
     ``patch_length_m`` is a patch's extent along the track (the share of it new at each update is the filters'
     tempering); ``evidence_scale`` and ``acquisitions_per_patch`` are fitted to the Monte Carlo of the point-mass
-    filter on the shipped floors (``benchmarks/plan_check.py``, ``docs/campaign.md``).
+    filter on the shipped floors (``benchmarks/plan_check.py``, ``docs/campaign.md``: 8 and 3 did best of
+    4-32 and 3-30 on ``shelf_canyon``, ``seamount_ridges`` and ``short``).
     """
 
     speed_mps: float = 1.5
@@ -61,8 +63,8 @@ class RouteModel:
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
     patch_length_m: float = 100.0
-    evidence_scale: float = 1.0
-    acquisitions_per_patch: float = 1.0
+    evidence_scale: float = 8.0
+    acquisitions_per_patch: float = 3.0
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
@@ -141,7 +143,7 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     r, c, on_map = _sample(accuracy, xy)
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
-    usable = bound * np.sqrt(model.evidence_scale) <= model.usable_sigma_m
+    usable = bound <= model.usable_sigma_m
     rings = None
     if lookalike is not None:
         rings = np.full((len(lookalike.ring_edges_m), len(t)), np.nan), np.full((len(lookalike.ring_edges_m), len(t)), np.nan)
@@ -161,7 +163,7 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
         lost_ms += 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
         if usable[n]:
             new = share if fixed else min(1.0, model.speed_mps * since / model.patch_length_m) if n else 1.0
-            p = max(1.0 / (1.0 / p + 2.0 * new / (model.evidence_scale * bound[n] ** 2)), model.floor_m**2 / 2)  # horizontal: half an axis
+            p = max(1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2), model.floor_m**2 / 2)  # horizontal: half an axis
             p_fix, last_fix, fixed = p, time_s, True
         if rings is not None:
             lose, lose_ms = _loss(rings[0][:, n], rings[1][:, n], p, model)
