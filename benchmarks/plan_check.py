@@ -71,13 +71,14 @@ def check(name: str, seeds: int, segment_s: float, workers: int, cache: Path | N
     sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3))
     sigma = map_sigma(grid, params.survey_sigma_m)
     accuracy = accuracy_grid(grid, sonar, sigma)
-    lookalike = lookalike_grid(grid, sonar, sigma, radius_m=params.lookalike_radius_m)
+    lookalike = lookalike_grid(grid, sonar, sigma, radius_m=params.lookalike_radius_m,
+                               **({} if evidence_scale is None else {"evidence_scale": evidence_scale}))
     t = np.asarray(runs[0]["t_s"])
     truth = np.asarray(runs[0]["truth"])
     model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), speed_mps=scenario.ship.speed_kn * 1852 / 3600,
                                        interval_s=spec.interval_s, initial_sigma_m=params.initial_sigma_m)
-    tuned = {k: v for k, v in (("evidence_scale", evidence_scale), ("acquisitions_per_patch", acquisitions_per_patch)) if v is not None}
-    model = dataclasses.replace(model, **tuned)
+    if acquisitions_per_patch is not None:
+        model = dataclasses.replace(model, acquisitions_per_patch=acquisitions_per_patch)
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
     sonar_xy = truth[np.searchsorted(t, sonar_times)]
     route = predict_along(accuracy, sonar_times, sonar_xy, model, lookalike)
@@ -133,7 +134,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--scenarios", nargs="+", default=["short", "coarse_map", "shelf_canyon", "seamount_ridges"])
     parser.add_argument("--out", type=Path, default=Path("build/bench/plan_check.json"))
-    parser.add_argument("--evidence-scale", type=float, default=None, help="the route model's evidence_scale (default: RouteModel's)")
+    parser.add_argument("--evidence-scale", type=float, default=None, help="the look-alikes' evidence_scale (default: lookalike_grid's)")
     parser.add_argument("--acquisitions-per-patch", type=float, default=None, help="the route model's acquisitions_per_patch (default: RouteModel's)")
     parser.add_argument("--cache", type=Path, default=None,
                         help="keep each seed's Monte Carlo run here and reuse it (re-scoring the prediction without re-running the filters)")

@@ -60,7 +60,7 @@ def run_plan(args: argparse.Namespace) -> int:
         accuracy = accuracy_grid(grid, sonar, sigma)
         bound_s = time.perf_counter() - start
         lookalike = lookalike_grid(grid, sonar, sigma, radius_m=radius_m)
-        layers = lookalike_layers(lookalike, model)
+        layers = lookalike_layers(lookalike)
         route = None if waypoints is None else predict_route(accuracy, waypoints, model, lookalike)
         elapsed = (bound_s, time.perf_counter() - start - bound_s)
         write_accuracy_netcdf(folder / "accuracy.nc", accuracy, layers)

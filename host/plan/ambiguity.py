@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import fft
+from scipy.special import ndtr
 
 from ..grid import Grid
 from .accuracy import SonarModel
@@ -37,6 +38,11 @@ __all__ = ["RING_NODES", "Lookalike", "lookalike_grid"]
 #: Outer edges of the distance rings, in map nodes (Euclidean), beyond the two nodes next to the truth (which the
 #: bound describes); the last ring ends at the search radius.
 RING_NODES = (4.0, 8.0, 16.0, 32.0)
+
+#: How much less the filters make of a patch's contrast against a look-alike than independent Gaussian residuals would:
+#: the map's errors are correlated over a patch and the filters learn their misfit level from the data. Fitted to the
+#: point-mass filter's Monte Carlo on the shipped floors (``benchmarks/plan_check.py``).
+EVIDENCE_SCALE = 32.0
 
 #: The placements within this many nodes (Chebyshev) of the truth are the truth's own peak, not a look-alike.
 EXCLUSION_NODES = 2
@@ -54,11 +60,20 @@ class Lookalike:
         ``(rings, rows, cols)``: the smallest ``n D / s^2`` of a placement in the ring (NaN: no bound, no placement).
     distance_m : np.ndarray
         ``(rings, rows, cols)``: that placement's distance from the truth, metres.
+    rivals : np.ndarray
+        ``(rings, rows, cols)``: the look-alikes of the ring, counted by their chance to win one patch: the sum over its
+        placements of ``Phi(-sqrt(snr / evidence_scale) / 2)`` over the nodes of a patch (neighbouring placements are
+        one look-alike, not many), and at least the best placement's chance. Their sum over the rings bounds the chance that a patch locks on one of them.
+    evidence_scale : float
+        How much less the filters make of a patch's contrast than independent Gaussian residuals would
+        (:data:`EVIDENCE_SCALE`).
     """
 
     ring_edges_m: np.ndarray
     snr: np.ndarray
     distance_m: np.ndarray
+    rivals: np.ndarray
+    evidence_scale: float
 
     def best(self) -> tuple[np.ndarray, np.ndarray]:
         """The smallest ``snr`` over every ring, and its placement's distance (metres): the grid's runner-up."""
@@ -78,7 +93,7 @@ def _integral_sums(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 
 def lookalike_grid(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | float = 0.0, *, radius_m: float = 600.0,
-                   work: float = 1e8, batch: int = 128) -> Lookalike:
+                   work: float = 1e8, batch: int = 128, evidence_scale: float = EVIDENCE_SCALE) -> Lookalike:
     """The runner-up's separation and distance per ring at every node (module docstring).
 
     ``radius_m`` is the search radius (the look-alike check's, ``NavParameters.lookalike_radius_m``); ``map_sigma_m``
@@ -109,27 +124,28 @@ def lookalike_grid(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | floa
     centre_cols = np.arange(w // 2, cols - (w - 1 - w // 2), stride)
     rings = len(edges)
     snr = np.full((rings, len(centre_rows), len(centre_cols)), np.nan)
-    dist = np.full_like(snr, np.nan)
+    dist, rivals = np.full_like(snr, np.nan), np.full_like(snr, np.nan)
     if centre_rows.size and centre_cols.size:
-        _fill(filled, sum1, sum2, spoiled, noise, centre_rows, centre_cols, (h, w), reach, edges, grid.node_m, snr, dist, batch)
+        _fill(filled, sum1, sum2, spoiled, noise, centre_rows, centre_cols, (h, w), reach, edges, grid.node_m, evidence_scale,
+              (snr, dist, rivals), batch)
     index_r = np.clip(np.rint((np.arange(rows) - h // 2) / stride).astype(int), 0, max(len(centre_rows) - 1, 0))
     index_c = np.clip(np.rint((np.arange(cols) - w // 2) / stride).astype(int), 0, max(len(centre_cols) - 1, 0))
-    full_snr = np.full((rings, rows, cols), np.nan)
-    full_dist = np.full_like(full_snr, np.nan)
+    full = [np.full((rings, rows, cols), np.nan) for _ in range(3)]
     if centre_rows.size and centre_cols.size:
-        full_snr[:] = snr[:, index_r][:, :, index_c]
-        full_dist[:] = dist[:, index_r][:, :, index_c]
+        for whole, lattice in zip(full, (snr, dist, rivals)):
+            whole[:] = lattice[:, index_r][:, :, index_c]
     inside = np.zeros((rows, cols), dtype=bool)
     inside[h // 2: rows - (h - 1 - h // 2), w // 2: cols - (w - 1 - w // 2)] = True
     top_left_spoiled = spoiled[reach: reach + rows, reach: reach + cols]
     undefined = ~inside | np.roll(np.roll(top_left_spoiled, h // 2, axis=0), w // 2, axis=1)
-    full_snr[:, undefined] = np.nan
-    full_dist[:, undefined] = np.nan
-    return Lookalike(ring_edges_m=edges * grid.node_m, snr=full_snr, distance_m=full_dist)
+    for whole in full:
+        whole[:, undefined] = np.nan
+    return Lookalike(ring_edges_m=edges * grid.node_m, snr=full[0], distance_m=full[1], rivals=full[2], evidence_scale=evidence_scale)
 
 
-def _fill(filled, sum1, sum2, spoiled, noise, centre_rows, centre_cols, shape, reach, edges, node_m, snr, dist, batch) -> None:
-    """The rings' smallest separation and its distance for every lattice centre, a batch of centres at a time."""
+def _fill(filled, sum1, sum2, spoiled, noise, centre_rows, centre_cols, shape, reach, edges, node_m, scale, out, batch) -> None:
+    """The rings' smallest separation, its distance and the rivals for every lattice centre, a batch of centres at a time."""
+    snr, dist, rivals = out
     h, w = shape
     n = h * w
     side = 2 * reach + 1
@@ -167,3 +183,6 @@ def _fill(filled, sum1, sum2, spoiled, noise, centre_rows, centre_cols, shape, r
             value = part[np.arange(len(r)), best]
             snr[k, ci, cj] = np.where(np.isfinite(value), value, np.nan)
             dist[k, ci, cj] = np.where(np.isfinite(value), ring_radius[bounds[k] + best], np.nan)
+            chances = ndtr(-np.sqrt(part / scale) / 2.0)
+            count = np.maximum(chances.sum(axis=1) / n, chances[np.arange(len(r)), best])  # the best placement is one rival at least
+            rivals[k, ci, cj] = np.where(np.isfinite(value), count, np.nan)

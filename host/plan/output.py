@@ -24,12 +24,12 @@ LOOKALIKE_ATTRS = {
 }
 
 
-def lookalike_layers(lookalike, model) -> dict[str, np.ndarray]:
-    """The grids ``accuracy.nc`` carries of a :class:`~lost.host.plan.ambiguity.Lookalike` (with the route model's constants)."""
+def lookalike_layers(lookalike) -> dict[str, np.ndarray]:
+    """The grids ``accuracy.nc`` carries of a :class:`~lost.host.plan.ambiguity.Lookalike`."""
     from .route import false_lock_probability
 
     separation, distance = lookalike.best()
-    return {"false_lock_probability": false_lock_probability(lookalike, model), "lookalike_separation": separation,
+    return {"false_lock_probability": false_lock_probability(lookalike), "lookalike_separation": separation,
             "lookalike_distance_m": distance}
 
 

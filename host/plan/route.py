@@ -15,14 +15,12 @@ mixture of two states, as a Monte Carlo of the filters shows them:
 
 The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr`` and distance)
 move the probability between the states. A patch prefers a placement of separation ``snr`` at distance ``d`` over
-the truth with probability ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c = evidence_scale``: how much less
-the filters make of a patch's contrast against a look-alike than independent Gaussian residuals would, the map's errors
-being correlated over the patch and the filters' misfit level learned from the data; ``d^2 / 2P`` the locked density's
-own odds against a jump). A lock slips with that probability, summed over the rings
+the truth with probability ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``;
+``d^2 / 2P`` the locked density's own odds against a jump). A lock slips with that probability, summed over the rings
 beyond three sigma, per new patch; the error is then the look-alike's distance. A filter without the lock finds it
 where the terrain fixes the position and no look-alike within twice its error competes: per new patch, one minus the
-summed probability that one of the ring's look-alikes (as many as patches fit in the ring) wins, with
-``acquisitions_per_patch`` chances in the length of a patch. A lost lock therefore persists over smooth or look-alike
+rivals of the rings within twice its error (:attr:`Lookalike.rivals`), with ``acquisitions_per_patch`` chances in
+the length of a patch. A lost lock therefore persists over smooth or look-alike
 ground and is regained on informative terrain. The predicted error is ``sqrt((1 - unlocked) 2P + unlocked E^2)``.
 
 Without look-alikes the filter is taken to hold the lock from the start (the bound and the growth only).
@@ -49,9 +47,8 @@ class RouteModel:
     """The motion, dead reckoning and filter assumptions of a route prediction (module docstring).
 
     ``patch_length_m`` is a patch's extent along the track (the share of it new at each update is the filters'
-    tempering); ``evidence_scale`` and ``acquisitions_per_patch`` are fitted to the Monte Carlo of the point-mass
-    filter on the shipped floors (``benchmarks/plan_check.py``, ``docs/campaign.md``: 8 and 3 did best of
-    4-32 and 3-30 on ``shelf_canyon``, ``seamount_ridges`` and ``short``).
+    tempering); ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the shipped floors
+    (``benchmarks/plan_check.py``, ``docs/campaign.md``), as the look-alikes' ``evidence_scale`` is.
     """
 
     speed_mps: float = 1.5
@@ -63,8 +60,7 @@ class RouteModel:
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
     patch_length_m: float = 100.0
-    evidence_scale: float = 8.0
-    acquisitions_per_patch: float = 3.0
+    acquisitions_per_patch: float = 30.0
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
@@ -76,7 +72,7 @@ class RouteModel:
                    patch_length_m=patch_nodes * node_m, **motion)
 
     def __post_init__(self) -> None:
-        for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m", "patch_length_m", "evidence_scale", "acquisitions_per_patch"):
+        for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m", "patch_length_m", "acquisitions_per_patch"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
@@ -146,9 +142,9 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     usable = bound <= model.usable_sigma_m
     rings = None
     if lookalike is not None:
-        rings = np.full((len(lookalike.ring_edges_m), len(t)), np.nan), np.full((len(lookalike.ring_edges_m), len(t)), np.nan)
-        rings[0][:, on_map] = lookalike.snr[:, r[on_map], c[on_map]]
-        rings[1][:, on_map] = lookalike.distance_m[:, r[on_map], c[on_map]]
+        rings = tuple(np.full((len(lookalike.ring_edges_m), len(t)), np.nan) for _ in range(3))
+        for along, grid in zip(rings, (lookalike.snr, lookalike.distance_m, lookalike.rivals)):
+            along[:, on_map] = grid[:, r[on_map], c[on_map]]
     share = min(1.0, model.speed_mps * model.interval_s / model.patch_length_m)  # of a patch new at each update (tempering)
     variance = np.empty(len(t))  # per axis, holding the lock
     unlocked = np.zeros(len(t))
@@ -166,8 +162,8 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
             p = max(1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2), model.floor_m**2 / 2)  # horizontal: half an axis
             p_fix, last_fix, fixed = p, time_s, True
         if rings is not None:
-            lose, lose_ms = _loss(rings[0][:, n], rings[1][:, n], p, model)
-            gain = _acquisition(rings[0][:, n], rings[1][:, n], lost_ms, lookalike.ring_edges_m, model) if usable[n] else 0.0
+            lose, lose_ms = _loss(rings[0][:, n], rings[1][:, n], p, lookalike.evidence_scale)
+            gain = _acquisition(rings[2][:, n], lost_ms, lookalike.ring_edges_m) if usable[n] else 0.0
             stay = lost * (1.0 - min(1.0, share * model.acquisitions_per_patch) * gain)
             fresh = (1.0 - lost) * share * lose
             lost_ms = (stay * lost_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
@@ -190,32 +186,25 @@ def _flip(separation: np.ndarray, penalty: np.ndarray | float, scale: float) -> 
     return np.where(np.isinf(evidence), 0.0, np.where(evidence > 0, flip, 0.5))
 
 
-def _loss(separation: np.ndarray, distance_m: np.ndarray, p: float, model: RouteModel) -> tuple[float, float]:
+def _loss(separation: np.ndarray, distance_m: np.ndarray, p: float, evidence_scale: float) -> tuple[float, float]:
     """A lock's hazard of slipping onto a look-alike per patch (capped at 1), and the mean square distance it slips."""
     ok = np.isfinite(separation) & (distance_m > 3.0 * np.sqrt(2.0 * p))
     if not ok.any():
         return 0.0, 0.0
-    flips = _flip(separation[ok], distance_m[ok] ** 2 / (2.0 * p), model.evidence_scale)
+    flips = _flip(separation[ok], distance_m[ok] ** 2 / (2.0 * p), evidence_scale)
     total = float(flips.sum())
     return min(total, 1.0), float(np.sum(flips * distance_m[ok] ** 2) / total) if total > 0 else 0.0
 
 
-def false_lock_probability(lookalike: Lookalike, model: RouteModel) -> np.ndarray:
+def false_lock_probability(lookalike: Lookalike) -> np.ndarray:
     """At every node, the chance that one patch there prefers a look-alike anywhere within the search radius over the truth
-    (capped at 1; NaN where there is no patch): where a filter without a lock would lock wrongly, or not at all."""
-    edges = lookalike.ring_edges_m
-    inner = np.concatenate(([0.0], edges[:-1]))
-    rivals = np.maximum(np.pi * (edges**2 - inner**2) / model.patch_length_m**2, 1.0)[:, None, None]
-    flips = np.where(np.isnan(lookalike.snr), 0.0, rivals * _flip(np.nan_to_num(lookalike.snr, nan=np.inf), 0.0, model.evidence_scale))
-    return np.where(np.isnan(lookalike.snr).all(axis=0), np.nan, np.minimum(flips.sum(axis=0), 1.0))
+    (the rivals of every ring, capped at 1; NaN where there is no patch): where a filter without a lock locks wrongly,
+    or not at all."""
+    return np.where(np.isnan(lookalike.rivals).all(axis=0), np.nan, np.minimum(np.nansum(lookalike.rivals, axis=0), 1.0))
 
 
-def _acquisition(separation: np.ndarray, distance_m: np.ndarray, lost_ms: float, edges_m: np.ndarray, model: RouteModel) -> float:
-    """The chance per patch that a filter not holding the truth finds it: no look-alike within its density wins."""
+def _acquisition(rivals: np.ndarray, lost_ms: float, edges_m: np.ndarray) -> float:
+    """The chance per patch that a filter not holding the truth finds it: no look-alike within twice its error wins."""
     inner = np.concatenate(([0.0], edges_m[:-1]))
-    within = np.isfinite(separation) & (inner <= 2.0 * np.sqrt(lost_ms))
-    if not within.any():
-        return 1.0
-    area = np.pi * (np.minimum(edges_m, 2.0 * np.sqrt(lost_ms)) ** 2 - inner**2)
-    rivals = np.maximum(area[within] / model.patch_length_m**2, 1.0)  # independent look-alikes in a ring: patches that fit in it
-    return float(max(0.0, 1.0 - np.sum(rivals * _flip(separation[within], 0.0, model.evidence_scale))))
+    within = np.isfinite(rivals) & (inner <= 2.0 * np.sqrt(lost_ms))
+    return float(max(0.0, 1.0 - np.sum(rivals[within])))
