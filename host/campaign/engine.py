@@ -110,7 +110,7 @@ def _execute(todo: list[RunTask], out: Path, scheduler: str | None, workers: int
             try:
                 rows = future.result()
             except Exception as error:  # the worker died under it every time it was tried (KilledWorker), or it could not be sent
-                rows = [{"run_id": run.run_id, "case": run.case, "scenario": run.scenario, "seed": run.seed, "estimator": None,
+                rows = [{"run_id": run.run_id, "system": run.system, "case": run.case, "scenario": run.scenario, "seed": run.seed, "estimator": None,
                          "error": f"{type(error).__name__}: {error}", **{f"param.{k}": v for k, v in run.values.items()}}]
             atomic_write(out / "rows" / f"{run.run_id}.json", lambda handle, rows=rows: handle.write(json.dumps(rows, default=str) + "\n"))
 
@@ -136,20 +136,24 @@ def _finish(spec: CampaignSpec, out: Path, runs: int, ran: int) -> dict[str, Any
     summary = {"campaign": spec.name, "runs": runs, "ran_now": ran, "finished": int(table["run_id"].nunique()) if len(table) else 0,
                "failed_runs": int(failed["run_id"].nunique()) if len(failed) else 0,
                "errors": sorted(set(failed["error"].astype(str)))[:20] if len(failed) else [],
-               "distributions": _distributions(table), "warnings": warnings}
+               "system": spec.system, "distributions": _distributions(table), "warnings": warnings}
     write_summary(out / "summary.json", summary)
     return summary
 
 
 def _distributions(table) -> list[dict[str, Any]]:
-    """Median and 90th percentile of each figure per case and estimator, over seeds and values."""
+    """Median and 90th percentile of each of the system's figures per case and estimator, over seeds and values."""
     if table.empty or "estimator" not in table:
         return []
+    from .systems import FIGURES, system_of
+
     ok = table[table["error"].isna() & table["estimator"].notna()]
+    system = system_of(table)
+    figures = FIGURES[system] + (("rms_nodes",) if system == "nav" else ())
     result = []
     for (case, estimator), group in ok.groupby(["case", "estimator"]):
         entry: dict[str, Any] = {"case": case, "estimator": estimator, "runs": int(len(group))}
-        for figure in ("rms_m", "rms_nodes", "nees_in_band", "false_fixes", "ms_per_update"):
+        for figure in figures:
             values = group[figure].dropna().astype(float) if figure in group else []
             entry[figure] = None if not len(values) else {"median": float(values.median()), "p90": float(values.quantile(0.9))}
         result.append(entry)

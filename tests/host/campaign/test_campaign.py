@@ -55,7 +55,7 @@ def test_a_spec_expands_to_every_combination_with_stable_identities(tmp_path):
     ('[[case]]\nname = "a"', "case[0]: needs a name and a scenario"),
     ('scenarios = ["short"]\nseed = 3', "unknown field(s) ['seed']"),
     ('scenarios = ["short"]\nseeds = 0', "seeds"),
-    ('scenarios = ["short"]\nestimators = ["kalman"]', "['kalman'] are not estimators of LOST"),
+    ('scenarios = ["short"]\nestimators = ["kalman"]', "['kalman'] are not estimators of the nav system"),
     ('scenarios = ["short"]\n[parameters]\n"navigation.k" = []', "parameters.navigation.k: must be a non-empty list"),
     ('scenarios = ["short"]\nseeds = 100000\n[parameters]\n"navigation.k" = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0]', "the limit is"),
 ])
