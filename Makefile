@@ -42,7 +42,7 @@ bench-sim: setup
 	$(BIN)/python benchmarks/simulate_speed.py
 	$(BIN)/python benchmarks/survey_maps.py
 
-# The planner's speed on a 2000 x 2000 map (the bound alone, and the whole lost plan command).
+# The planner's speed on a 2000 x 2000 map (the bound, the look-alikes, and the whole lost plan command).
 bench-plan: setup
 	$(BIN)/python benchmarks/plan_speed.py
 
