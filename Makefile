@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -83,6 +83,10 @@ bench-usbl: setup
 # 1 GB .all (about 3 minutes here): a table on stdout and build/bench/read_speed.json.
 bench-read: setup
 	$(BIN)/python benchmarks/read_speed.py
+
+# A simulated tow exported as .all and navigated with lost run --survey, against the scenario's run, over 10 seeds (a few minutes).
+bench-read-survey: setup
+	$(BIN)/python benchmarks/read_survey_nav.py
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)
