@@ -1,15 +1,18 @@
 """The planner against Monte Carlo: the predicted error along a tow's track against the point-mass filter's RMS over seeds.
 
 python benchmarks/plan_check.py [--seeds 10] [--segment-s 120] [--scenarios short shelf_canyon ...] [--workers 2]
+                                [--cache DIR] [--evidence-scale C] [--acquisitions-per-patch K]
 
 For each scenario the floor and the map are fixed (the scenario's own seed draws them) and the sensors change with
 the seed: the question is how well the navigation does on *this* map along *this* route. The planner sees only the
-map (`lost plan`'s model: the bound of one correlation with the map's own error per node, the dead reckoning's
-growth between fixes, the filters' floor) and the true track. The track is cut into segments of ``segment_s``
-after the filter's convergence; per segment, the Monte Carlo RMS (all seeds, all records of the segment) against
-the RMS of the predicted 1-sigma errors. Prints per scenario the share of segments within a factor 1.5 (the goal:
->= 80 %), the median ratio, and the predicted and measured errors on the most and least informative segments; writes
-build/bench/plan_check.json.
+map (`lost plan`'s model: the bound of one correlation with the map's own error per node, the look-alikes, the lock
+acquired, lost and regained, the dead reckoning's growth, the filters' floor) and the true track. The whole track is
+cut into segments of ``segment_s``; per segment, the Monte Carlo RMS (all seeds, all records of the segment) against
+the RMS of the predicted errors. Prints per scenario the share of segments within a factor 1.5 (the goal: >= 80 %),
+also of those after the seeds' median convergence, the median ratio, and steep features against smooth shelves (the
+third of the segments on the map with the smallest median bound against the third with the largest: median predicted
+and Monte Carlo RMS, and their shelf/steep ratios); writes build/bench/plan_check.json. ``--cache`` keeps each seed's
+run (``NAME-SEED.npz``) and reads it back the next time, so the prediction can be scored again without the filters.
 """
 
 from __future__ import annotations
