@@ -64,12 +64,12 @@ class RouteModel:
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
-        """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m``: its dead reckoning's
-        noise and biases, its usable threshold and its density's floor; ``motion`` sets speed_mps, interval_s and initial_sigma_m."""
-        return cls(velocity_noise_mps=params.velocity_noise_mps, gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2,
-                   usable_sigma_m=params.usable_sigma_nodes * node_m,
-                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)),
-                   patch_length_m=patch_nodes * node_m, **motion)
+        """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m`` with a patch of
+        ``patch_nodes`` a side: its initial search, dead reckoning's noise and biases, usable threshold and density's floor;
+        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m)."""
+        return cls(**{"initial_sigma_m": params.initial_sigma_m, **motion}, velocity_noise_mps=params.velocity_noise_mps,
+                   gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2, usable_sigma_m=params.usable_sigma_nodes * node_m,
+                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m)
 
     def __post_init__(self) -> None:
         for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m", "patch_length_m", "acquisitions_per_patch"):
