@@ -126,3 +126,13 @@ def test_the_map_error_is_the_filters_own_and_a_grid_layer_wins():
     assert np.allclose(map_sigma(layered, 0.3) ** 2, node_variance(grid.depth_m, grid.node_m, 2.0))
     assert np.all(accuracy_grid(layered, SonarModel(), map_sigma(layered)).depth_m[20:40, 20:60]
                   > accuracy_grid(grid, SonarModel(), map_sigma(grid, 0.3)).depth_m[20:40, 20:60])
+
+
+def test_the_route_model_takes_the_navigations_search_noise_and_floor():
+    from lost.host.nav import NavParameters
+
+    params = NavParameters(initial_sigma_m=250.0, velocity_noise_mps=0.1, usable_sigma_nodes=2.0)
+    model = RouteModel.from_navigation(params, 25.0, patch_nodes=8.0, speed_mps=2.0)
+    assert (model.initial_sigma_m, model.velocity_noise_mps, model.usable_sigma_m, model.patch_length_m, model.speed_mps) == (250.0, 0.1, 50.0, 200.0, 2.0)
+    assert model.floor_m == pytest.approx(np.hypot(params.position_floor_nodes * 25.0, params.position_floor_tracking_m))
+    assert RouteModel.from_navigation(params, 25.0, initial_sigma_m=40.0).initial_sigma_m == 40.0
