@@ -161,6 +161,8 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
             new = share if fixed else min(1.0, model.speed_mps * since / model.patch_length_m) if n else 1.0
             p = max(1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2), model.floor_m**2 / 2)  # horizontal: half an axis
             p_fix, last_fix, fixed = p, time_s, True
+        else:
+            fixed = False
         if rings is not None:
             lose, lose_ms = _loss(rings[0][:, n], rings[1][:, n], p, lookalike.evidence_scale)
             gain = _acquisition(rings[2][:, n], lost_ms, lookalike.ring_edges_m) if usable[n] else 0.0
@@ -168,8 +170,6 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
             fresh = (1.0 - lost) * share * lose
             lost_ms = (stay * lost_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
             lost = stay + fresh
-        else:
-            fixed = False
         variance[n], unlocked[n], unlocked_ms[n], previous = p, lost, lost_ms, time_s
     predicted = np.sqrt((1.0 - unlocked) * 2.0 * variance + unlocked * unlocked_ms)
     result = {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": predicted}
