@@ -84,6 +84,7 @@ class TrackerParameters:
     delete_tentative_existence: float = 0.002
     delete_confirmed_existence: float = 0.01
     merge_chi2: float = 0.5
+    permutation_pruning: bool = True
     max_position_sigma_m: float = 60.0
     reach_radius_m: float = 10.0
     class_speed_sigma_mps: float = 0.15
@@ -220,7 +221,7 @@ class MultiTargetTracker:
             np.array([inn.gated for inn in innovations_]).reshape(len(self.tracks), ping.detections),
             np.array([t.existence for t in self.tracks]),
             np.array([p.pd if self._in_sector(t.state.x, ping) else 0.0 for t in self.tracks]),
-            self._clutter_density)
+            self._clutter_density, permutation_pruning=p.permutation_pruning)
         for k, (track, inn) in enumerate(zip(self.tracks, innovations_)):
             track.state = pda_combine(track.state, inn, joint.beta[k], float(joint.beta_none[k]))
             track.existence = float(joint.existence[k])
