@@ -48,7 +48,7 @@ from .association import associate
 from .cluster import fit_mixture
 from .detections import Ping
 from .geometry import Sonar, polar_to_world, world_to_polar
-from .kalman import ContactState, innovations, pda_combine, predict
+from .kalman import GATE_CHI2, ContactState, innovations, pda_combine, predict
 from .particle import DiverParticleFilter, PaperParameters, clutter_floor
 
 __all__ = ["TrackerParameters", "Track", "TrackReport", "MultiTargetTracker", "CLASSES"]
@@ -266,13 +266,15 @@ class MultiTargetTracker:
         for share, mean, cov in zip(mixture.shares, mixture.means, mixture.covariances):
             if share < p.birth_share or math.sqrt(max(np.linalg.eigvalsh(cov))) > p.birth_spread_m:
                 continue
-            # The cluster says a contact is there; the detection that fed it says where, to the sensor's accuracy.
-            k = int(np.argmin(np.hypot(*(detections_xy - mean).T)))
-            if any(np.hypot(*(detections_xy[k] - track.state.x[:2])) < p.birth_exclusion_m for track in self.tracks):
-                continue
-            track = Track(self._next_id, self._newborn(ping, candidates[k]), ping.index, p.birth_existence)
-            self._next_id += 1
-            self.tracks.append(track)
+            # The cluster says contacts are there; the detections inside it say where, to the sensor's accuracy.
+            # One cluster may hold two contacts side by side: each of its detections can start a track.
+            offset = detections_xy - mean
+            inside = np.einsum("ni,ij,nj->n", offset, np.linalg.inv(cov), offset) < GATE_CHI2
+            for k in np.flatnonzero(inside)[np.argsort(np.hypot(*offset[inside].T))]:
+                if any(np.hypot(*(detections_xy[k] - track.state.x[:2])) < p.birth_exclusion_m for track in self.tracks):
+                    continue
+                self.tracks.append(Track(self._next_id, self._newborn(ping, candidates[k]), ping.index, p.birth_existence))
+                self._next_id += 1
 
     def _newborn(self, ping: Ping, detection: int) -> ContactState:
         """A track's start at one detection: its position and the measurement's covariance, velocity unknown."""
