@@ -15,8 +15,17 @@ track's marginal probabilities ``w_t0`` (no detection) and ``w_tj``. Then
 
 - existence after the ping: ``r_t' = w_t0 * r_t (1 - pd_t P_G) / (1 - r_t pd_t P_G) + sum_j w_tj``;
 - the state update's association probabilities, given that the contact exists: ``beta_tj = w_tj / r_t'``
-  and ``beta_t0 = 1 - sum_j beta_tj``, used as in PDA (:func:`.kalman.pda_combine`);
+  and ``beta_t0 = 1 - sum_j beta_tj``, used as in PDA (:func:`.kalman.pda_combine`) (from JPDA*'s events
+  by default, below);
 - the probability that detection ``j`` is some track's: ``sum_t w_tj`` (what the search cloud is spared).
+
+JPDA* (Blom & Bloem 2000). Two tracks on contacts closer than their gates, each with a detection, have
+two joint events of like weight (each takes its own detection, or they swap); averaged over both, each
+track's update moves toward the other's detection and the two tracks are pulled together (JPDA's
+coalescence), until one is merged away. With ``permutation_pruning`` the state updates (``beta``) come from
+the events kept when, of every group of events that detect the same tracks with the same detections, only
+the likeliest is kept; the existence and the claims still come from every event (the pruning decides who
+took which detection, not whether a track was detected).
 
 For one track alone this is integrated PDA exactly (``r' = (1 - delta) r / (1 - delta r)``,
 ``delta = pd P_G - sum_j pd g_j / lambda``). Two contacts closer than their gates share detections; the

@@ -7,19 +7,23 @@ Each ping, in order:
    together by joint integrated probabilistic data association (:mod:`.association`): for the tracks
    whose gates share detections every joint assignment is weighed, so one detection never feeds two
    tracks, and each track's existence follows from the detection probability ``pd`` (0 outside the
-   sector) and the Poisson clutter density. The probability that a detection is some track's is its
-   *claim*; a detection claimed with at least ``claim_probability`` is spared to the search cloud.
+   sector) and the Poisson clutter density. The states are updated from JPDA*'s events
+   (``permutation_pruning``: of the joint events that differ only by which of them took which detection,
+   the likeliest), so two tracks on contacts closer than their gates are not pulled together. The
+   probability that a detection is some track's is its *claim*; a detection claimed with at least
+   ``claim_probability`` is spared to the search cloud.
 2. The search cloud, the paper's filter (:class:`~.particle.DiverParticleFilter`) with the Poisson-clutter
    floor, steps on the *unclaimed* detections, so it hunts for contacts no track holds yet; a share of it
    (``reseed_fraction``) is drawn afresh over the sector each ping so that no corner goes unwatched.
 3. The cloud is clustered by expectation-maximization (:mod:`.cluster`), started at the unclaimed
    detections. A cluster holding at least ``birth_share`` of the cloud and no wider than ``birth_spread_m``
    is a contact the cloud has followed over consecutive pings (one ping's clutter holds a few per cent; a
-   repeated return holds most of it): a *tentative* track is born at the unclaimed detection nearest the
-   cluster's centre, with the measurement's covariance, an unknown velocity and existence
-   ``birth_existence``, unless that detection lies within ``birth_exclusion_m`` of a track. A second contact
-   beside a track (a diver who splits from another) is born this way: its detections are the ones the
-   joint association leaves unclaimed.
+   repeated return holds most of it): a *tentative* track is born at each unclaimed detection inside the
+   cluster's 99 % ellipse (one cluster may hold two contacts side by side), nearest the centre first, with
+   the measurement's covariance, an unknown velocity and existence ``birth_existence``, unless that
+   detection lies within ``birth_exclusion_m`` of a track. A second contact beside a track (a diver who
+   splits from another) is born this way: its detections are the ones the joint association leaves
+   unclaimed.
 4. Track management from the existence alone: a tentative track is *confirmed* when its existence reaches
    ``confirm_existence``, and deleted when it falls below ``delete_tentative_existence``; a confirmed track is
    deleted below ``delete_confirmed_existence`` or when its position is known worse than
