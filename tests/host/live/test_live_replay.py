@@ -1,0 +1,86 @@
+"""`lost replay` through localhost UDP into the receiver: every ping arrives equal to the file's; faults counted on both sides."""
+
+from __future__ import annotations
+
+import math
+import threading
+from itertools import islice
+
+import numpy as np
+import pytest
+
+from lost.host.cli import main
+from lost.host.io.kmall_write import write_kmall_pings
+from lost.host.io.simulated import simulated_pings
+from lost.host.io.survey import Ping, open_survey
+from lost.host.live.nmea import HeadingFix, PositionFix
+from lost.host.live.receiver import UdpReceiver
+from lost.host.scenario import builtin_scenario_path, load_scenario
+
+
+@pytest.fixture(scope="module")
+def tow(tmp_path_factory):
+    """100 pings of the short tow as a .kmall file, and those pings as read from it (the file's)."""
+    _, crs, pings = simulated_pings(load_scenario(builtin_scenario_path("short_exact_map")))
+    path = write_kmall_pings(islice(pings, 100), tmp_path_factory.mktemp("tow") / "tow.kmall")
+    return path, list(open_survey(path, crs=crs))
+
+
+def _replayed(arguments: list[str]):
+    receiver = UdpReceiver()
+    values: list = []
+    thread = threading.Thread(target=receiver.run, args=(values.append,))
+    thread.start()
+    try:
+        code = main(["replay", *arguments, "--to", f"127.0.0.1:{receiver.address[1]}", "--speed", "0", "--max-datagram-bytes", "3000"])
+    finally:
+        receiver.stop()
+        thread.join(10)
+    assert code == 0
+    return values, receiver.decoder.counts
+
+
+def _assert_equal(received: Ping, filed: Ping) -> None:
+    for name in ("time_s", "lat_deg", "lon_deg", "heading_deg", "roll_deg", "pitch_deg", "heave_m", "sound_speed_mps", "head", "origin_depth_m"):
+        x, y = getattr(filed, name), getattr(received, name)
+        assert (isinstance(x, float) and math.isnan(x) and math.isnan(y)) or x == y, name
+    for name in ("along_m", "across_m", "depth_m", "valid"):
+        np.testing.assert_array_equal(getattr(received, name), getattr(filed, name))
+
+
+def test_a_replay_at_speed_0_arrives_ping_for_ping_equal_to_the_file(tow, capsys):
+    path, filed = tow
+    values, counts = _replayed([str(path)])
+    pings = [v for v in values if isinstance(v, Ping)]
+    assert len(pings) == len(filed) == 100
+    for received, expected in zip(pings, filed, strict=True):
+        _assert_equal(received, expected)
+    assert counts["MRZ joined from parts"] == 100 and counts["kmall #MRZ parts"] == 300  # 8 kB MRZ in 3,000-byte parts
+    fixes = [v for v in values if isinstance(v, PositionFix)]
+    assert len(fixes) == 100 and sum(math.isfinite(f.speed_mps) for f in fixes) == 99  # the first has no ping before it
+    for fix, ping in zip(fixes, filed, strict=True):
+        assert fix.time_s == pytest.approx(ping.time_s, abs=1e-3)
+        assert fix.lat_deg == pytest.approx(ping.lat_deg, abs=1e-8) and fix.lon_deg == pytest.approx(ping.lon_deg, abs=1e-8)
+    headings = [v.heading_deg for v in values if isinstance(v, HeadingFix)]
+    np.testing.assert_allclose(headings, [p.heading_deg for p in filed], atol=0.006)
+    assert not [reason for reason, n in counts.items() if n and ("skipped" in reason or "lost" in reason or "wrong" in reason)]
+    out = capsys.readouterr().out
+    assert "sent 100 pings as 400 .kmall and 399 NMEA datagrams" in out  # SPO + 3 MRZ parts (no attitude: no SKM); no VTG first
+
+
+def test_faults_are_drawn_counted_and_survived(tow, capsys):
+    path, filed = tow
+    values, counts = _replayed([str(path), "--loss", "0.05", "--reorder", "0.05", "--duplicate", "0.05", "--seed", "7"])
+    out = capsys.readouterr().out
+    line = next(text for text in out.splitlines() if text.startswith("faults (seed 7)"))
+    numbers = [int(w) for w in line.replace(",", " ").split() if w.isdigit()]
+    total, lost, duplicated, reordered = numbers
+    assert total == 799 and lost > 20 and duplicated > 20 and reordered > 20
+    pings = [v for v in values if isinstance(v, Ping)]
+    by_time = {p.time_s: p for p in filed}
+    for ping in pings:  # every ping that arrives is the file's, whatever came lost, twice or out of order
+        _assert_equal(ping, by_time[ping.time_s])
+    assert len({p.time_s for p in pings}) == len(pings)  # no ping twice
+    assert len(pings) >= 100 - lost  # at most one ping lost per lost datagram
+    assert counts["MRZ with parts lost (ping dropped)"] >= 1
+    assert counts["duplicate kmall datagram (skipped)"] >= 1
