@@ -88,7 +88,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
           f"({sent['bytes sent']:,} bytes) in {time.monotonic() - started:.1f} s")
     if faults.any:
         print(f"faults (seed {faults.seed}): of {drawn['datagrams']} datagrams {drawn['lost']} lost, {drawn['duplicated']} duplicated, "
-              f"{drawn['reordered']} reordered")
+              f"{drawn['reordered']} reordered (.kmall {drawn['lost kmall']} lost, {drawn['duplicated kmall']} duplicated; "
+              f"NMEA {drawn['lost nmea']} lost, {drawn['duplicated nmea']} duplicated)")
     for reason, count in sorted(skipped.items()):
         print(f"  skipped by the reader: {reason}: {count}")
     return 0

@@ -13,6 +13,8 @@ length and the next a ``#`` and three capitals, NMEA when it starts with ``$``.
 - a datagram or a part seen before (the same bytes, among the last few thousand) is counted and skipped; two
   partitioned MRZ of one time (two heads) cannot be told apart by their later parts: counted and dropped;
 - a datagram whose length fields disagree with its size, or that pykmall cannot decode, is counted and skipped;
+- a ping whose #MRZ never came whole shows as a gap in the MRZ ping counter, counted at the end;
+- a ping decoded without attitude after #SKM samples were received (its own sample late or lost) is counted;
 - NMEA sentences through :class:`~lost.host.live.nmea.NmeaDecoder` (checksums checked, bad ones counted).
 
 :class:`UdpReceiver` binds a socket and feeds a decoder until stopped.
@@ -51,7 +53,11 @@ class LiveDecoder:
         self._nmea = NmeaDecoder(self.counts)
         self._attitude: deque[tuple[float, float, float, float]] = deque(maxlen=ATTITUDE_SAMPLES)
         self._parts: OrderedDict[tuple, dict[int, bytes]] = OrderedDict()
-        self._seen: OrderedDict[tuple, None] = OrderedDict()
+        self._seen: OrderedDict[int, None] = OrderedDict()
+        # The MRZ ping counters, unwrapped past 65,535: first, highest, how many distinct, the recent ones (bounded memory).
+        self._counter_span: list[int] | None = None
+        self._counters_received = 0
+        self._recent_counters: OrderedDict[int, None] = OrderedDict()
 
     def feed(self, payload: bytes) -> list[Ping | PositionFix | HeadingFix]:
         """What this datagram completes (often nothing); never raises on bad bytes."""
@@ -67,9 +73,14 @@ class LiveDecoder:
         return []
 
     def finish(self) -> list[Ping | PositionFix]:
-        """The end of the stream: the fix held for its VTG; pings still missing parts are counted as lost."""
-        self.counts["MRZ with parts lost (ping dropped)"] += len(self._parts)
+        """The end of the stream: the fix held for its VTG; pings still missing parts are counted as lost, so are gaps in the ping counter."""
+        if self._parts:
+            self.counts["MRZ with parts lost (ping dropped)"] += len(self._parts)
         self._parts.clear()
+        if self._counter_span:
+            missing = self._counter_span[1] - self._counter_span[0] + 1 - self._counters_received
+            if missing > 0:
+                self.counts["pings missing from the ping counter's sequence"] += missing
         return list(self._nmea.flush())
 
     def _kmall(self, payload: bytes) -> list[Ping]:
@@ -77,6 +88,9 @@ class LiveDecoder:
         name = kind.decode("ascii")
         if size != len(payload) or int.from_bytes(payload[-4:], "little") != size:
             self.counts[f"kmall {name} datagram whose length fields disagree with its size (skipped)"] += 1
+            return []
+        if self._already_seen(hash(payload)):
+            self.counts["duplicate kmall datagram (skipped)"] += 1
             return []
         self.counts[f"kmall {name} datagrams"] += 1
         if name == "#SKM":
@@ -92,9 +106,6 @@ class LiveDecoder:
         ping_key = (system, sec, nanosec, count)
         if not 1 <= number <= count:
             self.counts["kmall #MRZ with an impossible partition number (skipped)"] += 1
-            return []
-        if self._already_seen(hash(payload)):
-            self.counts["duplicate kmall datagram (skipped)"] += 1
             return []
         if count == 1:
             return self._decoded(payload)
@@ -114,7 +125,7 @@ class LiveDecoder:
         self.counts["MRZ joined from parts"] += 1
         return self._decoded(_joined([parts[k] for k in range(1, count + 1)]))
 
-    def _already_seen(self, key: tuple) -> bool:
+    def _already_seen(self, key: int) -> bool:
         if key in self._seen:
             return True
         self._seen[key] = None
@@ -143,7 +154,22 @@ class LiveDecoder:
             self.counts[f"kmall #MRZ that does not decode ({type(error).__name__}; skipped)"] += 1
             return []
         self.counts["pings"] += 1
+        self._count_ping(int(dg["cmnPart"]["pingCnt"]))
+        if self._attitude and not np.isfinite(ping.roll_deg):
+            self.counts["ping without attitude at its time (its #SKM late or lost)"] += 1
         return [ping]
+
+    def _count_ping(self, counter: int) -> None:
+        if self._counter_span is None:
+            self._counter_span = [counter, counter]
+        else:
+            counter += (self._counter_span[1] - counter + 32_768) // 65_536 * 65_536  # the unwrapped value nearest the highest
+            self._counter_span = [min(self._counter_span[0], counter), max(self._counter_span[1], counter)]
+        if counter not in self._recent_counters:
+            self._counters_received += 1
+            self._recent_counters[counter] = None
+            if len(self._recent_counters) > _RECENT_KEYS:
+                self._recent_counters.popitem(last=False)
 
     def _attitude_arrays(self) -> dict[str, np.ndarray]:
         table = np.array(self._attitude, dtype=np.float64).reshape(-1, 4)

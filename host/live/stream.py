@@ -4,7 +4,8 @@ Per ping, all at the ping's time: the GNSS's NMEA sentences (ZDA, GGA, VTG, HDT:
 course and speed differenced from the ping before, none for the first), one sentence per UDP datagram with its
 CR LF; then the sonar's ``.kmall`` datagrams as a K-Controller broadcasts them (#SPO with the GGA as its sensor
 text, #SKM when the ping has attitude, #MRZ; :func:`lost.host.io.kmall_write.ping_datagrams`), one datagram per
-UDP datagram, an MRZ larger than ``max_datagram_bytes`` split into partitions.
+UDP datagram, an MRZ larger than ``max_datagram_bytes`` split into partitions. The pings of two heads at one
+time share one fix: its sentences, #SPO and #SKM are sent once, with the first.
 
 Faults (:class:`Faults`, one seeded NumPy generator, drawn per datagram in this order): lost (not sent), duplicated
 (sent twice), reordered (held back and sent after the next one). Each is counted.
@@ -70,18 +71,23 @@ def _course_speed(before: Ping | None, ping: Ping) -> tuple[float, float]:
 def live_datagrams(pings: Iterable[Ping], *, max_datagram_bytes: int = UDP_PART_BYTES) -> Iterator[LiveDatagram]:
     """The live datagrams of ``pings`` (see the module), in sending order."""
     heads = HeadIndex()
-    before = None
+    before = latest = None  # the last ping of an earlier time; the last ping
     for count, ping in enumerate(pings):
+        # A second head's ping of the same time: its MRZ only (the sensors' fix and attitude are sent once).
+        same_time = latest is not None and ping.time_s == latest.time_s
+        if not same_time:
+            before = latest
         course, speed = _course_speed(before, ping)
         sentences = fix_sentences(ping.time_s, ping.lat_deg, ping.lon_deg, heading_deg=ping.heading_deg, course_deg=course, speed_mps=speed)
-        for sentence in sentences:
-            yield LiveDatagram(ping.time_s, "nmea", (sentence + "\r\n").encode("ascii"))
-        for datagram in ping_datagrams(ping, rx_index=heads(ping.head), ping_count=count, speed_mps=speed, course_deg=course,
-                                       position_text=sentences[1]):
+        if not same_time:
+            for sentence in sentences:
+                yield LiveDatagram(ping.time_s, "nmea", (sentence + "\r\n").encode("ascii"))
+        datagrams = ping_datagrams(ping, rx_index=heads(ping.head), ping_count=count, speed_mps=speed, course_deg=course,
+                                   position_text=sentences[1])
+        for datagram in datagrams[-1:] if same_time else datagrams:
             for part in split_datagram(datagram, max_datagram_bytes):
                 yield LiveDatagram(ping.time_s, "kmall", part)
-        if before is None or ping.time_s > before.time_s:  # a second head's ping of the same time: course from the one before
-            before = ping
+        latest = ping
 
 
 def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Counter) -> Iterator[LiveDatagram]:

@@ -1,10 +1,14 @@
-"""`lost replay` through localhost UDP into the receiver: every ping arrives equal to the file's; faults counted on both sides."""
+"""`lost replay` through localhost UDP into the receiver: every ping arrives equal to the file's; faults counted on both sides.
+
+And real pings (a dual-head EM2040 .all, with attitude) as live datagrams into the decoder, equal to the .kmall file's pings.
+"""
 
 from __future__ import annotations
 
 import math
 import threading
 from itertools import islice
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +18,8 @@ from lost.host.io.kmall_write import write_kmall_pings
 from lost.host.io.simulated import simulated_pings
 from lost.host.io.survey import Ping, open_survey
 from lost.host.live.nmea import HeadingFix, PositionFix
-from lost.host.live.receiver import UdpReceiver
+from lost.host.live.receiver import LiveDecoder, UdpReceiver
+from lost.host.live.stream import live_datagrams
 from lost.host.scenario import builtin_scenario_path, load_scenario
 
 
@@ -73,8 +78,7 @@ def test_faults_are_drawn_counted_and_survived(tow, capsys):
     values, counts = _replayed([str(path), "--loss", "0.05", "--reorder", "0.05", "--duplicate", "0.05", "--seed", "7"])
     out = capsys.readouterr().out
     line = next(text for text in out.splitlines() if text.startswith("faults (seed 7)"))
-    numbers = [int(w) for w in line.replace(",", " ").split() if w.isdigit()]
-    total, lost, duplicated, reordered = numbers
+    total, lost, duplicated, reordered = (int(w) for w in line.split(":")[1].split("(")[0].replace(",", " ").split() if w.isdigit())
     assert total == 799 and lost > 20 and duplicated > 20 and reordered > 20
     pings = [v for v in values if isinstance(v, Ping)]
     by_time = {p.time_s: p for p in filed}
@@ -82,5 +86,35 @@ def test_faults_are_drawn_counted_and_survived(tow, capsys):
         _assert_equal(ping, by_time[ping.time_s])
     assert len({p.time_s for p in pings}) == len(pings)  # no ping twice
     assert len(pings) >= 100 - lost  # at most one ping lost per lost datagram
-    assert counts["MRZ with parts lost (ping dropped)"] >= 1
-    assert counts["duplicate kmall datagram (skipped)"] >= 1
+    # Both sides count: every duplicated .kmall datagram is skipped once; every ping not received is counted missing
+    # (the first and last pings arrived here, so the ping counter's gaps are all the lost ones).
+    drawn = line.split("(.kmall ")[1]
+    kmall_lost, kmall_duplicated = (int(drawn.split(" lost")[0]), int(drawn.split(", ")[1].split(" duplicated")[0]))
+    assert counts["duplicate kmall datagram (skipped)"] == kmall_duplicated > 0
+    assert pings[0].time_s == filed[0].time_s and max(p.time_s for p in pings) == filed[-1].time_s
+    assert counts["pings missing from the ping counter's sequence"] == 100 - len(pings) > 0
+    assert counts["MRZ with parts lost (ping dropped)"] <= 100 - len(pings) <= kmall_lost
+
+
+REAL = Path(__file__).resolve().parents[3] / ".." / "shared" / "data" / "real_survey"
+DUAL_HEAD = REAL / "kongsberg_snippets_tmtgp" / "all_a_c_519880139284219668.all"
+
+
+@pytest.mark.parametrize("max_bytes", [64_000, 8_000])
+def test_real_pings_decode_equal_to_the_kmall_files(max_bytes, tmp_path):
+    if not DUAL_HEAD.exists():
+        pytest.skip(f"real survey file not at {DUAL_HEAD}")
+    pings = list(open_survey(DUAL_HEAD))
+    filed = list(open_survey(write_kmall_pings(pings, tmp_path / "x.kmall")))
+    decoder = LiveDecoder()
+    values = []
+    for datagram in live_datagrams(pings, max_datagram_bytes=max_bytes):
+        values += decoder.feed(datagram.payload)
+    values += decoder.finish()
+    received = [v for v in values if isinstance(v, Ping)]
+    assert len(received) == len(filed) == 12 and {p.head for p in received} == {0, 1}  # two heads, pings of one time each
+    for ping, expected in zip(received, filed, strict=True):
+        _assert_equal(ping, expected)
+    assert received[0].roll_deg == pytest.approx(pings[0].roll_deg, abs=1e-5)  # the #SKM sample (one per time, 5 times) reached the ping
+    assert decoder.counts["MRZ joined from parts"] == (12 if max_bytes == 8_000 else 0)
+    assert decoder.counts["kmall #SKM datagrams"] == 5 and not decoder.counts["ping without attitude at its time (its #SKM late or lost)"]
