@@ -19,6 +19,9 @@ from ..errors import UsageError
 
 __all__ = ["register"]
 
+_LARGEST_UDP = 65_507  # a UDP datagram's largest payload over IPv4
+_SMALLEST_PART = 512  # a partition's header, partition and closing length leave room for data
+
 
 def _address(text: str) -> tuple[str, int]:
     host, _, port = text.rpartition(":")
@@ -47,9 +50,19 @@ def _speed(text: str) -> float:
     return value
 
 
+def _datagram_bytes(text: str) -> int:
+    value = int(text) if text.isdigit() else -1
+    if not _SMALLEST_PART <= value <= _LARGEST_UDP:
+        raise argparse.ArgumentTypeError(f"--max-datagram-bytes must be from {_SMALLEST_PART} to {_LARGEST_UDP} (one UDP datagram), got {text!r}")
+    return value
+
+
 def _pings(sources: list[str]):
     """The pings of the source and what it skipped (a Counter filled while iterating)."""
     paths = [Path(s) for s in sources]
+    absent = [str(p) for p in paths if not p.exists() and (p.suffix not in ("", ".toml") or len(p.parts) > 1)]
+    if absent:
+        raise FileNotFoundError(f"no survey file or scenario at {', '.join(absent)}")
     if all(p.suffix != ".toml" and p.is_file() for p in paths):
         from ..io.survey import open_survey
 
@@ -107,6 +120,6 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     replay.add_argument("--reorder", type=_probability, default=0.0, metavar="P", help="probability that a datagram is sent after the next")
     replay.add_argument("--duplicate", type=_probability, default=0.0, metavar="P", help="probability that a datagram is sent twice")
     replay.add_argument("--seed", type=int, default=0, help="seed of the faults' generator (default 0)")
-    replay.add_argument("--max-datagram-bytes", type=int, default=UDP_PART_BYTES, metavar="B",
+    replay.add_argument("--max-datagram-bytes", type=_datagram_bytes, default=UDP_PART_BYTES, metavar="B",
                         help=f"an MRZ larger than this is sent in partitions (default {UDP_PART_BYTES})")
     replay.set_defaults(handler=_cmd_replay)
