@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from itertools import islice
 from pathlib import Path
 
@@ -118,7 +119,13 @@ def test_a_large_mrz_splits_into_parts_that_join_back(tmp_path):
 
 def test_a_ping_without_position_is_refused_by_name():
     _, _, pings = _short_pings(1)
-    from dataclasses import replace
-
     with pytest.raises(ValueError, match="no position or heading"):
         encode_mrz(replace(pings[0], lat_deg=math.nan))
+
+
+def test_a_ping_without_position_mid_file_leaves_no_file(tmp_path):
+    _, _, pings = _short_pings(3)
+    pings[1] = replace(pings[1], lon_deg=math.nan)
+    with pytest.raises(ValueError, match="no position or heading"):
+        write_kmall_pings(pings, tmp_path / "tow.kmall")
+    assert list(tmp_path.iterdir()) == []
