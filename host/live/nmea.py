@@ -49,6 +49,11 @@ def _angle(value: float, degree_digits: int, hemispheres: str) -> tuple[str, str
     return f"{degrees_part:0{degree_digits}d}{minutes:010.7f}", hemispheres[0] if value >= 0 else hemispheres[1]
 
 
+def _bearing(degrees: float) -> str:
+    """0.00 to 359.99: 359.996 is 0.00, not 360.00."""
+    return f"{round(degrees % 360.0, 2) % 360.0:.2f}"
+
+
 def fix_sentences(time_s: float, lat_deg: float, lon_deg: float, *, heading_deg: float = math.nan, course_deg: float = math.nan,
                   speed_mps: float = math.nan) -> list[str]:
     """The sentences of one fix (see the module), each with its ``$`` and checksum, without line ending; HDT only with a heading, VTG only with a course."""
@@ -60,9 +65,9 @@ def fix_sentences(time_s: float, lat_deg: float, lon_deg: float, *, heading_deg:
            pynmea2.GGA(_TALKER, "GGA", (clock, lat, ns, lon, ew, "1", "12", "0.8", "0.0", "M", "0.0", "M", "", ""))]
     if math.isfinite(course_deg) and math.isfinite(speed_mps):
         knots = speed_mps / KNOT_MPS
-        out.append(pynmea2.VTG(_TALKER, "VTG", (f"{course_deg % 360.0:.2f}", "T", "", "M", f"{knots:.3f}", "N", f"{speed_mps * 3.6:.3f}", "K", "A")))
+        out.append(pynmea2.VTG(_TALKER, "VTG", (_bearing(course_deg), "T", "", "M", f"{knots:.3f}", "N", f"{speed_mps * 3.6:.3f}", "K", "A")))
     if math.isfinite(heading_deg):
-        out.append(pynmea2.HDT("HE", "HDT", (f"{heading_deg % 360.0:.2f}", "T")))
+        out.append(pynmea2.HDT("HE", "HDT", (_bearing(heading_deg), "T")))
     return [str(sentence) for sentence in out]
 
 
@@ -130,6 +135,6 @@ class NmeaDecoder:
             self.counts["NMEA VTG without a GGA before it"] += 1
             return []
         held, self._pending = self._pending, None
-        speed = float(sentence.spd_over_grnd_kmph) / 3.6 if sentence.spd_over_grnd_kmph else math.nan
-        course = float(sentence.true_track) if sentence.true_track else math.nan
+        speed = float(sentence.spd_over_grnd_kmph) / 3.6 if sentence.spd_over_grnd_kmph is not None else math.nan  # 0 is a speed
+        course = float(sentence.true_track) if sentence.true_track is not None else math.nan
         return [PositionFix(held.time_s, held.lat_deg, held.lon_deg, held.quality, course, speed)]
