@@ -69,9 +69,11 @@ def _client(scheduler: str | None, workers: int) -> Iterator[Any]:
         with Client(scheduler, timeout="20s") as client:
             yield client
         return
-    # Processes, one thread each: a run is NumPy and Python, which threads would serialize on the GIL.
+    # Processes, one thread each: a run is NumPy and Python, which threads would serialize on the GIL. The scheduler's
+    # HTTP server on a free local port: None would still take 8787, and a second campaign would find it in use.
     with dask.config.set(_quiet_workers()), \
-            LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, Client(cluster) as client:
+            LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0") as cluster, \
+            Client(cluster) as client:
         yield client
 
 

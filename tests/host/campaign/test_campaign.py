@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import socket
@@ -106,10 +107,21 @@ def _quick_with_errors(task: RunTask) -> list[dict]:
         return [{"run_id": task.run_id, "case": task.case, "scenario": task.scenario, "seed": task.seed, "estimator": None, "error": str(error)}]
 
 
+@contextlib.contextmanager
+def _dashboard_port_taken():
+    """Dask's default dashboard port, 8787, held (by this socket, or already by something else)."""
+    with socket.socket() as held:
+        with contextlib.suppress(OSError):
+            held.bind(("127.0.0.1", 8787))
+            held.listen()
+        yield
+
+
 def test_a_campaign_runs_on_a_local_cluster_resumes_and_keeps_failures_as_rows(tmp_path):
     spec = CampaignSpec(name="c", scenarios=("a", "b"), seeds=4, estimators=("pmf",), parameters={"fail": (False, True)})
     out = tmp_path / "out"
-    summary = run_campaign(spec, out, workers=2, task=_quick_with_errors)
+    with _dashboard_port_taken():  # as a second campaign finds it: the cluster takes a free port instead
+        summary = run_campaign(spec, out, workers=2, task=_quick_with_errors)
     assert (summary["runs"], summary["ran_now"], summary["finished"], summary["failed_runs"]) == (16, 16, 16, 8)
     table = pd.read_parquet(out / "results.parquet")
     assert len(table) == 16 and set(table[table.error.notna()].error) == {"a stand-in failure"}
