@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import socket
 import threading
+import time
 from itertools import islice
 
 import numpy as np
@@ -37,6 +39,20 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def _wait_until_bound(port: int, timeout_s: float = 30.0) -> None:
+    """Until the server has bound its port (a datagram sent before would be lost): binding it here fails then."""
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", port))
+            except OSError:
+                return
+        time.sleep(0.05)
+    raise AssertionError(f"lost serve did not bind port {port} in {timeout_s} s")
+
+
 def _settings(path, map_path, port, output_port, **extra) -> None:
     table = {"listen": f"127.0.0.1:{port}", "bathy": str(map_path), "estimators": ["lost", "pmf", "pf"], "outputs": [f"127.0.0.1:{output_port}"],
              "idle_stop_s": 1.5, "status_s": 0.5, **SETTINGS, **extra}
@@ -44,7 +60,7 @@ def _settings(path, map_path, port, output_port, **extra) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def _serve_replay(tow, tmp_path, replay_options=(), **extra):
+def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = (), **extra):
     """Serve on a free port while `lost replay` sends the tow; the run folder and the datagrams that came out."""
     path, map_path = tow
     port, listener = _free_port(), socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -68,9 +84,10 @@ def _serve_replay(tow, tmp_path, replay_options=(), **extra):
     listening = threading.Thread(target=listen)
     listening.start()
     try:
-        import time
-
-        time.sleep(1.0)  # the server reads its map and binds its port
+        _wait_until_bound(port)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            for payload in junk:
+                sender.sendto(payload, ("127.0.0.1", port))
         assert main(["replay", str(path), "--to", f"127.0.0.1:{port}", "--speed", "0", *replay_options]) == 0
         server.join(60)
     finally:
@@ -160,3 +177,52 @@ def test_the_served_values_are_the_batch_navigations_to_the_bit(tow, tmp_path, c
         np.testing.assert_array_equal([e.covariance_m2 for e in mine], track.covariance[:, [0, 1, 0], [0, 1, 1]])
         assert [e.usable for e in mine] == list(track.usable)
     capsys.readouterr()
+
+
+def test_lost_duplicated_reordered_and_malformed_datagrams_are_counted_into_the_summary_never_a_stop(tow, tmp_path, capsys):
+    junk = (b"\x00\x01 not a datagram", b"$GPGGA,garbled*00\r\n", (40).to_bytes(4, "little") + b"#MRZ" + bytes(28))
+    out, _ = _serve_replay(tow, tmp_path, ["--loss", "0.05", "--reorder", "0.05", "--duplicate", "0.05", "--seed", "3"], junk=junk,
+                           estimators=["lost"])
+    replayed = capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    received = summary["received"]
+    assert received["datagram of neither .kmall nor NMEA (skipped)"] == 1
+    assert received["kmall #MRZ datagram whose length fields disagree with its size (skipped)"] == 1
+    assert sum(n for reason, n in received.items() if "checksum" in reason or "NMEA" in reason) >= 1
+    drawn = next(line for line in replayed.splitlines() if line.startswith("faults (seed 3)")).split("(.kmall ")[1]
+    assert received["duplicate kmall datagram (skipped)"] == int(drawn.split(", ")[1].split(" duplicated")[0]) > 0
+    assert received["pings missing from the ping counter's sequence"] > 0
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert summary["ended"].startswith("no datagram") and len(log) == summary["records"] >= PINGS // 5 - 2
+    assert summary["methods"]["lost"]["usable_fraction"] > 0.5  # the clean replay: 0.875
+
+
+def test_a_silent_sonar_and_pings_without_beams_are_stepped_as_dead_reckoning_and_counted(tow):
+    from dataclasses import replace
+
+    from lost.host.io import read_grid
+    from lost.host.io.survey import open_survey
+    from lost.host.io.survey_records import SurveyRecorder
+    from lost.host.live.navigator import LiveNavigator
+    from lost.host.nav import NavParameters
+
+    path, map_path = tow
+    grid = read_grid(map_path)
+    live = LiveNavigator(grid, NavParameters(), ("pf",), SurveyRecorder(node_m=grid.node_m, patch_shape=(10, 10), interval_s=5.0,
+                                                                                window_s=20.0, patch_centre="soundings"))
+    pings = list(open_survey(path))
+    start = pings[0].time_s
+    served = []
+    for ping in pings:
+        age = ping.time_s - start
+        if 40 <= age < 60:  # the sonar silent for 20 s: four intervals without a ping
+            continue
+        if 80 <= age < 110:  # pinging, but no bottom detected: the three records whose 20 s window holds no beam have no patch
+            ping = replace(ping, valid=np.zeros_like(ping.valid))
+        served += live.add(ping)
+    served += live.finish()
+    assert live.counts["record intervals without a ping (the sonar silent)"] == 4
+    assert live.counts["records without a patch (dead reckoning)"] == 3  # at 99, 104 and 109 s
+    assert len(served) == live.counts["records stepped"] == len({math.floor((p.time_s - start) / 5) for p in pings}) - 4
+    assert all(np.isfinite(e.east_m) and np.isfinite(e.covariance_m2[0]) for e in served[1:])
+    assert {e.stage for e in served if 95 <= e.t_s < 110} == {"dead_reckoning"}
