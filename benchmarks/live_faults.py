@@ -31,7 +31,6 @@ from lost.host.live.stream import Faults, live_datagrams, with_faults
 from lost.host.nav import ESTIMATORS, NavParameters
 from lost.host.scenario import builtin_scenario_path, load_scenario
 
-
 RECORD_S = 2.0
 
 
