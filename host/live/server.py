@@ -45,7 +45,8 @@ class LiveServer:
         self.status_stream = status_stream if status_stream is not None else sys.stderr
         self.counts: Counter[str] = Counter()
         self.latency_ms: list[float] = []
-        self.served: list[LiveEstimate] = []  # kept for the summary's statistics (a few hundred bytes a record)
+        # Per estimator, each served record's (usable, error against the pings' positions): 16 bytes a record, for the summary.
+        self.served: dict[str, list[tuple[bool, float]]] = {}
         self.ended = "running"
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
@@ -115,7 +116,8 @@ class LiveServer:
             for estimate in group:
                 self.sender.send(estimate)
             self.log.record(group)
-            self.served += group
+            for e in group:
+                self.served.setdefault(e.estimator, []).append((e.usable, math.hypot(e.east_m - e.truth_east_m, e.north_m - e.truth_north_m)))
             if received is not None:
                 self.latency_ms.append((time.monotonic() - received) * 1e3)
 
@@ -136,17 +138,15 @@ class LiveServer:
                 f"latency {latency}; usable {usable or '-'}; drops: {drops}")
 
     def usable_fractions(self) -> dict[str, float]:
-        names = dict.fromkeys(e.estimator for e in self.served)
-        return {name: float(np.mean([e.usable for e in self.served if e.estimator == name])) for name in names}
+        return {name: float(np.mean([usable for usable, _ in rows])) for name, rows in self.served.items()}
 
     def summary(self) -> dict:
         latency = np.asarray(self.latency_ms)
         methods = {}
-        for name in dict.fromkeys(e.estimator for e in self.served):
-            mine = [e for e in self.served if e.estimator == name]
-            error = np.array([math.hypot(e.east_m - e.truth_east_m, e.north_m - e.truth_north_m) for e in mine])
+        for name, rows in self.served.items():
+            error = np.array([error for _, error in rows])
             finite = error[np.isfinite(error)]
-            methods[name] = {"records": len(mine), "usable_fraction": float(np.mean([e.usable for e in mine])),
+            methods[name] = {"records": len(rows), "usable_fraction": float(np.mean([usable for usable, _ in rows])),
                              "rms_m": float(np.sqrt(np.mean(finite**2))) if finite.size else None,
                              "p90_m": float(np.percentile(finite, 90)) if finite.size else None}
         return {"ended": self.ended, "records": self.navigator.counts["records stepped"], "served_for_s": time.monotonic() - self._started,
