@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -87,6 +87,12 @@ bench-read: setup
 # A simulated tow exported as .all and navigated with lost run --survey, against the scenario's run, over 10 seeds (a few minutes).
 bench-read-survey: setup
 	$(BIN)/python benchmarks/read_survey_nav.py
+
+# lost serve: the navigation on a stream with 5 % loss, reordering and duplication against the clean one over 10 seeds
+# (build/bench/live_faults.json, under a minute), and the latency of lost replay at 20x into lost serve on localhost (40 s).
+bench-live: setup
+	$(BIN)/python benchmarks/live_faults.py --seeds 1 2 3 4 5 6 7 8 9 10
+	$(BIN)/python benchmarks/live_latency.py --speed 20
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

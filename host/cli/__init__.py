@@ -47,7 +47,7 @@ __all__ = ["main", "build_parser", "COMMANDS", "UsageError", "EXIT_OK", "EXIT_ER
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: The subcommands, in the order ``lost --help`` lists them: each is the module of this package of that name.
-COMMANDS = ("run", "demo", "correlate", "survey", "grid", "track", "usbl", "campaign", "plan", "replay")
+COMMANDS = ("run", "demo", "correlate", "survey", "grid", "track", "usbl", "campaign", "plan", "replay", "serve")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -42,7 +42,7 @@ from .errors import DifferentShipsError, NoPingsError, SurveyOffMapError
 from .sonar import grid_soundings, soundings_centre
 from .survey import Ping, Survey
 
-__all__ = ["SurveyRecord", "SurveyRecorder", "survey_records", "check_survey_on_map", "SURVEY_PATCH_CENTRES", "DEFAULT_RECORD_S"]
+__all__ = ["SurveyRecord", "SurveyRecorder", "survey_records", "nav_records", "check_survey_on_map", "SURVEY_PATCH_CENTRES", "DEFAULT_RECORD_S"]
 
 SURVEY_PATCH_CENTRES = ("vehicle", "soundings")
 #: Seconds of pings per record when the caller names none (``lost run --survey``'s ``--record-s``).
@@ -219,6 +219,11 @@ def survey_records(survey: Survey, recorder: SurveyRecorder) -> NavRecords:
     if not rows:
         names = ", ".join(p.name for p in survey.paths)
         raise NoPingsError(f"{names}: no ping with a position to make records of (skipped: {dict(survey.skipped) or 'nothing'})")
+    return nav_records(rows)
+
+
+def nav_records(rows: list[SurveyRecord]) -> NavRecords:
+    """Survey records as :class:`~lost.host.records.NavRecords` (no cable, no slant range: a hull-mounted sonar)."""
     column = {name: np.array([getattr(r, name) for r in rows], dtype=np.float64)
               for name in ("t_s", "ship_x_m", "ship_y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps",
                            "truth_x_m", "truth_y_m")}

@@ -138,11 +138,12 @@ class LiveDecoder:
         try:
             with contextlib.redirect_stdout(io.StringIO()):
                 samples = reader.read_EMdgmSKM()["sample"]["KMdefault"]
-        except (struct.error, KeyError, ValueError, IndexError, UnicodeDecodeError):
+            rows = [tuple(float(v) for v in sample)
+                    for sample in zip(samples["dgtime"], samples["roll_deg"], samples["pitch_deg"], samples["heave_m"], strict=True)]
+        except (struct.error, KeyError, ValueError, IndexError, TypeError, UnicodeDecodeError):  # pykmall on garbage: any of these
             self.counts["kmall #SKM that does not decode (skipped)"] += 1
             return
-        for sample in zip(samples["dgtime"], samples["roll_deg"], samples["pitch_deg"], samples["heave_m"], strict=True):
-            self._attitude.append(tuple(float(v) for v in sample))
+        self._attitude.extend(rows)
 
     def _decoded(self, datagram: bytes) -> list[Ping]:
         reader = _reader(datagram)
@@ -150,7 +151,7 @@ class LiveDecoder:
             with contextlib.redirect_stdout(io.StringIO()):
                 dg = _read_mrz(reader)
             ping = _mrz_ping(dg, self._attitude_arrays())
-        except (struct.error, KeyError, ValueError, IndexError) as error:
+        except (struct.error, KeyError, ValueError, IndexError, TypeError, UnicodeDecodeError) as error:
             self.counts[f"kmall #MRZ that does not decode ({type(error).__name__}; skipped)"] += 1
             return []
         self.counts["pings"] += 1
@@ -210,7 +211,11 @@ class UdpReceiver:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         with contextlib.suppress(OSError):
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, buffer_bytes)
-        self.sock.bind((host, port))
+        try:
+            self.sock.bind((host, port))
+        except OSError as error:
+            self.sock.close()
+            raise OSError(error.errno, f"cannot listen on {host}:{port} for UDP datagrams: {error.strerror or error}") from None
         self.sock.settimeout(0.05)
         self.address: tuple[str, int] = self.sock.getsockname()
         self._stop = threading.Event()

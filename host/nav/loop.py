@@ -27,7 +27,7 @@ from .stages import TrackFrame, layback_position, state_update
 if TYPE_CHECKING:
     from ..usbl.sound import SoundSpeedProfile
 
-__all__ = ["RecordLoop", "layback_distance", "PATENT_OUTPUTS"]
+__all__ = ["RecordLoop", "StreamLoop", "layback_distance", "PATENT_OUTPUTS"]
 
 #: The patent pipeline's per-record stage outputs, as ``Estimate.stages`` carries them into ``NavResult``.
 PATENT_OUTPUTS = ("predicted", "mle", "cat", "distinctness", "cross_velocity_mps", "slant_corrected", "off_map")
@@ -190,3 +190,31 @@ class RecordLoop:
             if estimator.name == name:
                 return estimator.counts
         return Counter()
+
+
+class StreamLoop(RecordLoop):
+    """The record loop on a stream whose length is not known: :meth:`push` steps each record as it comes.
+
+    Each record is stepped by :meth:`RecordLoop.step` on a window of two rows (the record before it, for the
+    time step, and itself), so every estimator sees exactly what it sees in a whole-tow run; the per-record
+    arrays are those of the window only, so memory stays flat however long the stream.
+    """
+
+    def __init__(self, params: NavParameters, estimators: list[Estimator], counts: Counter, profile: SoundSpeedProfile | None = None) -> None:
+        self._stream_args = (params, estimators, counts, profile)
+        self._carried: tuple | None = None  # the loop's state between records: velocity and depth held, dead reckoning, guards
+
+    def push(self, window: NavRecords) -> int:
+        """Step the last row of ``window`` (one row: the stream's first record; two: the record before, then it).
+
+        Returns the row stepped; read its answers from ``tracks``, ``layback`` and ``dead_reckoning`` at that row.
+        """
+        if len(window) not in (1, 2) or (len(window) == 1 and self._carried is not None):
+            raise ValueError(f"a stream's window is the first record alone or the record before and the new one, got {len(window)} rows")
+        super().__init__(window, *self._stream_args)
+        if self._carried is not None:
+            self._velocity, self._last_depth, self._dead, self._guards = self._carried
+        row = len(window) - 1
+        self.step(row)
+        self._carried = (self._velocity, self._last_depth, self._dead, self._guards)
+        return row

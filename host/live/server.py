@@ -1,0 +1,167 @@
+"""The serving loop of `lost serve`: a receiving thread, the navigation on the main thread, outputs, status, summary.
+
+:class:`UdpReceiver` runs on its own thread and puts each decoded value, with the monotonic time it was
+completed, on a queue (unbounded: a burst while a record is being navigated waits in memory, not in the
+socket's buffer where the kernel would drop it). The main thread takes pings off the queue into the
+:class:`~lost.host.live.navigator.LiveNavigator`; each record's estimates go to the :class:`UdpSender` and
+the :class:`RunLog` as soon as they are made. Fixes and headings from NMEA are counted (the navigation of a
+hull-mounted survey takes the ping's own position, as the batch path does).
+
+Latency is measured from the completion of the ping that closed a record (the first ping of the next
+interval: a record is known to be whole only then) to its estimates sent.
+
+It stops on :meth:`LiveServer.stop`, on Ctrl-C or SIGTERM (both a normal end here: the last record is
+closed, the summary written), or after ``idle_stop_s`` seconds without a value once one came.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import sys
+import threading
+import time
+from collections import Counter
+from typing import TextIO
+
+import numpy as np
+
+from ..io.survey import Ping
+from .navigator import LiveEstimate, LiveNavigator
+from .nmea import HeadingFix, PositionFix
+from .outputs import RunLog, UdpSender
+from .receiver import UdpReceiver
+
+__all__ = ["LiveServer"]
+
+
+class LiveServer:
+    """One `lost serve` run: receiver, navigator, outputs (see the module)."""
+
+    def __init__(self, receiver: UdpReceiver, navigator: LiveNavigator, sender: UdpSender, log: RunLog, *, status_s: float = 5.0,
+                 idle_stop_s: float = 0.0, status_stream: TextIO | None = None) -> None:
+        self.receiver, self.navigator, self.sender, self.log = receiver, navigator, sender, log
+        self.status_s, self.idle_stop_s = status_s, idle_stop_s
+        self.status_stream = status_stream if status_stream is not None else sys.stderr
+        self.counts: Counter[str] = Counter()
+        self.latency_ms: list[float] = []
+        # Per estimator, each served record's (usable, error against the pings' positions): 16 bytes a record, for the summary.
+        self.served: dict[str, list[tuple[bool, float]]] = {}
+        self.ended = "running"
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._started = time.monotonic()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def run(self) -> dict:
+        """Serve until stopped (see the module); the summary."""
+        thread = threading.Thread(target=self.receiver.run, args=(lambda value: self._queue.put((time.monotonic(), value)),), daemon=True)
+        thread.start()
+        last_value = None
+        next_status = time.monotonic() + self.status_s
+        try:
+            while not self._stop.is_set():
+                try:
+                    received, value = self._queue.get(timeout=0.05)
+                except queue.Empty:
+                    if last_value is not None and self.idle_stop_s and time.monotonic() - last_value > self.idle_stop_s:
+                        self.ended = f"no datagram for {self.idle_stop_s:g} s"
+                        break
+                else:
+                    last_value = received
+                    self._take(received, value)
+                if time.monotonic() >= next_status:
+                    print(self.status_line(), file=self.status_stream, flush=True)
+                    next_status = time.monotonic() + self.status_s
+            else:
+                self.ended = "stopped"
+        except KeyboardInterrupt:
+            self.ended = "interrupted (Ctrl-C or SIGTERM)"
+        self.receiver.stop()
+        thread.join(5.0)
+        while True:  # what was received before the stop, then the decoder's last values
+            try:
+                received, value = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            self._take(received, value)
+        self._serve(self._guarded(self.navigator.finish), None)
+        print(self.status_line(), file=self.status_stream, flush=True)
+        return self.summary()
+
+    def _take(self, received: float, value) -> None:
+        if isinstance(value, Ping):
+            self._serve(self._guarded(self.navigator.add, value), received)
+        elif isinstance(value, PositionFix):
+            self.counts["NMEA position fixes (not used)"] += 1
+        elif isinstance(value, HeadingFix):
+            self.counts["NMEA headings (not used)"] += 1
+
+    def _guarded(self, step, *values) -> list[LiveEstimate]:
+        """A ping or the end through the navigation; a ping it refuses (another ship's, say) is counted, never a stop."""
+        try:
+            return step(*values)
+        except ValueError as error:
+            self.counts[f"pings refused by the navigation ({type(error).__name__})"] += 1
+            self.counts["last refusal: " + " ".join(str(error).split())[:120]] = 1
+            return []
+
+    def _serve(self, estimates: list[LiveEstimate], received: float | None) -> None:
+        by_record: dict[int, list[LiveEstimate]] = {}
+        for estimate in estimates:
+            by_record.setdefault(estimate.record, []).append(estimate)
+        for group in by_record.values():
+            for estimate in group:
+                self.sender.send(estimate)
+            self.log.record(group)
+            for e in group:
+                self.served.setdefault(e.estimator, []).append((e.usable, math.hypot(e.east_m - e.truth_east_m, e.north_m - e.truth_north_m)))
+            if received is not None:
+                self.latency_ms.append((time.monotonic() - received) * 1e3)
+
+    def _drops(self) -> dict[str, int]:
+        counts = _copy(self.receiver.decoder.counts)
+        drops = {reason: n for reason, n in counts.items() if any(w in reason for w in ("skipped", "lost", "dropped", "missing", "without"))}
+        drops.update({reason: n for reason, n in {**self.navigator.counts, **self.counts, **self.sender.counts}.items()
+                      if any(w in reason for w in ("skipped", "refused", "silent", "without", "not sent"))})
+        return drops
+
+    def status_line(self) -> str:
+        records = self.navigator.counts["records stepped"]
+        elapsed = max(time.monotonic() - self._started, 1e-9)
+        latency = f"{self.latency_ms[-1]:.0f} ms (max {max(self.latency_ms):.0f})" if self.latency_ms else "-"
+        drops = ", ".join(f"{reason} {n}" for reason, n in sorted(self._drops().items())) or "none"
+        usable = " ".join(f"{name} {100 * fraction:.0f}%" for name, fraction in self.usable_fractions().items())
+        return (f"lost serve: {records} records ({records / elapsed:.2f}/s), {_copy(self.receiver.decoder.counts)['pings']} pings, "
+                f"latency {latency}; usable {usable or '-'}; drops: {drops}")
+
+    def usable_fractions(self) -> dict[str, float]:
+        return {name: float(np.mean([usable for usable, _ in rows])) for name, rows in self.served.items()}
+
+    def summary(self) -> dict:
+        latency = np.asarray(self.latency_ms)
+        methods = {}
+        for name, rows in self.served.items():
+            error = np.array([error for _, error in rows])
+            finite = error[np.isfinite(error)]
+            methods[name] = {"records": len(rows), "usable_fraction": float(np.mean([usable for usable, _ in rows])),
+                             "rms_m": float(np.sqrt(np.mean(finite**2))) if finite.size else None,
+                             "p90_m": float(np.percentile(finite, 90)) if finite.size else None}
+        return {"ended": self.ended, "records": self.navigator.counts["records stepped"], "served_for_s": time.monotonic() - self._started,
+                "latency_ms": {"count": int(latency.size), **({f"p{q}": float(np.percentile(latency, q)) for q in (50, 90, 99)} if latency.size else {}),
+                               "max": float(latency.max()) if latency.size else None},
+                "methods": methods, "received": dict(_copy(self.receiver.decoder.counts)), "navigation": dict(self.navigator.counts),
+                "estimator_counts": self.navigator.estimator_counts(), "server": dict(self.counts),
+                "outputs": {"addresses": [f"{h}:{p}" for h, p in self.sender.addresses], **self.sender.counts},
+                "survey": {"first_ping_utc_s": self.navigator.recorder.epoch_s, "skipped": dict(self.navigator.recorder.skipped)}}
+
+
+def _copy(counts: Counter) -> Counter:
+    """A copy of a Counter the receiving thread may be adding to (a new key mid-copy: try again)."""
+    while True:
+        try:
+            return Counter(dict(counts))
+        except RuntimeError:
+            continue

@@ -1,0 +1,102 @@
+"""The settings of `lost serve`: a TOML file's ``[serve]`` table (strict: unknown keys refused) and its ``[navigation]``.
+
+::
+
+    [serve]
+    listen = "0.0.0.0:4001"                 # HOST:PORT the .kmall and NMEA datagrams arrive on
+    bathy = "maps/area.nc"                  # the map, as lost run --bathy (relative to the settings file)
+    estimators = ["lost", "pmf", "pf"]      # the bank's names (default: all)
+    record_s = 5.0                          # seconds of pings per record, as lost run --survey --record-s
+    window_s = 20.0                         # seconds of pings up to a record that make its patch (default record_s)
+    patch_shape = [10, 10]                  # nodes of the patch, rows x columns
+    patch_centre = "vehicle"                # or "soundings"
+    dr_bias_mps = [0.0, 0.0]                # as --dr-bias
+    start_offset_m = [0.0, 0.0]             # as --start-offset
+    outputs = ["127.0.0.1:5001"]            # where each estimate goes (JSON line and $LOEST sentence)
+    status_s = 5.0                          # seconds between status lines on stderr
+    idle_stop_s = 0.0                       # stop after this many seconds without a datagram once one came (0: never)
+
+    [navigation]                            # NavParameters, as lost run --config's
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated
+
+from pydantic import Field
+
+from ..config import ConfigError, NonNegativeFloat, PositiveFloat, build, read_toml
+from ..io.survey_records import DEFAULT_RECORD_S, SURVEY_PATCH_CENTRES
+from ..nav import ESTIMATORS
+
+__all__ = ["ServeSettings", "read_serve_settings", "address"]
+
+_TABLES = ("serve", "navigation")
+
+
+def address(text: str, what: str) -> tuple[str, int]:
+    """``HOST:PORT`` as a (host, port) pair; a :class:`ConfigError` naming ``what`` otherwise."""
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit() or not 0 <= int(port) < 65536:
+        raise ConfigError(f"{what} must be HOST:PORT with a port from 0 to 65535, got {text!r}")
+    return host, int(port)
+
+
+@dataclass(frozen=True)
+class ServeSettings:
+    """``[serve]`` (see the module); ``navigation`` is the ``[navigation]`` table, validated by the navigation's own layer."""
+
+    listen: str
+    bathy: str
+    estimators: tuple[str, ...] = ESTIMATORS
+    record_s: PositiveFloat = DEFAULT_RECORD_S
+    window_s: PositiveFloat | None = None
+    patch_shape: tuple[Annotated[int, Field(gt=0)], Annotated[int, Field(gt=0)]] = (10, 10)
+    patch_centre: str = "vehicle"
+    dr_bias_mps: tuple[float, float] = (0.0, 0.0)
+    start_offset_m: tuple[float, float] = (0.0, 0.0)
+    outputs: tuple[str, ...] = ()
+    status_s: PositiveFloat = 5.0
+    idle_stop_s: NonNegativeFloat = 0.0
+    navigation: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        address(self.listen, "[serve] listen")
+        for output in self.outputs:
+            address(output, "[serve] outputs")
+        unknown = sorted(set(self.estimators) - set(ESTIMATORS))
+        if unknown or not self.estimators or len(set(self.estimators)) != len(self.estimators):
+            raise ConfigError(f"[serve] estimators must be some of {list(ESTIMATORS)}, each once, got {list(self.estimators)}")
+        if self.patch_centre not in SURVEY_PATCH_CENTRES:
+            raise ConfigError(f"[serve] patch_centre must be one of {list(SURVEY_PATCH_CENTRES)}, got {self.patch_centre!r}")
+        if not all(math.isfinite(v) for v in (*self.dr_bias_mps, *self.start_offset_m)):
+            raise ConfigError("[serve] dr_bias_mps and start_offset_m must be finite")
+
+
+def read_serve_settings(path: Path) -> ServeSettings:
+    """The settings of ``path``; the map's path relative to the file's folder.
+
+    Raises
+    ------
+    ConfigError
+        Not TOML, no ``[serve]`` table, a table or key not known, a value of the wrong type or out of range (named).
+    FileNotFoundError
+        No file at ``path``.
+    """
+    data = read_toml(path, "lost serve settings file")
+    unknown = sorted(set(data) - set(_TABLES))
+    if unknown:
+        raise ConfigError(f"{path}: unknown table(s) {unknown}; known are {list(_TABLES)}")
+    if "serve" not in data:
+        raise ConfigError(f"{path} has no [serve] table (listen, bathy, ...)")
+    table = dict(data["serve"]) if isinstance(data["serve"], dict) else data["serve"]
+    settings = build(ServeSettings, table, "serve")
+    navigation = data.get("navigation", {})
+    if not isinstance(navigation, dict):
+        raise ConfigError(f"{path}: [navigation] must be a table")
+    bathy = Path(settings.bathy)
+    bathy = bathy if bathy.is_absolute() else path.parent / bathy
+    return ServeSettings(**{**settings.__dict__, "bathy": str(bathy), "navigation": navigation})

@@ -1,0 +1,75 @@
+"""`lost serve` on bad settings and bad datagrams: a refused setting names itself before anything is written; a map without a
+CRS, a port in use and a missing map are named errors; bytes that are no datagram never stop the decoding."""
+
+from __future__ import annotations
+
+import socket
+
+import numpy as np
+import pytest
+
+from lost.host.cli import main
+from lost.host.grid import Grid
+from lost.host.io import write_npz
+from lost.host.live.receiver import LiveDecoder
+
+
+@pytest.fixture
+def map_path(tmp_path):
+    return write_npz(Grid(np.full((20, 20), 100.0), 0.0, 0.0, 10.0, "EPSG:32631"), tmp_path / "map.npz")
+
+
+def _serve(tmp_path, text: str, capsys) -> tuple[int, str]:
+    config = tmp_path / "live.toml"
+    config.write_text(text)
+    code = main(["serve", "--config", str(config), "--out", str(tmp_path / "out")])
+    assert not (tmp_path / "out").exists()
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("table", "named"), [
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nrecrod_s = 2.0', "unknown field(s) ['recrod_s']"),
+    ('listen = "127.0.0.1"\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
+    ('listen = "127.0.0.1:70000"\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nestimators = ["pmf", "ukf"]', "[serve] estimators must be some of"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nestimators = []', "[serve] estimators must be some of"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nrecord_s = -1.0', "serve.record_s (seconds)"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nrecord_s = "5"', "serve.record_s (seconds)"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\noutputs = ["here"]', "[serve] outputs must be HOST:PORT"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\npatch_centre = "middle"', "[serve] patch_centre must be one of"),
+    ('listen = "127.0.0.1:0"', "bathy"),
+])
+def test_a_refused_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, table, named):
+    code, err = _serve(tmp_path, f"[serve]\n{table}\n", capsys)
+    assert code == 1 and named in err and err.count("\n") == 1
+
+
+def test_unknown_tables_no_serve_table_and_bad_navigation_are_named(tmp_path, map_path, capsys):
+    code, err = _serve(tmp_path, '[serve]\nlisten = "127.0.0.1:0"\nbathy = "map.npz"\n[sevre]\n', capsys)
+    assert code == 1 and "unknown table(s) ['sevre']" in err
+    code, err = _serve(tmp_path, '[navigation]\n', capsys)
+    assert code == 1 and "has no [serve] table" in err
+    code, err = _serve(tmp_path, '[serve]\nlisten = "127.0.0.1:0"\nbathy = "map.npz"\n[navigation]\nno_such_parameter = 1\n', capsys)
+    assert code == 1 and "no_such_parameter" in err
+
+
+def test_a_missing_map_a_map_without_crs_and_a_port_in_use_are_named(tmp_path, map_path, capsys):
+    code, err = _serve(tmp_path, '[serve]\nlisten = "127.0.0.1:0"\nbathy = "nowhere.npz"\n', capsys)
+    assert code == 1 and "nowhere.npz" in err
+    write_npz(Grid(np.full((20, 20), 100.0), 0.0, 0.0, 10.0, None), tmp_path / "bare.npz")
+    code, err = _serve(tmp_path, '[serve]\nlisten = "127.0.0.1:0"\nbathy = "bare.npz"\n', capsys)
+    assert code == 1 and "bare.npz has no CRS" in err
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        code, err = _serve(tmp_path, f'[serve]\nlisten = "127.0.0.1:{port}"\nbathy = "map.npz"\n', capsys)
+    assert code == 1 and "in use" in err.lower()
+
+
+@pytest.mark.parametrize("payload", [b"", b"\x00" * 3, b"$", b"\xff" * 2000, (12).to_bytes(4, "little") + b"#MRZ" + bytes(4),
+                                     (64).to_bytes(4, "little") + b"#SKM" + bytes(52) + (64).to_bytes(4, "little"),
+                                     (64).to_bytes(4, "little") + b"#MRZ" + bytes(52) + (64).to_bytes(4, "little")])
+def test_bytes_that_are_no_datagram_are_counted_never_raised(payload):
+    decoder = LiveDecoder()
+    assert decoder.feed(payload) == []
+    assert sum(decoder.counts.values()) >= 1

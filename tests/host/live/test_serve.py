@@ -1,0 +1,228 @@
+"""`lost replay` into `lost serve` on localhost: the served estimates equal the batch path's (`lost run --survey`) record for
+record, value for value; the log and the UDP outputs carry them; faults are counted into the summary, never a stop."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import socket
+import threading
+import time
+from itertools import islice
+
+import numpy as np
+import pytest
+
+from lost.host.cli import main
+from lost.host.io import write_npz
+from lost.host.io.kmall_write import write_kmall_pings
+from lost.host.io.simulated import simulated_pings
+from lost.host.live.outputs import nmea_checksum
+from lost.host.scenario import builtin_scenario_path, load_scenario
+
+PINGS = 120
+SETTINGS = {"record_s": 5.0, "window_s": 20.0, "patch_centre": "soundings", "start_offset_m": [30.0, -20.0], "dr_bias_mps": [0.1, 0.05]}
+
+
+@pytest.fixture(scope="module")
+def tow(tmp_path_factory):
+    """The first pings of the short tow on its own floor as a .kmall file, and the floor as the map."""
+    folder = tmp_path_factory.mktemp("tow")
+    grid, _, pings = simulated_pings(load_scenario(builtin_scenario_path("short_exact_map")))
+    return write_kmall_pings(islice(pings, PINGS), folder / "tow.kmall"), write_npz(grid, folder / "map.npz")
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_until_bound(port: int, timeout_s: float = 30.0) -> None:
+    """Until the server has bound its port (a datagram sent before would be lost): binding it here fails then."""
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", port))
+            except OSError:
+                return
+        time.sleep(0.05)
+    raise AssertionError(f"lost serve did not bind port {port} in {timeout_s} s")
+
+
+def _settings(path, map_path, port, output_port, **extra) -> None:
+    table = {"listen": f"127.0.0.1:{port}", "bathy": str(map_path), "estimators": ["lost", "pmf", "pf"], "outputs": [f"127.0.0.1:{output_port}"],
+             "idle_stop_s": 1.5, "status_s": 0.5, **SETTINGS, **extra}
+    lines = ["[serve]"] + [f"{key} = {json.dumps(value)}" for key, value in table.items()]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = (), **extra):
+    """Serve on a free port while `lost replay` sends the tow; the run folder and the datagrams that came out."""
+    path, map_path = tow
+    port, listener = _free_port(), socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.settimeout(0.2)
+    config, out = tmp_path / "live.toml", tmp_path / "serve"
+    _settings(config, map_path, port, listener.getsockname()[1], **extra)
+    codes: list[int] = []
+    server = threading.Thread(target=lambda: codes.append(main(["serve", "--config", str(config), "--out", str(out)])))
+    server.start()
+    received: list[bytes] = []
+    stop = threading.Event()
+
+    def listen():
+        while not stop.is_set():
+            try:
+                received.append(listener.recv(65_535))
+            except TimeoutError:
+                continue
+
+    listening = threading.Thread(target=listen)
+    listening.start()
+    try:
+        _wait_until_bound(port)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            for payload in junk:
+                sender.sendto(payload, ("127.0.0.1", port))
+        assert main(["replay", str(path), "--to", f"127.0.0.1:{port}", "--speed", "0", *replay_options]) == 0
+        server.join(60)
+    finally:
+        stop.set()
+        listening.join(5)
+        listener.close()
+    assert codes == [0]
+    return out, received
+
+
+def _batch(tow, tmp_path):
+    path, map_path = tow
+    out = tmp_path / "batch"
+    arguments = ["run", "--survey", str(path), "--bathy", str(map_path), "--record-s", "5", "--window-s", "20", "--patch-centre", "soundings",
+                 "--start-offset", "30,-20", "--dr-bias", "0.1,0.05", "--estimator", "all", "--out", str(out)]
+    assert main(arguments) == 0
+    with open(out / "track.csv") as stream:
+        return list(csv.DictReader(stream))
+
+
+def _cell(value) -> str:
+    return "" if value is None else f"{value:.3f}"
+
+
+def test_served_estimates_equal_the_batch_runs_record_for_record(tow, tmp_path, capsys):
+    out, datagrams = _serve_replay(tow, tmp_path)
+    rows = _batch(tow, tmp_path)
+    capsys.readouterr()
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert len(log) == len(rows) > 10
+    for line, row in zip(log, rows, strict=True):
+        assert f"{line['t_s']:.3f}" == row["t_s"]
+        lost = line["estimates"]["lost"]
+        assert (_cell(lost["east_m"]), _cell(lost["north_m"])) == (row["est_x_m"], row["est_y_m"])
+        for name in ("pmf", "pf"):
+            served = line["estimates"][name]
+            cells = [_cell(served[k]) for k in ("east_m", "north_m", "sxx_m2", "syy_m2", "sxy_m2")] + [str(int(served["usable"])), served["stage"]]
+            assert cells == [row[f"{name}_{k}"] for k in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "stage")], (line["record"], name)
+    # Every estimate went out twice per record and estimator: a JSON line and a $LOEST sentence with its checksum.
+    lines = [json.loads(d) for d in datagrams if d.startswith(b"{")]
+    sentences = [d.decode().strip() for d in datagrams if d.startswith(b"$LOEST")]
+    assert len(lines) == len(sentences) == 3 * len(log)
+    assert [(x["record"], x["estimator"]) for x in lines] == [(n, e) for n in range(len(log)) for e in ("lost", "pmf", "pf")]
+    for served in lines:
+        assert served == {"record": served["record"], "time_utc_s": served["time_utc_s"], "t_s": served["t_s"], "estimator": served["estimator"],
+                          **log[served["record"]]["estimates"][served["estimator"]]}
+    for sentence in sentences:
+        body, checksum = sentence[1:].split("*")
+        assert nmea_checksum(body) == checksum and len(body.split(",")) == 10
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["ended"].startswith("no datagram") and summary["records"] == len(log)
+    assert summary["latency_ms"]["count"] == len(log) - 1  # the last record is closed by the end, not by a ping
+    assert not [reason for reason, n in summary["received"].items() if n and ("skipped" in reason or "lost" in reason or "missing" in reason)]
+
+
+def test_the_served_values_are_the_batch_navigations_to_the_bit(tow, tmp_path, capsys):
+    """The same records through navigate() (the batch path's engine) and through the live navigator: equal floats."""
+    from lost.host.cli.run import _map_uncertainty
+    from lost.host.io import read_grid
+    from lost.host.io.survey import open_survey
+    from lost.host.io.survey_records import SurveyRecorder, survey_records
+    from lost.host.live.navigator import LiveNavigator
+    from lost.host.live.receiver import LiveDecoder
+    from lost.host.live.stream import live_datagrams
+    from lost.host.nav import NavParameters, navigate
+
+    path, map_path = tow
+    params = NavParameters()
+    grid, _ = _map_uncertainty(read_grid(map_path), params)
+
+    def recorder():
+        return SurveyRecorder(node_m=grid.node_m, patch_shape=(10, 10), interval_s=5.0, window_s=20.0, dr_bias_mps=(0.1, 0.05),
+                              start_offset_m=(30.0, -20.0), patch_centre="soundings")
+
+    result = navigate(survey_records(open_survey(path, crs=grid.crs), recorder()), grid, params, estimators=("pmf", "pf"))
+    live = LiveNavigator(grid, params, ("pmf", "pf"), recorder())
+    decoder, served = LiveDecoder(), []
+    for datagram in live_datagrams(open_survey(path)):
+        for value in decoder.feed(datagram.payload):
+            served += live.add(value) if hasattr(value, "beams") else []
+    served += live.finish()
+    for name in ("pmf", "pf"):
+        mine = [e for e in served if e.estimator == name]
+        track = result.tracks[name]
+        assert len(mine) == len(track.position)
+        np.testing.assert_array_equal([(e.east_m, e.north_m) for e in mine], track.position)
+        np.testing.assert_array_equal([e.covariance_m2 for e in mine], track.covariance[:, [0, 1, 0], [0, 1, 1]])
+        assert [e.usable for e in mine] == list(track.usable)
+    capsys.readouterr()
+
+
+def test_lost_duplicated_reordered_and_malformed_datagrams_are_counted_into_the_summary_never_a_stop(tow, tmp_path, capsys):
+    junk = (b"\x00\x01 not a datagram", b"$GPGGA,garbled*00\r\n", (40).to_bytes(4, "little") + b"#MRZ" + bytes(28))
+    out, _ = _serve_replay(tow, tmp_path, ["--loss", "0.05", "--reorder", "0.05", "--duplicate", "0.05", "--seed", "3"], junk=junk,
+                           estimators=["lost"])
+    replayed = capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    received = summary["received"]
+    assert received["datagram of neither .kmall nor NMEA (skipped)"] == 1
+    assert received["kmall #MRZ datagram whose length fields disagree with its size (skipped)"] == 1
+    assert sum(n for reason, n in received.items() if "checksum" in reason or "NMEA" in reason) >= 1
+    drawn = next(line for line in replayed.splitlines() if line.startswith("faults (seed 3)")).split("(.kmall ")[1]
+    assert received["duplicate kmall datagram (skipped)"] == int(drawn.split(", ")[1].split(" duplicated")[0]) > 0
+    assert received["pings missing from the ping counter's sequence"] > 0
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert summary["ended"].startswith("no datagram") and len(log) == summary["records"] >= PINGS // 5 - 2
+    assert summary["methods"]["lost"]["usable_fraction"] > 0.5  # the clean replay: 0.875
+
+
+def test_a_silent_sonar_and_pings_without_beams_are_stepped_as_dead_reckoning_and_counted(tow):
+    from dataclasses import replace
+
+    from lost.host.io import read_grid
+    from lost.host.io.survey import open_survey
+    from lost.host.io.survey_records import SurveyRecorder
+    from lost.host.live.navigator import LiveNavigator
+    from lost.host.nav import NavParameters
+
+    path, map_path = tow
+    grid = read_grid(map_path)
+    live = LiveNavigator(grid, NavParameters(), ("pf",), SurveyRecorder(node_m=grid.node_m, patch_shape=(10, 10), interval_s=5.0,
+                                                                                window_s=20.0, patch_centre="soundings"))
+    pings = list(open_survey(path))
+    start = pings[0].time_s
+    served = []
+    for ping in pings:
+        age = ping.time_s - start
+        if 40 <= age < 60:  # the sonar silent for 20 s: four intervals without a ping
+            continue
+        if 80 <= age < 110:  # pinging, but no bottom detected: the three records whose 20 s window holds no beam have no patch
+            ping = replace(ping, valid=np.zeros_like(ping.valid))
+        served += live.add(ping)
+    served += live.finish()
+    assert live.counts["record intervals without a ping (the sonar silent)"] == 4
+    assert live.counts["records without a patch (dead reckoning)"] == 3  # at 99, 104 and 109 s
+    assert len(served) == live.counts["records stepped"] == len({math.floor((p.time_s - start) / 5) for p in pings}) - 4
+    assert all(np.isfinite(e.east_m) and np.isfinite(e.covariance_m2[0]) for e in served[1:])
+    assert {e.stage for e in served if 95 <= e.t_s < 110} == {"dead_reckoning"}
