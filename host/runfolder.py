@@ -26,6 +26,11 @@ The replacement is two renames (old run aside, new run in): between them, for mi
 does not exist; were the machine to stop there, the previous run is still whole in
 ``.NAME.old-XXXX/run``, and the next run on ``out`` puts it back before anything else. A run killed
 outright (SIGKILL) leaves its ``.NAME.partial-XXXX``; the next run on ``out`` deletes it.
+
+A run that writes as it goes (``lost serve``'s log: what it has already served) names those files in
+``keep``: a partial folder holding one of them is never deleted. An exception inside the block moves it
+to ``NAME.stopped-YYYYmmddTHHMMSSZ`` beside ``out``; the next run on ``out`` moves a killed run's so,
+instead of deleting it. Either says where it went (a warning).
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ import math
 import os
 import shutil
 import tempfile
+import warnings
 from collections.abc import Callable, Iterator, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
@@ -50,6 +56,9 @@ __all__ = ["RunFolderError", "run_folder", "holds_a_run", "describe_untouched", 
 
 #: The file that marks a folder as a LOST run (:func:`run_folder` writes it into every run).
 RUN_MARKER = "lost-run.json"
+
+#: Inside a partial folder: the files of a run that writes as it goes, kept when the run does not finish.
+KEEP_MARKER = ".lost-keep"
 
 #: A run's files (track CSV, summary, plots) take a few MB; refuse to start with less free.
 MIN_FREE_BYTES = 16 * 1024 * 1024
@@ -183,11 +192,34 @@ def _recover(parent: Path, out: Path) -> None:
     """
     name = glob.escape(out.name)  # a folder named run[1] is no pattern
     for partial in parent.glob(f".{name}.partial-*"):
-        shutil.rmtree(partial, ignore_errors=True)
+        if not _set_aside_if_kept(partial, out, "killed"):
+            shutil.rmtree(partial, ignore_errors=True)
     for old in parent.glob(f".{name}.old-*"):
         if not out.exists() and (old / "run").is_dir():
             os.replace(old / "run", out)
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _set_aside_if_kept(partial: Path, out: Path, how: str) -> bool:
+    """Move a partial run that holds a kept file to ``NAME.stopped-TIME`` beside ``out``; whether it did."""
+    marker = partial / KEEP_MARKER
+    kept = marker.read_text(encoding="utf-8").split() if marker.is_file() else []
+    if not any((partial / name).is_file() and (partial / name).stat().st_size > 0 for name in kept):
+        return False
+    stamp = datetime.fromtimestamp(marker.stat().st_mtime, UTC).strftime("%Y%m%dT%H%M%SZ")
+    target = out.with_name(f"{out.name}.stopped-{stamp}")
+    for n in range(1, 1000):
+        if not target.exists():
+            break
+        target = out.with_name(f"{out.name}.stopped-{stamp}-{n}")
+    try:
+        os.replace(partial, target)
+    except OSError as error:
+        warnings.warn(f"a {how} run's {', '.join(kept)} stay in {partial} (moving it to {target} failed: {error.strerror or error})",
+                      stacklevel=3)
+        return True
+    warnings.warn(f"a {how} run's {', '.join(kept)} kept in {target}", stacklevel=3)
+    return True
 
 
 def _install(partial: Path, out: Path, parent: Path) -> None:
@@ -217,7 +249,7 @@ def _umask() -> int:
 
 
 @contextlib.contextmanager
-def run_folder(out: str | os.PathLike, *, replace: bool = False, command: str = "run") -> Iterator[Path]:
+def run_folder(out: str | os.PathLike, *, replace: bool = False, command: str = "run", keep: tuple[str, ...] = ()) -> Iterator[Path]:
     """Yield a fresh temporary folder for a run's files; on success it becomes ``out``, whole.
 
     Parameters
@@ -228,6 +260,8 @@ def run_folder(out: str | os.PathLike, *, replace: bool = False, command: str = 
         Replace an earlier run in ``out`` (whole). Without it such a folder is refused.
     command : str
         The subcommand writing the run, recorded in its marker.
+    keep : tuple of str
+        Files the run writes as it goes, kept (with their folder) when the run fails or is killed.
 
     Yields
     ------
@@ -252,9 +286,15 @@ def run_folder(out: str | os.PathLike, *, replace: bool = False, command: str = 
         except OSError as error:
             raise RunFolderError(f"cannot write {out}: making a folder in {parent} failed ({error.strerror or error})") from None
         partial.chmod(0o777 & ~_umask())  # mkdtemp makes it private; a run folder is an ordinary folder
+        if keep:
+            (partial / KEEP_MARKER).write_text(" ".join(keep) + "\n", encoding="utf-8")
+        installed = False
         try:
             yield partial
             _mark(partial, command)
             _install(partial, out, parent)
+            installed = True
+            (out / KEEP_MARKER).unlink(missing_ok=True)
         finally:
-            shutil.rmtree(partial, ignore_errors=True)
+            if installed or not _set_aside_if_kept(partial, out, "stopped"):
+                shutil.rmtree(partial, ignore_errors=True)

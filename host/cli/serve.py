@@ -36,7 +36,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     settings = read_serve_settings(args.config)
     params = navigation_parameters(settings.navigation, f"{args.config} [navigation]")
     out = args.out = args.out or Path("runs") / "serve"
-    with run_folder(out, replace=args.replace, command="serve") as folder:
+    with run_folder(out, replace=args.replace, command="serve", keep=("log.jsonl",)) as folder:
         shutil.copyfile(args.config, folder / "settings.toml")
         grid = read_grid(settings.bathy)
         if grid.crs is None:

@@ -127,3 +127,32 @@ def test_a_map_gets_the_canvas_along_its_longer_side(width_m, height_m):
     map_w, map_h = width_in - 1.8, height_in - 1.0
     assert max(map_w, map_h) == pytest.approx(10.0)
     assert map_h / map_w == pytest.approx(height_m / width_m)
+
+
+def test_a_failing_run_keeps_what_it_wrote_as_it_went(tmp_path):
+    out = tmp_path / "serve"
+    with pytest.warns(UserWarning, match=r"stopped run's log.jsonl kept in .*serve\.stopped-"), pytest.raises(RuntimeError, match="disk"):
+        with run_folder(out, command="serve", keep=("log.jsonl",)) as folder:
+            (folder / "log.jsonl").write_text('{"record": 0}\n{"record": 1}\n')
+            raise RuntimeError("the disk is full")
+    assert not out.exists()
+    (stopped,) = tmp_path.glob("serve.stopped-*")
+    assert (stopped / "log.jsonl").read_text().count("record") == 2
+
+
+def test_a_killed_run_s_log_is_set_aside_not_deleted_by_the_next_run(tmp_path):
+    out = tmp_path / "serve"
+    killed = tmp_path / ".serve.partial-dead1"  # what a SIGKILLed lost serve leaves
+    killed.mkdir()
+    (killed / ".lost-keep").write_text("log.jsonl\n")
+    (killed / "log.jsonl").write_text('{"record": 0}\n')
+    dead_plot = tmp_path / ".serve.partial-dead2"  # a killed batch run: nothing to keep
+    dead_plot.mkdir()
+    (dead_plot / "track.csv").write_text("t\n")
+    with pytest.warns(UserWarning, match=r"killed run's log.jsonl kept in .*serve\.stopped-"):
+        with run_folder(out, command="serve", keep=("log.jsonl",)) as folder:
+            (folder / "log.jsonl").write_text('{"record": 0}\n')
+    (stopped,) = tmp_path.glob("serve.stopped-*")
+    assert (stopped / "log.jsonl").read_text() == '{"record": 0}\n'
+    assert not killed.exists() and not dead_plot.exists()
+    assert sorted(p.name for p in out.iterdir()) == ["log.jsonl", RUN_MARKER]  # the finished run keeps no keep-marker
