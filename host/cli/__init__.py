@@ -4,6 +4,7 @@
 
     lost run SCENARIO.toml [--out DIR]                  a simulated tow (a file, or a built-in name)
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
+    lost run --survey FILE... --bathy GRID [--dr-bias E,N] [--start-offset E,N]   a recorded multibeam survey
     lost demo [--out runs/demo]                         the built-in scenario "demo"
     lost correlate MAP PATCH                            best fit and runner-up of a patch on a map
     lost survey FILE... [--json]                        what is inside Kongsberg .all/.kmall and GSF files
@@ -13,6 +14,7 @@
     lost campaign SPEC.toml [--out DIR]                 many simulated tows on Dask, a table of results
     lost plan MAP [--route WAYPOINTS.csv]               where terrain navigation will work, and how well
     lost replay SOURCE --to HOST:PORT [--speed X]       a survey or scenario sent as live .kmall and NMEA datagrams (UDP)
+    lost serve --config LIVE.toml [--out DIR]           terrain navigation on live .kmall and NMEA datagrams (UDP)
 
 Every command that writes files writes them into a run folder (``--out``), whole or not at all
 (:mod:`lost.host.runfolder`): an earlier LOST run there is replaced only with ``--replace``.
