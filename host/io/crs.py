@@ -1,7 +1,9 @@
-"""Coordinate reference systems: the UTM zone of a point, parsing, comparison, the target CRS of a grid."""
+"""Coordinate reference systems: the UTM zone of a point, parsing, comparison, the target CRS of a grid; small local
+offsets between geographic positions in metres."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +12,25 @@ import numpy as np
 X_NAMES = ("lon", "longitude", "x", "easting", "east", "x_m")
 Y_NAMES = ("lat", "latitude", "y", "northing", "north", "y_m")
 GEOGRAPHIC_NAMES = {"lon", "longitude", "lat", "latitude"}
+
+
+#: The sphere of small local offsets between geographic positions (seconds of motion, a swath's width): its error
+#: against the ellipsoid, under 0.5 %, is far below what such offsets are used for.
+EARTH_RADIUS_M = 6_371_000.0
+
+
+def offset_metres(dlat_deg, dlon_deg, lat_deg: float):
+    """North and east metres of a small latitude and longitude difference at ``lat_deg`` (arrays or scalars)."""
+    north = np.radians(dlat_deg) * EARTH_RADIUS_M
+    east = np.radians(dlon_deg) * EARTH_RADIUS_M * math.cos(math.radians(lat_deg))
+    return north, east
+
+
+def offset_degrees(north_m, east_m, lat_deg: float):
+    """Latitude and longitude differences of a small north and east offset at ``lat_deg`` (arrays or scalars)."""
+    dlat = np.degrees(np.asarray(north_m, dtype=float) / EARTH_RADIUS_M)
+    dlon = np.degrees(np.asarray(east_m, dtype=float) / (EARTH_RADIUS_M * max(math.cos(math.radians(lat_deg)), 1e-6)))
+    return dlat, dlon
 
 
 def utm_crs(lon_deg: float, lat_deg: float) -> str:

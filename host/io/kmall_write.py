@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .crs import offset_degrees
 from .kmall import _SOUNDING  # the 120-byte sounding: the reader's own layout, one place for it
 from .survey import Ping
 
@@ -41,7 +42,6 @@ __all__ = ["write_kmall_pings", "ping_datagrams", "HeadIndex", "encode_mrz", "en
 MRZ_VERSION, SKM_VERSION, SPO_VERSION = 0, 1, 0
 #: Largest part of a split datagram, bytes: within one UDP datagram (65,507 bytes of payload over IPv4).
 UDP_PART_BYTES = 64_000
-_EARTH_RADIUS_M = 6_371_000.0
 
 HEADER = np.dtype([("numBytesDgm", "<u4"), ("dgmType", "S4"), ("dgmVersion", "u1"), ("systemID", "u1"), ("echoSounderID", "<u2"),
                    ("time_sec", "<u4"), ("time_nanosec", "<u4")])
@@ -156,8 +156,7 @@ def encode_mrz(ping: Ping, *, rx_index: int = 0, ping_count: int = 0, system_id:
     h = math.radians(ping.heading_deg)
     north = ping.along_m * math.cos(h) - ping.across_m * math.sin(h)
     east = ping.along_m * math.sin(h) + ping.across_m * math.cos(h)
-    beams["deltaLatitude_deg"] = np.degrees(north / _EARTH_RADIUS_M)
-    beams["deltaLongitude_deg"] = np.degrees(east / (_EARTH_RADIUS_M * max(math.cos(math.radians(ping.lat_deg)), 1e-6)))
+    beams["deltaLatitude_deg"], beams["deltaLongitude_deg"] = offset_degrees(north, east, ping.lat_deg)
     body = b"".join(a.tobytes() for a in (partition, cmn, info, sector, rx, beams))
     return _framed(b"#MRZ", MRZ_VERSION, ping.time_s, body, system_id=system_id, echo_sounder_id=echo_sounder_id)
 

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .crs import offset_degrees, offset_metres
 from .survey import Ping, interpolate_at
 
 __all__ = ["read_all_pings", "write_all_pings", "ALL_HEADER"]
@@ -47,7 +48,6 @@ _ACTIVE_POSITION_SYSTEM = 0x80  # position system descriptor bit 7: the system t
 # Position or attitude samples farther apart than this around a ping leave it without that value.
 _MAX_NAV_GAP_S = 10.0
 _MAX_ATTITUDE_GAP_S = 1.0
-_EARTH_RADIUS_M = 6_371_000.0  # a few seconds of dead reckoning: the sphere's error is far below the fix's
 
 
 def read_all_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
@@ -203,11 +203,10 @@ def _dead_reckoned(t: float, positions: dict) -> tuple[float, float]:
         span = positions["t"][j] - positions["t"][k]
         if abs(span) < 0.1:
             return math.nan, math.nan
-        north = math.radians(positions["lat"][j] - lat0) * _EARTH_RADIUS_M / span
-        east = math.radians(positions["lon"][j] - lon0) * _EARTH_RADIUS_M * math.cos(math.radians(lat0)) / span
-    lat = lat0 + math.degrees(north * dt_s / _EARTH_RADIUS_M)
-    lon = lon0 + math.degrees(east * dt_s / (_EARTH_RADIUS_M * math.cos(math.radians(lat0))))
-    return float(lat), float(lon)
+        north, east = offset_metres(positions["lat"][j] - lat0, positions["lon"][j] - lon0, lat0)
+        north, east = north / span, east / span
+    dlat, dlon = offset_degrees(north * dt_s, east * dt_s, lat0)  # a few seconds of dead reckoning
+    return float(lat0 + dlat), float(lon0 + dlon)
 
 
 def _or_nan(value) -> float:

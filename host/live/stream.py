@@ -22,14 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.crs import offset_metres
 from ..io.kmall_write import UDP_PART_BYTES, HeadIndex, ping_datagrams, split_datagram
 from ..io.survey import Ping
 from .nmea import fix_sentences
 
 __all__ = ["LiveDatagram", "Faults", "live_datagrams", "with_faults", "send_datagrams"]
-
-_EARTH_RADIUS_M = 6_371_000.0
-
 
 @dataclass(frozen=True)
 class LiveDatagram:
@@ -63,8 +61,7 @@ class Faults:
 def _course_speed(before: Ping | None, ping: Ping) -> tuple[float, float]:
     if before is None or ping.time_s <= before.time_s:
         return math.nan, math.nan
-    north = math.radians(ping.lat_deg - before.lat_deg) * _EARTH_RADIUS_M
-    east = math.radians(ping.lon_deg - before.lon_deg) * _EARTH_RADIUS_M * math.cos(math.radians(ping.lat_deg))
+    north, east = offset_metres(ping.lat_deg - before.lat_deg, ping.lon_deg - before.lon_deg, ping.lat_deg)
     return math.degrees(math.atan2(east, north)) % 360.0, math.hypot(east, north) / (ping.time_s - before.time_s)
 
 
