@@ -37,7 +37,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   ``lookalike_margin`` (mean absolute residual over sigma, per node) of the best near the estimate,
   the update is counted ``lookalike`` and the flag goes down.
 - Wrong place: the same check measures whether a placement beyond three sigma fits *better* than the
-  best near the estimate by more than ``elsewhere_margin`` (counted ``fits_better_elsewhere``). A density
+  best near the estimate by more than ``elsewhere_margin`` over the square root of the independent share
+  (the margin's noise grows as the residuals' correlation; counted ``fits_better_elsewhere``). A density
   that locked onto a wrong place learns that place's misfit as its running level, so the misfit gate no
   longer refuses it; ``reinit_after`` such patches among the last ``2 reinit_after`` checked re-initialize
   the filter (``reinitialized_elsewhere``).
@@ -263,7 +264,11 @@ class Trust:
             self.counts["lookalike"] += 1
             self.good_in_row = 0
             self.usable = False
-        better_elsewhere = margin < -self._p.elsewhere_margin
+        # The margin is a difference of two mean residuals over the patch: its noise goes as 1 / sqrt(N_eff), so the
+        # wrong-place threshold grows by 1 / sqrt(independent share). On a smooth shelf under a survey map (share about
+        # 0.1) a 0.5 margin elsewhere is the map's correlated error: shelf_canyon (seed 0) re-initialized twice on it
+        # from the right place and locked 700 m off.
+        better_elsewhere = margin < -self._p.elsewhere_margin / math.sqrt(self.independent_share)
         self._elsewhere.append(better_elsewhere)
         if better_elsewhere:
             self.counts["fits_better_elsewhere"] += 1

@@ -120,3 +120,19 @@ def test_a_wide_densitys_correction_teaches_no_velocity_bias():
     pmf._accept(posterior, cov, np.array([0.0, -90.0]), terrain=True)  # a 90 m move of a wide density
     np.testing.assert_array_equal(pmf.velocity_bias_mps, 0.0)
     assert not pmf._velocity_bias.following and pmf.counts["velocity_bias_paused"] == 1
+
+
+def test_the_wrong_place_threshold_grows_as_the_residuals_correlate():
+    """A margin of -0.8 per node is a better fit elsewhere for independent residuals (threshold 0.5) but the map's
+    correlated error where only a tenth of the nodes are independent (threshold 0.5 / sqrt 0.1 = 1.58)."""
+
+    class Margin:
+        def margin(self, centre, patch, *, radius_m, exclusion_m):
+            return -0.8
+
+    narrow = np.eye(2) * 4.0
+    for share, counted in ((1.0, 1), (0.1, 0)):
+        trust = Trust(NavParameters(), node_m=NODE)
+        trust.independent_share = share
+        trust.look_alike(Margin(), np.zeros(2), narrow, None)
+        assert trust.counts["fits_better_elsewhere"] == counted, share
