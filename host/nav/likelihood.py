@@ -268,13 +268,19 @@ class TerrainLikelihood:
         per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
         if self.form == "gaussian":
             per_node = np.sqrt(per_node)
-        score = -per_node / self._placement_sigma((h, w), i0, i1, j0, j1)  # per valid node, in nominal residual units
-        ii, jj = np.meshgrid(np.arange(i0, i1 + 1) - ci, np.arange(j0, j1 + 1) - cj, indexing="ij")
-        near = valid & (np.maximum(np.abs(ii), np.abs(jj)) * grid.node_m <= exclusion_m)
-        far = valid & ~near
-        if not (near.any() and far.any()):
+        score = np.where(valid, -per_node / self._placement_sigma((h, w), i0, i1, j0, j1), -np.inf)  # per valid node, nominal units
+        # Near: the placements within exclusion_m (Chebyshev) of the centre, a rectangle of the region.
+        e = exclusion_m / grid.node_m
+        r0, r1 = max(math.ceil(ci - e - 1e-9), i0) - i0, min(math.floor(ci + e + 1e-9), i1) - i0 + 1
+        c0, c1 = max(math.ceil(cj - e - 1e-9), j0) - j0, min(math.floor(cj + e + 1e-9), j1) - j0 + 1
+        if r0 >= r1 or c0 >= c1:
             return float("nan")
-        return float(score[near].max() - score[far].max())
+        near = float(score[r0:r1, c0:c1].max())
+        score[r0:r1, c0:c1] = -np.inf
+        far = float(score.max())
+        if not (math.isfinite(near) and math.isfinite(far)):
+            return float("nan")
+        return near - far
 
     def independent_share(self, centre_m: np.ndarray, patch: SonarPatch) -> float:
         """The share of a patch's nodes whose residuals are independent, N_eff / n, at the placement nearest ``centre_m``.

@@ -136,3 +136,35 @@ def test_the_wrong_place_threshold_grows_as_the_residuals_correlate():
         trust.independent_share = share
         trust.look_alike(Margin(), np.zeros(2), narrow, None)
         assert trust.counts["fits_better_elsewhere"] == counted, share
+
+
+def _margin_by_mask(lik, grid, centre, patch, radius_m, exclusion_m):
+    """The look-alike margin with the near region as a Chebyshev mask over the placements (the definition)."""
+    words, mask, _ = lik._prep.quantize_patch(patch.depth_m)
+    h, w = words.shape
+    row, col = grid.row_col(centre[0] + patch.centre_offset_m[0], centre[1] + patch.centre_offset_m[1])
+    ci, cj = float(row) - (h - 1) / 2, float(col) - (w - 1) / 2
+    reach = radius_m / grid.node_m
+    i0, i1 = max(int(np.floor(ci - reach)), 0), min(int(np.ceil(ci + reach)), grid.shape[0] - h)
+    j0, j1 = max(int(np.floor(cj - reach)), 0), min(int(np.ceil(cj + reach)), grid.shape[1] - w)
+    per_node, valid = lik._residuals(words, mask, i0, i1, j0, j1)
+    score = -per_node / lik._placement_sigma((h, w), i0, i1, j0, j1)
+    ii, jj = np.meshgrid(np.arange(i0, i1 + 1) - ci, np.arange(j0, j1 + 1) - cj, indexing="ij")
+    near = valid & (np.maximum(np.abs(ii), np.abs(jj)) * grid.node_m <= exclusion_m)
+    far = valid & ~near
+    return float(score[near].max() - score[far].max())
+
+
+def test_the_margin_equals_its_definition_with_a_chebyshev_mask():
+    grid = _map()
+    depth = grid.depth_m.copy()
+    depth[30:33, 50:52] = np.nan  # holes inside the region
+    grid = Grid(depth, 0.0, 0.0, NODE)
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        centre = rng.uniform(150.0, 650.0, 2)
+        patch = _cut(grid, *rng.uniform(200.0, 600.0, 2), 0.3 * rng.standard_normal((SIDE, SIDE)))
+        radius, exclusion = rng.uniform(100.0, 400.0), rng.uniform(10.0, 60.0)
+        expected = _margin_by_mask(lik, grid, centre, patch, radius, exclusion)
+        assert lik.margin(centre, patch, radius_m=radius, exclusion_m=exclusion) == pytest.approx(expected, abs=1e-12)
