@@ -168,3 +168,11 @@ def test_the_margin_equals_its_definition_with_a_chebyshev_mask():
         radius, exclusion = rng.uniform(100.0, 400.0), rng.uniform(10.0, 60.0)
         expected = _margin_by_mask(lik, grid, centre, patch, radius, exclusion)
         assert lik.margin(centre, patch, radius_m=radius, exclusion_m=exclusion) == pytest.approx(expected, abs=1e-12)
+
+
+def test_a_patch_is_left_out_where_less_than_half_a_wide_density_lies_on_the_map():
+    """Off-map candidates get the neutral likelihood, so a sliver of a wide density on the map would take all of it."""
+    trust = Trust(NavParameters(), node_m=NODE)
+    narrow, wide = np.eye(2) * 4.0, np.eye(2) * (5.0 * NODE) ** 2
+    assert trust.at_edge(0.85, narrow) and not trust.at_edge(0.95, narrow)
+    assert trust.at_edge(0.4, wide) and not trust.at_edge(0.6, wide)
