@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-usbl bench-read synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -42,7 +42,7 @@ bench-sim: setup
 	$(BIN)/python benchmarks/simulate_speed.py
 	$(BIN)/python benchmarks/survey_maps.py
 
-# The planner's speed on a 2000 x 2000 map (the bound alone, and the whole lost plan command).
+# The planner's speed on a 2000 x 2000 map (the bound, the look-alikes, and the whole lost plan command).
 bench-plan: setup
 	$(BIN)/python benchmarks/plan_speed.py
 
@@ -61,14 +61,20 @@ bench-nav: setup
 bench-nav-usbl: setup
 	$(BIN)/python benchmarks/nav_usbl.py --seeds 1414 1 2
 
+# The contact tracker over ten seeds a case on the campaign engine (two local workers), beside Stone Soup's GM-PHD and
+# JPDA: build/bench/track-seeds/results.parquet and summary.json (medians and 90th percentiles per case and tracker).
+bench-track: setup
+	$(BIN)/lost campaign benchmarks/campaigns/track.toml --out build/bench/track-seeds --workers 2
+
 # Every goal of the contact tracker over 10 seeds per case, beside Stone Soup's GM-PHD and JPDA (about an hour
 # of CPU at the defaults; TRACK_ARGS shortens it, see docs/track.md): tables on stdout, build/track/goals.json.
-bench-track: setup
+bench-track-goals: setup
 	$(BIN)/python benchmarks/track_goals.py --out build/track $(TRACK_ARGS)
 
-# INS+USBL: the goals over 20 seeds, the paper's Table 1 on our cast, the speed of each step.
+# INS+USBL over twenty seeds a scenario on the campaign engine (build/bench/usbl-seeds: results.parquet, summary.json
+# with medians and 90th percentiles), then the paper's Table 1 on our cast, the speed of each step, the truth's checks.
 bench-usbl: setup
-	$(BIN)/python benchmarks/usbl_goals.py --seeds 20
+	$(BIN)/lost campaign benchmarks/campaigns/usbl.toml --out build/bench/usbl-seeds --workers 2
 	$(BIN)/python benchmarks/usbl_table1.py
 	$(BIN)/python benchmarks/usbl_speed.py
 	$(BIN)/python benchmarks/usbl_truth.py --seeds 20
@@ -77,6 +83,10 @@ bench-usbl: setup
 # 1 GB .all (about 3 minutes here): a table on stdout and build/bench/read_speed.json.
 bench-read: setup
 	$(BIN)/python benchmarks/read_speed.py
+
+# A simulated tow exported as .all and navigated with lost run --survey, against the scenario's run, over 10 seeds (a few minutes).
+bench-read-survey: setup
+	$(BIN)/python benchmarks/read_survey_nav.py
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

@@ -1,20 +1,24 @@
 """The planner against Monte Carlo: the predicted error along a tow's track against the point-mass filter's RMS over seeds.
 
 python benchmarks/plan_check.py [--seeds 10] [--segment-s 120] [--scenarios short shelf_canyon ...] [--workers 2]
+                                [--cache DIR] [--evidence-scale C] [--acquisitions-per-patch K]
 
 For each scenario the floor and the map are fixed (the scenario's own seed draws them) and the sensors change with
 the seed: the question is how well the navigation does on *this* map along *this* route. The planner sees only the
-map (`lost plan`'s model: the bound of one correlation with the map's own error per node, the dead reckoning's
-growth between fixes, the filters' floor) and the true track. The track is cut into segments of ``segment_s``
-after the filter's convergence; per segment, the Monte Carlo RMS (all seeds, all records of the segment) against
-the RMS of the predicted 1-sigma errors. Prints per scenario the share of segments within a factor 1.5 (the goal:
->= 80 %), the median ratio, and the predicted and measured errors on the most and least informative segments; writes
-build/bench/plan_check.json.
+map (`lost plan`'s model: the bound of one correlation with the map's own error per node, the look-alikes, the lock
+acquired, lost and regained, the dead reckoning's growth, the filters' floor) and the true track. The whole track is
+cut into segments of ``segment_s``; per segment, the Monte Carlo RMS (all seeds, all records of the segment) against
+the RMS of the predicted errors. Prints per scenario the share of segments within a factor 1.5 (the goal: >= 80 %),
+also of those after the seeds' median convergence, the median ratio, and steep features against smooth shelves (the
+third of the segments on the map with the smallest median bound against the third with the largest: median predicted
+and Monte Carlo RMS, and their shelf/steep ratios); writes build/bench/plan_check.json. ``--cache`` keeps each seed's
+run (``NAME-SEED.npz``) and reads it back the next time, so the prediction can be scored again without the filters.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import subprocess
 from concurrent.futures import ProcessPoolExecutor
@@ -24,9 +28,9 @@ import numpy as np
 
 from lost.host.campaign import scenario_with
 from lost.host.nav import NavParameters, navigate
-from lost.host.plan import RouteModel, SonarModel, accuracy_grid, map_sigma, predict_along
+from lost.host.plan import RouteModel, SonarModel, accuracy_grid, lookalike_grid, map_sigma, predict_along
 from lost.host.report import ConvergenceRule, convergence_index, horizontal_error
-from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
+from lost.host.scenario import builtin_scenario_path, load_scenario, scenario_grid, simulate
 
 
 def _scenario(name: str, seed: int):
@@ -36,51 +40,94 @@ def _scenario(name: str, seed: int):
     return scenario_with(base, {**fixed, "seed": 1000 + seed})
 
 
-def one_seed(name: str, seed: int) -> dict:
+def one_seed(name: str, seed: int, cache: Path | None = None) -> dict:
+    """One seed's point-mass run on the scenario's fixed floor and map: times, errors, convergence, truth.
+
+    With ``cache`` the run is kept in ``cache/NAME-SEED.npz`` and read from there the next time (the prediction
+    can then be re-scored without the Monte Carlo)."""
+    path = None if cache is None else cache / f"{name}-{seed}.npz"
+    if path is not None and path.is_file():
+        data = np.load(path)
+        start = int(data["start"])
+        return {"t_s": data["t_s"], "error": data["error"], "start": None if start < 0 else start, "truth": data["truth"]}
     scenario = _scenario(name, seed)
     grid, records = simulate(scenario)
     result = navigate(records, grid, NavParameters(**scenario.navigation), estimators=("pmf",))
     error = horizontal_error(result.tracks["pmf"].position, result.truth)
     start = convergence_index(result.t_s, error, ConvergenceRule())
-    return {"t_s": result.t_s.tolist(), "error": error.tolist(), "start": start,
-            "truth": result.truth.tolist(), "grid": grid if seed == 0 else None, "scenario": scenario if seed == 0 else None}
+    run = {"t_s": np.asarray(result.t_s), "error": np.asarray(error), "start": start, "truth": np.asarray(result.truth)}
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path.with_suffix(".partial.npz"), **{**run, "start": -1 if start is None else start})
+        path.with_suffix(".partial.npz").replace(path)
+    return run
 
 
-def check(name: str, seeds: int, segment_s: float, workers: int) -> dict:
+def check(name: str, seeds: int, segment_s: float, workers: int, cache: Path | None = None, evidence_scale: float | None = None,
+          acquisitions_per_patch: float | None = None) -> dict:
     with ProcessPoolExecutor(workers) as pool:
-        runs = list(pool.map(one_seed, [name] * seeds, range(seeds)))
-    grid, scenario = runs[0]["grid"], runs[0]["scenario"]
+        runs = list(pool.map(one_seed, [name] * seeds, range(seeds), [cache] * seeds))
+    scenario = _scenario(name, 0)
+    grid = scenario_grid(scenario)
     params = NavParameters(**scenario.navigation)
     spec = scenario.sensors["sonar"]
     sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3))
-    accuracy = accuracy_grid(grid, sonar, map_sigma(grid, params.survey_sigma_m))
+    sigma = map_sigma(grid, params.survey_sigma_m)
+    accuracy = accuracy_grid(grid, sonar, sigma)
+    lookalike = lookalike_grid(grid, sonar, sigma, radius_m=params.lookalike_radius_m,
+                               **({} if evidence_scale is None else {"evidence_scale": evidence_scale}))
     t = np.asarray(runs[0]["t_s"])
     truth = np.asarray(runs[0]["truth"])
-    model = RouteModel.from_navigation(params, grid.node_m, speed_mps=scenario.ship.speed_kn * 1852 / 3600, interval_s=spec.interval_s,
-                                       initial_sigma_m=params.initial_sigma_m)
+    model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), speed_mps=scenario.ship.speed_kn * 1852 / 3600,
+                                       interval_s=spec.interval_s, initial_sigma_m=params.initial_sigma_m)
+    if acquisitions_per_patch is not None:
+        model = dataclasses.replace(model, acquisitions_per_patch=acquisitions_per_patch)
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
     sonar_xy = truth[np.searchsorted(t, sonar_times)]
-    predicted = np.interp(t, sonar_times, predict_along(accuracy, sonar_times, sonar_xy, model)["predicted_m"])
+    route = predict_along(accuracy, sonar_times, sonar_xy, model, lookalike)
+    predicted = np.interp(t, sonar_times, route["predicted_m"])
+    unlocked = np.interp(t, sonar_times, route["unlocked"])
+    bound = np.interp(t, sonar_times, np.where(np.isfinite(route["bound_m"]), route["bound_m"], 1e9))
     starts = [r["start"] for r in runs if r["start"] is not None]
-    begin = int(np.median(starts)) if starts else len(t)
+    converged = t[int(np.median(starts))] if starts else np.inf
     errors = np.array([r["error"] for r in runs])
     segments = []
-    for lo in np.arange(t[begin] if begin < len(t) else t[-1], t[-1], segment_s):
+    for lo in np.arange(t[0], t[-1], segment_s):
         inside = (t >= lo) & (t < lo + segment_s)
         measured = errors[:, inside]
-        measured = measured[np.isfinite(measured)]
-        if inside.sum() < segment_s / 4 or measured.size == 0:
+        if inside.sum() < segment_s / 4 or not np.isfinite(measured).any():
             continue
-        mc = float(np.sqrt(np.mean(measured**2)))
+        mc = float(np.sqrt(np.nanmean(measured**2)))
         pred = float(np.sqrt(np.mean(predicted[inside] ** 2)))
-        segments.append({"t0_s": float(lo), "mc_rms_m": mc, "predicted_m": pred, "ratio": pred / mc})
-    ratios = np.array([s["ratio"] for s in segments])
-    within = float(np.mean((ratios >= 1 / 1.5) & (ratios <= 1.5))) if ratios.size else None
-    by_prediction = sorted(segments, key=lambda s: s["predicted_m"])
-    return {"scenario": name, "seeds": seeds, "converged_seeds": len(starts), "segments": len(segments), "within_1_5": within,
-            "median_ratio": float(np.median(ratios)) if ratios.size else None,
-            "most_informative": by_prediction[0] if segments else None, "least_informative": by_prediction[-1] if segments else None,
+        segments.append({"t0_s": float(lo), "mc_rms_m": mc, "predicted_m": pred, "ratio": pred / mc, "bound_m": float(np.median(bound[inside])),
+                         "mc_unlocked": float(np.mean(np.nanmax(measured, axis=1) > LOST_M)), "predicted_unlocked": float(np.mean(unlocked[inside])),
+                         "after_convergence": bool(lo >= converged)})
+    return {"scenario": name, "seeds": seeds, "converged_seeds": len(starts), "median_convergence_s": float(converged), **_scores(segments),
             "bound_median_m": float(np.median(accuracy.depth_m[np.isfinite(accuracy.depth_m)])), "segment_list": segments}
+
+
+#: A seed whose error exceeds this within a segment has not held the true position there (the "unlocked" share).
+LOST_M = 30.0
+
+
+def _within(segments: list[dict]) -> float | None:
+    ratios = np.array([s["ratio"] for s in segments])
+    return float(np.mean((ratios >= 1 / 1.5) & (ratios <= 1.5))) if ratios.size else None
+
+
+def _scores(segments: list[dict]) -> dict:
+    """The share within 1.5x (all segments, and after the median convergence), and steep features against smooth shelves:
+    the third of the segments on the map with the smallest median bound against the third with the largest, median predicted and
+    MC RMS."""
+    informative = sorted((s for s in segments if s["bound_m"] < 1e8), key=lambda s: s["bound_m"])  # where the map gives a bound
+    third = max(len(informative) // 3, 1)
+    steep, shelf = informative[:third], informative[-third:]
+    median = lambda group, key: float(np.median([s[key] for s in group])) if group else None  # noqa: E731
+    return {"segments": len(segments), "within_1_5": _within(segments), "median_ratio": median(segments, "ratio"),
+            "after_convergence": {"segments": sum(s["after_convergence"] for s in segments),
+                                  "within_1_5": _within([s for s in segments if s["after_convergence"]])},
+            "steep": {"bound_m": median(steep, "bound_m"), "predicted_m": median(steep, "predicted_m"), "mc_rms_m": median(steep, "mc_rms_m")},
+            "shelf": {"bound_m": median(shelf, "bound_m"), "predicted_m": median(shelf, "predicted_m"), "mc_rms_m": median(shelf, "mc_rms_m")}}
 
 
 def main() -> None:
@@ -90,19 +137,26 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--scenarios", nargs="+", default=["short", "coarse_map", "shelf_canyon", "seamount_ridges"])
     parser.add_argument("--out", type=Path, default=Path("build/bench/plan_check.json"))
+    parser.add_argument("--evidence-scale", type=float, default=None, help="the look-alikes' evidence_scale (default: lookalike_grid's)")
+    parser.add_argument("--acquisitions-per-patch", type=float, default=None, help="the route model's acquisitions_per_patch (default: RouteModel's)")
+    parser.add_argument("--cache", type=Path, default=None,
+                        help="keep each seed's Monte Carlo run here and reuse it (re-scoring the prediction without re-running the filters)")
     args = parser.parse_args()
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    results = [check(name, args.seeds, args.segment_s, args.workers) for name in args.scenarios]
+    results = [check(name, args.seeds, args.segment_s, args.workers, args.cache, args.evidence_scale, args.acquisitions_per_patch) for name in args.scenarios]
     print(f"planner against Monte Carlo (point-mass filter, {args.seeds} seeds a scenario, {args.segment_s:g} s segments, commit {commit})")
-    print("| scenario | segments | within 1.5x | median predicted/MC | most informative: predicted / MC m | least: predicted / MC m |")
-    print("|---|---|---|---|---|---|")
+    print("| scenario | segments | within 1.5x | after convergence: within 1.5x | median predicted/MC | steep third: bound, predicted / MC m "
+          "| shelf third: bound, predicted / MC m | shelf/steep predicted, MC |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in results:
         if not r["segments"]:
-            print(f"| {r['scenario']} | 0 | - | - | - | - |")
+            print(f"| {r['scenario']} | 0 | - | - | - | - | - | - |")
             continue
-        hi, lo = r["most_informative"], r["least_informative"]
-        print(f"| {r['scenario']} | {r['segments']} | {r['within_1_5']:.0%} | {r['median_ratio']:.2f} | "
-              f"{hi['predicted_m']:.2f} / {hi['mc_rms_m']:.2f} | {lo['predicted_m']:.2f} / {lo['mc_rms_m']:.2f} |")
+        st, sh, after = r["steep"], r["shelf"], r["after_convergence"]
+        late = "-" if after["within_1_5"] is None else f"{after['within_1_5']:.0%} of {after['segments']}"
+        print(f"| {r['scenario']} | {r['segments']} | {r['within_1_5']:.0%} | {late} | {r['median_ratio']:.2f} | "
+              f"{st['bound_m']:.1f}, {st['predicted_m']:.1f} / {st['mc_rms_m']:.1f} | {sh['bound_m']:.1f}, {sh['predicted_m']:.1f} / {sh['mc_rms_m']:.1f} | "
+              f"{sh['predicted_m'] / st['predicted_m']:.1f}, {sh['mc_rms_m'] / st['mc_rms_m']:.1f} |")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"commit": commit, "results": results}, indent=1) + "\n")
 

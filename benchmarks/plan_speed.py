@@ -1,7 +1,8 @@
 """The planner's speed: `lost plan`'s bound over a 2000 x 2000 map (the goal: under a minute here).
 
 python benchmarks/plan_speed.py [--size 2000] [--repeats 3]: prints the median, minimum and maximum seconds of
-``accuracy_grid`` on a seeded von Karman floor, and of the whole command (reading the map, the NetCDF, the picture).
+``accuracy_grid`` and of ``lookalike_grid`` (600 m search) on a seeded von Karman floor at 10 m, and of the whole
+command (reading the map, both grids, the NetCDF, the picture).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 from lost.host.grid import Grid
 from lost.host.io import write_npz
-from lost.host.plan import SonarModel, accuracy_grid
+from lost.host.plan import SonarModel, accuracy_grid, lookalike_grid
 from lost.host.terrain import synthetic_terrain
 
 
@@ -33,6 +34,12 @@ def main() -> None:
         accuracy_grid(grid, SonarModel())
         times.append(time.perf_counter() - start)
     print(f"accuracy_grid {args.size} x {args.size}: median {statistics.median(times):.2f} s (min {min(times):.2f}, max {max(times):.2f})")
+    times = []
+    for _ in range(args.repeats):
+        start = time.perf_counter()
+        lookalike_grid(grid, SonarModel(), 0.5, radius_m=600.0)
+        times.append(time.perf_counter() - start)
+    print(f"lookalike_grid {args.size} x {args.size}: median {statistics.median(times):.2f} s (min {min(times):.2f}, max {max(times):.2f})")
     with tempfile.TemporaryDirectory() as folder:
         path = write_npz(grid, Path(folder) / "map.npz")
         start = time.perf_counter()

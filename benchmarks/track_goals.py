@@ -1,6 +1,7 @@
 """Every goal of the contact tracker over seeded simulated runs, beside Stone Soup's GM-PHD and JPDA: `make bench-track`.
 
     python benchmarks/track_goals.py [--seeds 10] [--hours 1.0] [--separations 15 20 30 40] [--out build/track]
+                                     [--set NAME=VALUE ...]   # our tracker's TrackerParameters, e.g. permutation_pruning=false
 
 Cases, each over ``--seeds`` seeds (0, 1, ...); every figure is a distribution over the seeds (median and
 90th percentile, or the 10th where less is worse):
@@ -34,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lost.host.cli.common import setting_argument
+from lost.host.config import ConfigError, build
 from lost.host.track.baseline import run_gm_phd, run_jpda
 from lost.host.track.evaluate import contact_metrics, holding, score
 from lost.host.track.particle import DiverParticleFilter, PaperParameters
@@ -42,6 +45,8 @@ from lost.host.track.simulate import PlatformSpec, TargetSpec, TrackScenario, bu
 from lost.host.track.tracker import TrackerParameters
 
 TRACKERS = ("ours", "gm_phd", "jpda")
+#: ``--set`` overrides of our tracker's parameters (the baselines keep theirs).
+OURS_SETTINGS: dict = {}
 
 
 def params_for(sim) -> TrackerParameters:
@@ -56,7 +61,7 @@ def run(tracker: str, sim, seed: int, step_ms: list) -> tuple[list, float]:
     params, sonar = params_for(sim), sim.scenario.sonar.sonar
     start = time.perf_counter()
     if tracker == "ours":
-        result = run_tracker(sim.pings, sonar=sonar, parameters=params, seed=seed, cloud_points=0)
+        result = run_tracker(sim.pings, sonar=sonar, parameters=dataclasses.replace(params, **OURS_SETTINGS), seed=seed, cloud_points=0)
         step_ms.append(np.column_stack((result.step_ms, result.step_cpu_ms)))
         history = result.estimates
     elif tracker == "gm_phd":
@@ -263,7 +268,14 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=Path("build/track"))
     parser.add_argument("--report", type=Path, nargs="+", default=None,
                         help="run nothing: merge these goals.json files (cases run apart) and print their tables and goals")
+    parser.add_argument("--set", dest="settings", type=setting_argument, action="append", default=[], metavar="NAME=VALUE",
+                        help="a TrackerParameters field of our tracker; repeatable; VALUE is TOML (e.g. permutation_pruning=false)")
     args = parser.parse_args(argv)
+    try:  # the settings layer's strict checks: unknown names and wrong types refused by name
+        build(TrackerParameters, dict(args.settings), "--set")
+    except (ConfigError, ValueError) as error:
+        parser.error(str(error))
+    OURS_SETTINGS.update(dict(args.settings))
     if args.report:
         return report(args.report)
     results: dict = {"arguments": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},

@@ -102,7 +102,7 @@ def _summary(report: dict) -> dict:
 
     nextpnr names a clock after its net, ``$glbnet$`` first once the net is promoted to a global one.
     """
-    from .synth import FlowError, parse_nextpnr_report
+    from .pnr import FlowError, parse_nextpnr_report
 
     fmax = report.get("fmax", {})
     ours = [name for name in sorted(fmax) if name.removeprefix("$glbnet$") == CLOCK_NET]

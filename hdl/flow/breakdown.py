@@ -10,7 +10,7 @@ their sum runs a little above a flattened build's; they say where the cost is, n
 (501 x 501 / 10 x 10) and prints its components, largest first; ``--part core --lanes 1`` the whole core.
 ``--part increment`` measures what the flow's figures count instead: the window core in its measurement
 harness with 1 and 2 lanes (``--lanes 1 2``, any two counts), synthesized as ``make synth`` does and packed by
-nextpnr (:func:`lost.hdl.flow.synth.pack`, seconds), and the difference per lane (a few minutes).
+nextpnr (:func:`lost.hdl.flow.pnr.pack`, seconds), and the difference per lane (a few minutes).
 """
 
 from __future__ import annotations
@@ -29,12 +29,13 @@ from lost.hdl.variants import build_core
 from lost.model.paper import PAPER_MAP_SHAPE, PAPER_PATCH_SHAPE
 from lost.model.variants import window_variant
 
-from .synth import ALU_MAP, Configuration, _yosys, pack, synthesize
+from .pnr import ALU_MAP, _yosys, pack, synthesize
+from .synth import Configuration
 
 __all__ = ["cell_counts", "lane_increment", "lut4_equivalent", "main"]
 
-#: The flow's classic-``abc`` script (:data:`lost.hdl.flow.synth._CLASSIC_ABC_SCRIPT`, with its adder map
-#: :data:`~lost.hdl.flow.synth.ALU_MAP`), without flattening.
+#: The flow's classic-``abc`` script (:data:`lost.hdl.flow.pnr._CLASSIC_ABC_SCRIPT`, with its adder map
+#: :data:`~lost.hdl.flow.pnr.ALU_MAP`), without flattening.
 _SCRIPT = ("read_rtlil {il}; synth_ecp5 -noflatten -top top -run begin:map_gates; techmap -map +/techmap.v -map "
            + ALU_MAP.name + "; synth_ecp5 -noflatten -top top -run map_gates:map_luts; techmap -map +/lattice/latches_map.v; "
            "abc -lut 4; clean; synth_ecp5 -noflatten -top top -run map_cells:; tee -q -o {stat} stat -json")

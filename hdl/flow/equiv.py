@@ -39,7 +39,7 @@ from pathlib import Path
 
 from lost.model.shapes import shape_argument
 
-from .synth import FlowError, _run, _tool
+from .pnr import FlowError, _run, _tool
 
 __all__ = [
     "EquivalenceError",

@@ -69,13 +69,29 @@ def _client(scheduler: str | None, workers: int) -> Iterator[Any]:
         with Client(scheduler, timeout="20s") as client:
             yield client
         return
-    # Processes, one thread each: a run is NumPy and Python, which threads would serialize on the GIL. Dask's
-    # default MALLOC_TRIM_THRESHOLD_ for its workers turns every mid-sized NumPy array into an mmap and page faults
-    # (a run took 1.5 times as long as in-process); the workers keep glibc's adaptive default instead.
-    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items() if k != "MALLOC_TRIM_THRESHOLD_"}
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}), \
+    # Processes, one thread each: a run is NumPy and Python, which threads would serialize on the GIL.
+    with dask.config.set(_quiet_workers()), \
             LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, Client(cluster) as client:
         yield client
+
+
+def _quiet_workers() -> dict[str, Any]:
+    """Dask settings that leave a worker's CPU to its run (measured on a 200 s ``short`` run in a worker: the other threads
+    of the process took 12 to 13 % of the run's CPU time by default, 1 % with these).
+
+    - Dask's default ``MALLOC_TRIM_THRESHOLD_`` for its workers turns every mid-sized NumPy array into an mmap and page
+      faults (a run took 1.5 times as long as in-process): the workers keep glibc's adaptive default.
+    - The statistical profiler walks the running task's stack every 10 ms, under the GIL: off (a campaign's runs are
+      profiled in-process, not through Dask's dashboard).
+    - The event loop's health tick every 20 ms, the memory monitor every 100 ms and the system monitor every 500 ms wake
+      the worker's main thread and take the GIL from the run: every second or two instead.
+    """
+    import dask
+
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items() if k != "MALLOC_TRIM_THRESHOLD_"}
+    return {"distributed.nanny.pre-spawn-environ": environ, "distributed.worker.profile.enabled": False,
+            "distributed.admin.tick.interval": "1s", "distributed.worker.memory.monitor-interval": "1s",
+            "distributed.admin.system-monitor.interval": "2s"}
 
 
 def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None, workers: int = 2,
@@ -110,7 +126,7 @@ def _execute(todo: list[RunTask], out: Path, scheduler: str | None, workers: int
             try:
                 rows = future.result()
             except Exception as error:  # the worker died under it every time it was tried (KilledWorker), or it could not be sent
-                rows = [{"run_id": run.run_id, "case": run.case, "scenario": run.scenario, "seed": run.seed, "estimator": None,
+                rows = [{"run_id": run.run_id, "system": run.system, "case": run.case, "scenario": run.scenario, "seed": run.seed, "estimator": None,
                          "error": f"{type(error).__name__}: {error}", **{f"param.{k}": v for k, v in run.values.items()}}]
             atomic_write(out / "rows" / f"{run.run_id}.json", lambda handle, rows=rows: handle.write(json.dumps(rows, default=str) + "\n"))
 
@@ -136,20 +152,24 @@ def _finish(spec: CampaignSpec, out: Path, runs: int, ran: int) -> dict[str, Any
     summary = {"campaign": spec.name, "runs": runs, "ran_now": ran, "finished": int(table["run_id"].nunique()) if len(table) else 0,
                "failed_runs": int(failed["run_id"].nunique()) if len(failed) else 0,
                "errors": sorted(set(failed["error"].astype(str)))[:20] if len(failed) else [],
-               "distributions": _distributions(table), "warnings": warnings}
+               "system": spec.system, "distributions": _distributions(table), "warnings": warnings}
     write_summary(out / "summary.json", summary)
     return summary
 
 
 def _distributions(table) -> list[dict[str, Any]]:
-    """Median and 90th percentile of each figure per case and estimator, over seeds and values."""
+    """Median and 90th percentile of each of the system's figures per case and estimator, over seeds and values."""
     if table.empty or "estimator" not in table:
         return []
+    from .systems import FIGURES, system_of
+
     ok = table[table["error"].isna() & table["estimator"].notna()]
+    system = system_of(table)
+    figures = FIGURES[system] + (("rms_nodes",) if system == "nav" else ())
     result = []
     for (case, estimator), group in ok.groupby(["case", "estimator"]):
         entry: dict[str, Any] = {"case": case, "estimator": estimator, "runs": int(len(group))}
-        for figure in ("rms_m", "rms_nodes", "nees_in_band", "false_fixes", "ms_per_update"):
+        for figure in figures:
             values = group[figure].dropna().astype(float) if figure in group else []
             entry[figure] = None if not len(values) else {"median": float(values.median()), "p90": float(values.quantile(0.9))}
         result.append(entry)

@@ -1,4 +1,4 @@
-"""One run of a campaign: a scenario with its seed and parameter values simulated and navigated, as table rows.
+"""One run of a campaign: a scenario with its seed and parameter values simulated and measured, as table rows.
 
 :func:`run_task` is what a Dask worker executes. It never raises for a run that fails: the failure is a row
 with its error, so one bad combination never ends a campaign.
@@ -17,10 +17,7 @@ from typing import Any
 from ..config import ConfigError, validate_fields
 from .spec import RunTask
 
-__all__ = ["run_task", "scenario_with", "FIGURES"]
-
-#: The figures of each estimator a row carries (``summary.json``'s ``methods``), then the row's own.
-FIGURES = ("rms_m", "p95_m", "max_m", "nees_in_band", "false_fixes", "usable_fraction", "convergence_time_s", "ms_per_update")
+__all__ = ["run_task", "scenario_with"]
 
 
 @cache
@@ -60,46 +57,25 @@ def _replaced(obj: Any, parts: list[str], value: Any, path: str) -> Any:
         raise ConfigError(f"{path}: {head!r} names no field here")
     if rest:
         return dataclasses.replace(obj, **{head: _replaced(getattr(obj, head), rest, value, path)})
-    checked = validate_fields(type(obj), {head: value}, ".".join(path.split(".")[:-1]))
+    required = {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)
+                if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING and f.name != head}  # a schema asks for them
+    checked = validate_fields(type(obj), {**required, head: value}, ".".join(path.split(".")[:-1]))
     try:
-        return dataclasses.replace(obj, **checked)
+        return dataclasses.replace(obj, **{head: checked[head]})
     except (TypeError, ValueError) as error:
         raise ConfigError(f"{path}: {error}") from None
 
 
-def _scenario_path(task: RunTask) -> Path:
-    from ..scenario import builtin_scenario_path
-
-    path = Path(task.base_dir) / task.scenario
-    return path if task.scenario.endswith(".toml") or path.exists() else builtin_scenario_path(task.scenario)
-
-
 def _rows(task: RunTask) -> list[dict[str, Any]]:
-    from ..nav import NavParameters, navigate
-    from ..report import summarize
-    from ..scenario import load_scenario, simulate
+    from .systems import load_system_scenario, system_rows
 
-    scenario = scenario_with(load_scenario(_scenario_path(task)), {"seed": task.seed, **task.values})
-    grid, records = simulate(scenario)
-    params = NavParameters(**scenario.navigation)
-    start = time.perf_counter()
-    result = navigate(records, grid, params, estimators=task.estimators)
-    summary = summarize(result, name=scenario.name, parameters={}, run_time_s=time.perf_counter() - start)
-    rows = []
-    for estimator in task.estimators:
-        figures = summary["methods"].get(estimator, {})
-        row = {name: figures.get(name) for name in FIGURES}
-        if estimator == "lost":
-            row["convergence_time_s"] = summary["convergence"].get("time_s")
-        rms = row["rms_m"]
-        rows.append({"estimator": estimator, "node_m": grid.node_m, "rms_nodes": None if rms is None else rms / grid.node_m, **row,
-                     "records": summary["records"], "run_time_s": summary["run_time_s"]})
-    return rows
+    scenario = scenario_with(load_system_scenario(task.system, Path(task.base_dir) / task.scenario), {"seed": task.seed, **task.values})
+    return system_rows(task.system, scenario, task.estimators)
 
 
 def run_task(task: RunTask) -> list[dict[str, Any]]:
     """The rows of one run: one per estimator, or one with the error when the run failed."""
-    base = {"run_id": task.run_id, "case": task.case, "scenario": task.scenario, "seed": task.seed, "commit": _commit(),
+    base = {"run_id": task.run_id, "system": task.system, "case": task.case, "scenario": task.scenario, "seed": task.seed, "commit": _commit(),
             **{f"param.{name}": value for name, value in task.values.items()}}
     start = time.perf_counter()
     try:

@@ -3,9 +3,10 @@
 ::
 
     name = "shelf_sweep"
-    scenarios = ["short", "my_tow.toml"]      # shipped names or files (relative to this file)
+    system = "nav"                            # nav (default), track or usbl: whose scenarios and figures
+    scenarios = ["short", "my_tow.toml"]      # the system's shipped names or files (relative to this file)
     seeds = 10                                # 0..9; or a list: [1, 7, 42]
-    estimators = ["pmf", "pf"]                # default: every estimator
+    estimators = ["pmf", "pf"]                # default: every estimator (track: ours; gm_phd, jpda; usbl: fused)
     vary_floor = true                         # each seed a new floor and map (default); false: only the sensors
     [parameters]                              # every combination of these values is run
     "navigation.k" = [100.0, 300.0]           # any [navigation] field
@@ -18,7 +19,8 @@
 
 A run is one case (a scenario, or a ``[[case]]`` with its fixed values) with one seed and one value of each
 parameter; every estimator of the list runs on the same records of that run. With ``vary_floor`` the run's seed
-also draws the floor and the map (their own ``seed`` fields are cleared), so seeds are different sea floors. Each
+also draws the floor and the map of a navigation scenario (their own ``seed`` fields are cleared), so seeds are
+different sea floors. The systems and their figures: :mod:`lost.host.campaign.systems`. Each
 run has an identity (:attr:`RunTask.run_id`) made of its case, seed and values, so a campaign started again runs
 only what it has not finished.
 """
@@ -45,6 +47,7 @@ class CampaignSpec:
     """The fields of a campaign file (module docstring); ``base_dir`` is the file's folder."""
 
     name: str = "campaign"
+    system: str = "nav"
     scenarios: tuple[str, ...] = ()
     seeds: PositiveInt | tuple[int, ...] = 1
     estimators: tuple[str, ...] = ()
@@ -64,9 +67,9 @@ class CampaignSpec:
         """Every run of the campaign, in a fixed order (case, then values, then seed)."""
         names = sorted(self.parameters)
         grids = [self.parameters[name] for name in names]
-        floor = {"terrain.seed": None, "map.seed": None} if self.vary_floor else {}
+        floor = {"terrain.seed": None, "map.seed": None} if self.vary_floor and self.system == "nav" else {}
         return [RunTask(case=case.name, scenario=case.scenario, seed=seed, values={**floor, **case.values, **dict(zip(names, combo))},
-                        estimators=self.estimators, base_dir=str(self.base_dir))
+                        estimators=self.estimators, base_dir=str(self.base_dir), system=self.system)
                 for case in self.all_cases() for combo in itertools.product(*grids) for seed in self.seed_list()]
 
 
@@ -89,11 +92,13 @@ class RunTask:
     values: dict[str, Any]
     estimators: tuple[str, ...]
     base_dir: str = "."
+    system: str = "nav"
 
     @property
     def run_id(self) -> str:
-        """A stable identity of the run (scenario, seed, values, estimators), the name of its row file."""
-        key = json.dumps([self.case, self.scenario, self.seed, sorted(self.values.items()), list(self.estimators)], sort_keys=True, default=str)
+        """A stable identity of the run (system, scenario, seed, values, estimators), the name of its row file."""
+        key = [self.case, self.scenario, self.seed, sorted(self.values.items()), list(self.estimators)]
+        key = json.dumps(key if self.system == "nav" else [self.system, *key], sort_keys=True, default=str)
         return hashlib.sha256(key.encode()).hexdigest()[:16]
 
 
@@ -106,7 +111,7 @@ def load_campaign(path: str | Path) -> CampaignSpec:
         Unknown fields, wrong types, no scenario, an empty or non-list parameter, an estimator LOST does not
         have, or more than :data:`MAX_RUNS` runs; the message names the file and the field.
     """
-    from ..nav import ESTIMATORS
+    from .systems import SYSTEMS, estimators_of
 
     path = Path(path)
     data = read_toml(path, "campaign file")
@@ -116,15 +121,19 @@ def load_campaign(path: str | Path) -> CampaignSpec:
         cases = tuple(_case(table, n) for n, table in enumerate(_tables(data.get("case", []))))
         if not fields.get("scenarios") and not cases:
             raise ConfigError("scenarios: a campaign needs at least one scenario (a shipped name or a TOML file) or [[case]]")
-        unknown = sorted(set(fields.get("estimators", ())) - set(ESTIMATORS))
+        system = fields.get("system", "nav")
+        if system not in SYSTEMS:
+            raise ConfigError(f"system: {system!r} is not one of {list(SYSTEMS)}")
+        known, default = estimators_of(system)
+        unknown = sorted(set(fields.get("estimators", ())) - set(known))
         if unknown:
-            raise ConfigError(f"estimators: {unknown} are not estimators of LOST (known: {list(ESTIMATORS)})")
+            raise ConfigError(f"estimators: {unknown} are not estimators of the {system} system (known: {list(known)})")
         names = [c.name for c in cases] + list(fields.get("scenarios", ()))
         if len(set(names)) != len(names):
             raise ConfigError(f"case names must differ from each other and from the scenarios', got {names}")
     except ConfigError as error:
         raise ConfigError(f"{path}: {error}") from None
-    fields.setdefault("estimators", tuple(ESTIMATORS))
+    fields.setdefault("estimators", default)
     spec = CampaignSpec(**fields, parameters=parameters, cases=cases, base_dir=path.parent)
     runs = len(spec.all_cases()) * len(spec.seed_list())
     for values in spec.parameters.values():

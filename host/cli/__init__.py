@@ -12,6 +12,7 @@
     lost usbl LOG.csv --svp CAST.csv | SCENARIO         INS+USBL positioning of the towfish
     lost campaign SPEC.toml [--out DIR]                 many simulated tows on Dask, a table of results
     lost plan MAP [--route WAYPOINTS.csv]               where terrain navigation will work, and how well
+    lost replay SOURCE --to HOST:PORT [--speed X]       a survey or scenario sent as live .kmall and NMEA datagrams (UDP)
 
 Every command that writes files writes them into a run folder (``--out``), whole or not at all
 (:mod:`lost.host.runfolder`): an earlier LOST run there is replaced only with ``--replace``.
@@ -46,7 +47,7 @@ __all__ = ["main", "build_parser", "COMMANDS", "UsageError", "EXIT_OK", "EXIT_ER
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: The subcommands, in the order ``lost --help`` lists them: each is the module of this package of that name.
-COMMANDS = ("run", "demo", "correlate", "survey", "grid", "track", "usbl", "campaign", "plan")
+COMMANDS = ("run", "demo", "correlate", "survey", "grid", "track", "usbl", "campaign", "plan", "replay")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -25,17 +25,17 @@ def run_campaign_command(args: argparse.Namespace) -> int:
     spec = load_campaign(args.spec)
     tasks = spec.tasks()
     cases = len(spec.all_cases())
-    print(f"{spec.name}: {len(tasks)} runs ({cases} cases x {len(spec.seed_list())} seeds x "
+    print(f"{spec.name} ({spec.system}): {len(tasks)} runs ({cases} cases x {len(spec.seed_list())} seeds x "
           f"{len(tasks) // max(cases * len(spec.seed_list()), 1)} parameter combinations), estimators {', '.join(spec.estimators)}")
     out = args.out = args.out or Path("runs") / "campaign" / spec.name
     progress = progress_bar(len(tasks), "runs", minimum=0)  # a campaign is long even with few runs
     summary = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers, progress=progress)
     print(f"ran {summary['ran_now']} now; {summary['finished']} of {summary['runs']} runs finished, {summary['failed_runs']} failed")
+    shown = {"nav": ("rms_nodes", "nees_in_band"), "track": ("coverage", "gospa_mean"), "usbl": ("rms_m", "nees_in_band")}[spec.system]
     for entry in summary["distributions"]:
-        rms, nees = entry["rms_nodes"], entry["nees_in_band"]
-        print(f"  {entry['case']:>24s} {entry['estimator']:>5s}: {entry['runs']} runs, RMS "
-              + ("-" if rms is None else f"median {rms['median']:.3f} / p90 {rms['p90']:.3f} nodes")
-              + ("" if nees is None else f", NEES in band median {nees['median']:.2f}"))
+        figures = ", ".join(f"{name} " + ("-" if entry.get(name) is None else f"median {entry[name]['median']:.3g} / p90 {entry[name]['p90']:.3g}")
+                            for name in shown)
+        print(f"  {entry['case']:>24s} {entry['estimator']:>6s}: {entry['runs']} runs, {figures}")
     for error in summary["errors"]:
         print(f"  failed: {error}")
     print(f"wrote {out}/results.parquet, summary.json" + (", distributions.png" if (out / "distributions.png").is_file() else ""))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from ..correlator import BACKENDS, correlation
@@ -19,7 +20,7 @@ def _cmd_correlate(args: argparse.Namespace) -> int:
     from ..io.patch import read_patch
 
     grid = read_grid(args.map)
-    prepared = PreparedMap(grid=grid, lsb_m=args.lsb_m)
+    prepared = PreparedMap(grid=replace(grid, sigma_m=None), lsb_m=args.lsb_m)  # a correlation takes no map uncertainty
     words, mask, dropped = prepared.quantize_patch(read_patch(args.patch))
     if not mask.any():
         raise ValueError(f"{args.patch} has no finite depth inside the map's word range")

@@ -1,7 +1,8 @@
 """``lost plan MAP [--route WAYPOINTS.csv] [--config SCENARIO.toml] --out DIR``: where terrain navigation will work.
 
 Writes ``accuracy.nc`` (the predicted 1-sigma horizontal error of one correlation at every node, metres; read it with
-``lost.host.io.read_grid(path, variable="accuracy_m")``), ``accuracy.png``, and with ``--route`` the predicted error
+``lost.host.io.read_grid(path, variable="accuracy_m")``; beside it the look-alike layers: ``false_lock_probability``,
+``lookalike_separation``, ``lookalike_distance_m``), ``accuracy.png``, and with ``--route`` the predicted error
 along the route (``route.csv``, ``route.png``); ``summary.json`` last. The model: ``lost.host.plan``.
 """
 
@@ -37,60 +38,80 @@ def _models(args: argparse.Namespace, node_m: float):
         sonar["noise_m"] = args.sonar_noise_m
     if args.speed_mps is not None:
         motion["speed_mps"] = args.speed_mps
-    return SonarModel(**sonar), RouteModel.from_navigation(params, node_m, **motion)
+    sonar = SonarModel(**sonar)
+    model = RouteModel.from_navigation(params, node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), **motion)
+    return sonar, model, params.lookalike_radius_m if args.lookalike_radius_m is None else args.lookalike_radius_m
 
 
 def run_plan(args: argparse.Namespace) -> int:
     """The handler of ``lost plan``."""
     from ..io import read_grid
-    from ..plan import accuracy_grid, map_sigma, predict_route, read_route
-    from ..plan.output import plan_plots, write_accuracy_netcdf, write_route_csv
+    from ..plan import accuracy_grid, lookalike_grid, map_sigma, predict_route, read_route
+    from ..plan.output import lookalike_layers, plan_plots, write_accuracy_netcdf, write_route_csv
     from ..plotting import draw_plots
 
     out = args.out = args.out or Path("runs") / "plan" / Path(args.map).stem
     with run_folder(out, replace=args.replace, command="plan") as folder, warnings_collected() as warnings:
         grid = read_grid(args.map, node_m=args.node_m)
-        sonar, model = _models(args, grid.node_m)
+        sonar, model, radius_m = _models(args, grid.node_m)
         waypoints = read_route(args.route) if args.route is not None else None
         start = time.perf_counter()
-        accuracy = accuracy_grid(grid, sonar, map_sigma(grid, args.map_sigma_m))
-        route = None if waypoints is None else predict_route(accuracy, waypoints, model)
-        elapsed = time.perf_counter() - start
-        write_accuracy_netcdf(folder / "accuracy.nc", accuracy)
+        sigma = map_sigma(grid, args.map_sigma_m)
+        accuracy = accuracy_grid(grid, sonar, sigma)
+        bound_s = time.perf_counter() - start
+        lookalike = lookalike_grid(grid, sonar, sigma, radius_m=radius_m)
+        layers = lookalike_layers(lookalike)
+        route = None if waypoints is None else predict_route(accuracy, waypoints, model, lookalike)
+        elapsed = (bound_s, time.perf_counter() - start - bound_s)
+        write_accuracy_netcdf(folder / "accuracy.nc", accuracy, layers)
         if route is not None:
             write_route_csv(folder / "route.csv", route)
-        draw_plots(folder, plan_plots(accuracy, route, Path(args.map).stem), warnings)
-        summary = _summary(args, grid, accuracy, sonar, model, route, elapsed)
+        draw_plots(folder, plan_plots(accuracy, route, Path(args.map).stem, layers["false_lock_probability"]), warnings)
+        summary = _summary(args, grid, accuracy, sonar, model, route, elapsed, layers)
         summary["warnings"] = list(warnings)
         write_summary(folder / "summary.json", summary)
     _print(summary, out)
     return 0
 
 
-def _summary(args, grid, accuracy, sonar, model, route, elapsed: float) -> dict:
+def _summary(args, grid, accuracy, sonar, model, route, elapsed: tuple[float, float], layers: dict) -> dict:
     bound = accuracy.depth_m[np.isfinite(accuracy.depth_m)]
+    false_lock = layers["false_lock_probability"]
     summary = {"map": str(args.map), "shape": list(grid.shape), "node_m": grid.node_m, "crs": grid.crs, "sonar": {"shape": list(sonar.shape),
-               "noise_m": sonar.noise_m}, "survey_sigma_m": args.map_sigma_m, "compute_s": round(elapsed, 3),
+               "noise_m": sonar.noise_m}, "survey_sigma_m": args.map_sigma_m, "compute_s": round(elapsed[0], 3),
+               "lookalike_compute_s": round(elapsed[1], 3),
+               "false_lock_share": None if not np.isfinite(false_lock).any() else float(np.nanmean(false_lock > 0.5)),
                "nodes_with_a_bound": int(bound.size), "usable_sigma_m": model.usable_sigma_m,
                "usable_share": float(np.mean(accuracy.depth_m <= model.usable_sigma_m)),
                "bound_m": None if not bound.size else {q: float(np.percentile(bound, p)) for q, p in (("p10", 10), ("median", 50), ("p90", 90))}}
     if route is not None:
         summary["route"] = {"route": str(args.route), "updates": int(len(route["t_s"])), "duration_s": float(route["t_s"][-1]),
                             "usable_share": float(route["usable"].mean()), "predicted_median_m": float(np.median(route["predicted_m"])),
-                            "predicted_max_m": float(route["predicted_m"].max())}
+                            "predicted_max_m": float(route["predicted_m"].max()),
+                            "unlocked_at_end": float(route["unlocked"][-1]), "first_lock_s": _first_lock(route)}
     return summary
+
+
+def _first_lock(route: dict) -> float | None:
+    """When the prediction first holds the lock with at least even odds (seconds along the route), or None."""
+    held = np.flatnonzero(route["unlocked"] < 0.5)
+    return float(route["t_s"][held[0]]) if held.size else None
 
 
 def _print(summary: dict, out: Path) -> None:
     bound = summary["bound_m"]
-    print(f"{summary['map']}: {summary['shape'][0]} x {summary['shape'][1]} nodes of {summary['node_m']:g} m, bound computed in {summary['compute_s']:.2f} s")
+    print(f"{summary['map']}: {summary['shape'][0]} x {summary['shape'][1]} nodes of {summary['node_m']:g} m, bound computed in "
+          f"{summary['compute_s']:.2f} s, look-alikes in {summary['lookalike_compute_s']:.2f} s")
     if bound:
         print(f"one fix's 1-sigma bound: median {bound['median']:.2f} m (10 % of nodes below {bound['p10']:.2f} m, 90 % below {bound['p90']:.2f} m); "
               f"usable (<= {summary['usable_sigma_m']:g} m) on {summary['usable_share']:.0%} of the map")
+    if summary["false_lock_share"] is not None:
+        print(f"a patch more likely to lock on a look-alike than on the truth on {summary['false_lock_share']:.0%} of the map")
     route = summary.get("route")
     if route:
-        print(f"route: {route['duration_s']:.0f} s, terrain usable on {route['usable_share']:.0%} of it, predicted error median "
-              f"{route['predicted_median_m']:.1f} m, at most {route['predicted_max_m']:.1f} m")
+        lock = "never" if route["first_lock_s"] is None else f"from {route['first_lock_s']:.0f} s"
+        print(f"route: {route['duration_s']:.0f} s, terrain usable on {route['usable_share']:.0%} of it, the lock held {lock}; predicted error "
+              f"median {route['predicted_median_m']:.1f} m, at most {route['predicted_max_m']:.1f} m")
     for warning in summary["warnings"]:
         print(f"warning: {warning}")
     print(f"wrote {out}/accuracy.nc" + (", route.csv" if route else "") + ", summary.json and plots")
@@ -108,5 +129,7 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
                           "relief a node cannot show are added from the map itself, as the filters do")
     sub.add_argument("--sonar-noise-m", type=positive_metres, default=None, help="the sonar's 1-sigma depth noise, metres (default 0.5, or the scenario's)")
     sub.add_argument("--speed-mps", type=positive_metres, default=None, help="speed along the route, m/s (default 1.5, or the scenario ship's)")
+    sub.add_argument("--lookalike-radius-m", type=positive_metres, default=None,
+                     help="how far from each node look-alikes are searched, metres (default the navigation's lookalike_radius_m, 600)")
     output_options(sub, "runs/plan/MAP")
     sub.set_defaults(handler=run_plan)

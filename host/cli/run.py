@@ -4,6 +4,8 @@
 
     lost run SCENARIO.toml|NAME [--out DIR]                                  a simulated tow
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
+    lost run --survey FILE... --bathy grid.nc [--dr-bias E,N] [--start-offset E,N] [--record-s S] [--window-s S]
+                                                                             a recorded multibeam survey (.all, .kmall, GSF)
     lost demo [--out runs/demo]                                              the built-in scenario "demo"
 
 ``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at all.
@@ -46,7 +48,7 @@ def _estimators(choice: str) -> tuple[str, ...]:
 
 
 def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str],
-              estimators: tuple[str, ...] = ESTIMATORS, profile=None, profile_source: str | None = None) -> dict:
+              estimators: tuple[str, ...] = ESTIMATORS, profile=None, profile_source: str | None = None, extra: dict | None = None) -> dict:
     from ..plotting import draw_plots
     from ..report import run_plots, summarize, write_track_csv
 
@@ -58,6 +60,7 @@ def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: s
     elapsed = time.perf_counter() - start
     summary = summarize(result, name=name, parameters=params.as_dict(), run_time_s=elapsed)
     summary["sound_speed_profile"] = profile_source
+    summary.update(extra or {})
     write_track_csv(out / "track.csv", result)
     draw_plots(out, run_plots(result, grid, summary), warnings)
     summary["warnings"] = list(warnings)
@@ -80,11 +83,33 @@ def _print_summary(summary: dict, out: Path) -> None:
             cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
             print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
     print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    _print_map_uncertainty(summary)
     _print_usbl(summary)
     for warning in summary.get("warnings", ()):
         print(f"warning: {warning}")
     drawn = [name for name in ("map.png", "error.png") if (out / name).is_file()]
     print(f"wrote {out}/" + ", ".join(["track.csv", "summary.json", *drawn]))
+
+
+def _print_map_uncertainty(summary: dict) -> None:
+    """One line on where the map's survey error came from, for a recorded map."""
+    m = summary.get("map_uncertainty")
+    if not m:
+        return
+    used = "" if m["used"] else f" (not used: {m['not_used_because']})"
+    print(f"map uncertainty: {m['source']}, {m['nodes_from_layer']} nodes from the layer, {m['nodes_from_survey_sigma_m']} at "
+          f"survey_sigma_m {m['survey_sigma_m']:g} m{used}")
+
+
+def _map_uncertainty(grid: Grid, params: NavParameters) -> tuple[Grid, dict]:
+    """The grid's uncertainty layer made whole for the map error model, and the summary's account of it."""
+    from ..io.uncertainty import fill_sigma_gaps
+
+    grid, report = fill_sigma_gaps(grid, params.survey_sigma_m)
+    report["used"] = params.map_error_m is None and params.map_error_model == "per_node"
+    if not report["used"]:
+        report["not_used_because"] = ("map_error_m is set" if params.map_error_m is not None else f"map_error_model = {params.map_error_model!r}")
+    return grid, {"map_uncertainty": report}
 
 
 def _print_usbl(summary: dict) -> None:
@@ -158,6 +183,23 @@ _RECORDED_ONLY = ("sonar", "node_m", "crs", "source_crs", "positive", "nodata")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    if args.list:
+        from ..scenario import builtin_descriptions
+
+        for name, description in builtin_descriptions().items():
+            print(f"{name:<18} {description}")
+        return 0
+    survey_options = [f"--{name.replace('_', '-')}" for name in _SURVEY_ONLY if getattr(args, name) is not None]
+    if args.survey:
+        if args.scenario is not None or args.log:
+            raise UsageError("give one of a scenario, --log or --survey")
+        if args.sonar or args.svp:
+            raise UsageError("--sonar and --svp belong to a navigation log (--log); a survey's soundings are its own beams")
+        if not args.bathy:
+            raise UsageError("lost run --survey needs the map: --bathy grid.nc (e.g. made by lost grid)")
+        return _run_survey(args)
+    if survey_options:
+        raise UsageError(f"{', '.join(survey_options)} apply to a recorded survey (--survey FILE...)")
     if args.scenario is not None:
         if args.log or args.bathy:
             raise UsageError("give either a scenario or --log and --bathy, not both")
@@ -177,16 +219,77 @@ def _cmd_run(args: argparse.Namespace) -> int:
     out = args.out = args.out or Path("runs") / Path(args.log).stem
     with run_folder(out, replace=args.replace) as folder, warnings_collected() as warnings:
         grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
+        grid, extra = _map_uncertainty(grid, params)
         records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
                                       patch_shape=args.patch_shape, patch_centre=args.patch_centre)
         print(report.summary())
         warnings += [*report.warnings, *check_against_map(records, grid)]
         summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings,
-                            estimators=_estimators(args.estimator), profile=profile, profile_source=None if args.svp is None else str(args.svp))
+                            estimators=_estimators(args.estimator), profile=profile, profile_source=None if args.svp is None else str(args.svp),
+                            extra=extra)
     _print_summary(summary, out)
     return 0
 
 
+
+
+#: Options of `lost run` that only a recorded survey (--survey) takes.
+_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s")
+
+
+def _run_survey(args: argparse.Namespace) -> int:
+    """``lost run --survey FILE... --bathy GRID``: navigate a recorded multibeam survey against its map."""
+    from ..io import read_grid
+    from ..io.survey import open_survey
+    from ..io.survey_records import DEFAULT_RECORD_S, SurveyRecorder, check_survey_on_map, survey_records
+
+    params = _parameters(args, {})
+    files = [Path(f) for f in args.survey]
+    names = ", ".join(f.name for f in files)
+    out = args.out = args.out or Path("runs") / files[0].stem
+    with run_folder(out, replace=args.replace) as folder, warnings_collected() as warnings:
+        grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
+        if grid.crs is None:
+            raise ValueError(f"{args.bathy} has no CRS: a survey's positions (latitude, longitude) cannot be placed on it")
+        grid, extra = _map_uncertainty(grid, params)
+        survey = open_survey(files, crs=grid.crs)
+        interval = args.record_s if args.record_s is not None else DEFAULT_RECORD_S
+        recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=args.patch_shape, interval_s=interval, window_s=args.window_s,
+                                  dr_bias_mps=args.dr_bias or (0.0, 0.0), start_offset_m=args.start_offset or (0.0, 0.0),
+                                  patch_centre=args.patch_centre)
+        records = survey_records(survey, recorder)
+        warnings += check_survey_on_map(records, grid, names)
+        skipped = {**dict(survey.skipped), **dict(recorder.skipped)}
+        extra["survey"] = {"files": [str(f) for f in files], "format": survey.format, "first_ping_utc_s": recorder.epoch_s,
+                           "record_s": interval, "window_s": recorder.window_s, "dr_bias_mps": list(recorder.bias),
+                           "start_offset_m": list(recorder.start_offset), "skipped": skipped, "notes": dict(survey.notes)}
+        print(f"{names}: {len(records)} records of {interval:g} s, patches of the last {recorder.window_s:g} s of pings"
+              + "".join(f"\n  skipped: {n} {reason}" for reason, n in skipped.items()))
+        summary = _navigate(records, grid, params, name=files[0].stem, out=folder, warnings=warnings,
+                            estimators=_estimators(args.estimator), extra=extra)
+    _print_summary(summary, out)
+    return 0
+
+
+def _east_north(text: str) -> tuple[float, float]:
+    """``E,N``: two finite numbers."""
+    try:
+        east, north = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected two numbers E,N (east, north), got {text!r}") from None
+    if not (np.isfinite(east) and np.isfinite(north)):
+        raise argparse.ArgumentTypeError(f"expected two finite numbers E,N, got {text!r}")
+    return east, north
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
 
 
 def run_demo(args: argparse.Namespace) -> int:
@@ -212,9 +315,19 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost run`` and ``lost demo``."""
     run = commands.add_parser("run", parents=parents, help="navigate a simulated or recorded tow")
     run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")
+    run.add_argument("--list", action="store_true", help="list the built-in scenarios with their descriptions, and stop")
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
     run.add_argument("--sonar", help="sonar soundings side file of the log")
+    run.add_argument("--survey", nargs="+", metavar="FILE", help="a recorded multibeam survey (Kongsberg .all/.kmall, GSF) to navigate "
+                     "against --bathy: its positions are the truth, the navigation dead-reckons from their velocity")
+    run.add_argument("--dr-bias", type=_east_north, default=None, metavar="E,N",
+                     help="--survey: velocity bias added to the dead reckoning, m/s east, north (default 0,0)")
+    run.add_argument("--start-offset", type=_east_north, default=None, metavar="E,N",
+                     help="--survey: the navigation's start less the file's first position, m east, north (default 0,0)")
+    run.add_argument("--record-s", type=_seconds, default=None, metavar="SECONDS", help="--survey: seconds of pings per record (default 5)")
+    run.add_argument("--window-s", type=_seconds, default=None, metavar="SECONDS",
+                     help="--survey: seconds of pings up to a record that make its patch (default --record-s)")
     run.add_argument("--node-m", type=positive_metres, default=None, metavar="METRES",
                      help="node spacing of the map (and of the sonar patches), metres (default: the grid file's)")
     run.add_argument("--crs", default=None, help="projected CRS to navigate in (default: the grid's own, or its UTM zone)")

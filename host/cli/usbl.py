@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from ..errors import UsageError
@@ -63,6 +64,8 @@ def run_usbl(args: argparse.Namespace) -> int:
         log = read_log(log_path, turnaround_s=config.array.turnaround_s)
         imu = read_imu(imu_path)
         cast = read_cast(cast_path, default_position=(float(log["ship_lat_deg"].iloc[0]), float(log["ship_lon_deg"].iloc[0])))
+        if cast_path.is_relative_to(folder):  # name the cast where the finished run keeps it, not in the folder being written
+            cast = replace(cast, source=str(out / cast_path.relative_to(folder)))
         run = process(log, imu, cast, config)
         summary = summarize(run, name=name, run_time_s=time.perf_counter() - start)
         write_outputs(folder, run, summary, warnings)

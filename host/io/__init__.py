@@ -13,6 +13,13 @@ module                 what it says
 ``navlog_checks``      plausibility of a log and of its records against their map
 ``csvtable``           CSV cells as numbers and times, errors naming the file line
 ``sonar``              soundings gridded into one record's patch
+``survey``             multibeam surveys as a stream of pings, read by ``kongsberg_all``, ``kmall``
+                       and ``gsf`` (``kongsberg_all`` writes ``.all`` too)
+``survey_grid``        a grid of soundings (``lost grid``); ``survey_summary``: ``lost survey``
+``survey_records``     a survey's pings as the navigation's records (``lost run --survey``), streaming
+``simulated``          a scenario's tow as pings, to export in a real format
+``uncertainty``        a grid's per-node standard deviation layer: found, checked, its gaps filled
+``bag``                BAG grids with their uncertainty layer
 ``crs``, ``bounds``,   coordinate reference systems; bounds windows; depth sign and nodata;
 ``depthsign``,         resampling and gridding that keep holes; whole-file and plausibility checks
 ``gridding``,

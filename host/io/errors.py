@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-__all__ = ["SurveyFileError", "TruncatedFileError", "NoPingsError", "MissingLayerError"]
+__all__ = ["SurveyFileError", "TruncatedFileError", "NoPingsError", "MissingLayerError", "UncertaintyLayerError",
+           "DifferentShipsError", "SurveyOffMapError"]
 
 
 class SurveyFileError(ValueError):
@@ -19,3 +20,15 @@ class NoPingsError(SurveyFileError):
 
 class MissingLayerError(SurveyFileError):
     """A grid file lacks a layer the caller asked for (a BAG without its uncertainty layer)."""
+
+
+class UncertaintyLayerError(SurveyFileError):
+    """A grid's uncertainty layer is not one: another shape than its depth, negative or infinite values, units not metres."""
+
+
+class DifferentShipsError(SurveyFileError):
+    """Pings of different ships (or sonars) given as one survey to navigate: their positions are no one track."""
+
+
+class SurveyOffMapError(SurveyFileError):
+    """A survey to navigate lies outside its map: no position of its track falls on the grid."""

@@ -12,8 +12,12 @@ from .crs import _crs, _same_crs, _target_crs, _transformer
 # Above this many nodes a grid is almost surely a mistaken node_m (1e8 float64 nodes are 800 MB).
 _MAX_NODES = 100_000_000
 
-def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m) -> Grid:
-    """A regular (possibly geographic, possibly non-square) grid onto square metric nodes."""
+def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m, sigma=None) -> Grid:
+    """A regular (possibly geographic, possibly non-square) grid onto square metric nodes.
+
+    ``sigma``, the depth's standard deviation per node (or None), is kept node for node or resampled as the
+    depth is (bilinear; NaN where a NaN of the layer carries weight).
+    """
     target = _target_crs(file_crs, crs, xs, ys)
     reproject = file_crs is not None and target is not None and not _same_crs(file_crs, target)
     if xs.size < 2 or ys.size < 2:
@@ -28,7 +32,7 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m) -> Grid:
         node = dx if slack_x / (xs.size - 1) <= slack_y / (ys.size - 1) else dy
         square = abs(node - dx) * (xs.size - 1) <= slack_x and abs(node - dy) * (ys.size - 1) <= slack_y
         if uniform and square and (node_m is None or math.isclose(node_m, node, rel_tol=1e-9)):
-            return Grid(depth_m=values, x0_m=float(xs[0]), y0_m=float(ys[0]), node_m=node, crs=target)
+            return Grid(depth_m=values, x0_m=float(xs[0]), y0_m=float(ys[0]), node_m=node, crs=target, sigma_m=sigma)
         node_m = node_m or min(dx, dy)
         x_lo, x_hi, y_lo, y_hi = xs[0], xs[-1], ys[0], ys[-1]
         transformer = None
@@ -59,7 +63,10 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m) -> Grid:
             # PROJ answers longitudes in [-180, 180); a file may run 0 to 360.
             qx = xs[0] + np.mod(np.asarray(qx) - xs[0], 360.0)
     depth = _interpolate_keeping_holes(values, xs, ys, np.asarray(qx), np.asarray(qy))
-    return Grid(depth_m=depth, x0_m=float(x0), y0_m=float(y0), node_m=float(node_m), crs=target)
+    if sigma is not None:
+        sigma = _interpolate_keeping_holes(sigma, xs, ys, np.asarray(qx), np.asarray(qy))
+        sigma[np.isnan(depth)] = np.nan
+    return Grid(depth_m=depth, x0_m=float(x0), y0_m=float(y0), node_m=float(node_m), crs=target, sigma_m=sigma)
 
 
 def _slack(coords: np.ndarray, step: float) -> float:

@@ -200,11 +200,12 @@ def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_ga
         rows, cols = grid.shape
         ys = grid.y0_m + np.arange(rows) * grid.node_m
         xs = grid.x0_m + np.arange(cols) * grid.node_m
-        values = grid.depth_m
+        values, sigma = grid.depth_m, grid.sigma_m
         if bounds is not None:
             sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
             values, xs, ys = values[sy, sx], xs[sx], ys[sy]
-        return _regular_to_grid(values, xs, ys, grid.crs, crs=crs, node_m=node_m)
+            sigma = None if sigma is None else sigma[sy, sx]
+        return _regular_to_grid(values, xs, ys, grid.crs, crs=crs, node_m=node_m, sigma=sigma)
     if kind == "xyz":
         if variable is not None:
             raise ValueError("variable= names a NetCDF variable; an XYZ file has columns x, y, z")
@@ -214,18 +215,18 @@ def _read_any(path: Path, *, crs, node_m, source_crs, variable, positive, max_ga
     if max_gap_m is not None:
         raise ValueError("max_gap_m applies to scattered soundings (XYZ files), not to gridded files")
     if kind == "netcdf":
-        values, xs, ys, file_crs = _read_netcdf(
+        values, xs, ys, file_crs, sigma = _read_netcdf(
             path, variable=variable, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata
         )
     elif kind.startswith("gmt:"):
         if variable is not None:
             raise ValueError("variable= names a NetCDF variable; a GMT native binary grid holds one")
-        values, xs, ys, file_crs = _read_gmt_native(path, kind, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata)
+        values, xs, ys, file_crs, sigma = _read_gmt_native(path, kind, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata)
     else:
         if variable is not None:
             raise ValueError("variable= names a NetCDF variable; a GeoTIFF or ESRI ASCII grid is read from its band 1")
-        values, xs, ys, file_crs = _read_raster(path, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata)
-    return _regular_to_grid(values, xs, ys, file_crs, crs=crs, node_m=node_m)
+        values, xs, ys, file_crs, sigma = _read_raster(path, positive=positive, source_crs=source_crs, bounds=bounds, nodata=nodata)
+    return _regular_to_grid(values, xs, ys, file_crs, crs=crs, node_m=node_m, sigma=sigma)
 
 
 def write_npz(grid: Grid, path: str | os.PathLike) -> Path:

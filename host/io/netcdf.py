@@ -9,14 +9,17 @@ import numpy as np
 from .bounds import _window
 from .crs import GEOGRAPHIC_NAMES, X_NAMES, Y_NAMES, _agree, _crs
 from .depthsign import _ascending, _sign_from_metadata, _to_depth
+from .errors import UncertaintyLayerError
+from .uncertainty import check_sigma_layer, check_units, sigma_variable
 
 # Names seen in GMT, GEBCO, SRTM15+, EMODnet and GDAL-converted NetCDF files, most specific first.
 _DEPTH_VARIABLES = ("elevation", "depth", "z", "Band1", "topo", "bathymetry", "height", "altitude")
 
 
 def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, source_crs: str | None, bounds, nodata):
+    """Depth values, coordinates, CRS and the uncertainty layer (None when the file has none; see :mod:`.uncertainty`)."""
     try:
-        values, xs, ys, geographic, file_crs, sign_hint, variable = _netcdf_values(path, variable, bounds)
+        values, xs, ys, geographic, file_crs, sign_hint, variable, sigma = _netcdf_values(path, variable, bounds)
     except (OSError, RuntimeError, KeyError, IndexError) as error:
         # netCDF4/HDF5 report a damaged file as "NetCDF: HDF error" and the like: name the file and say what it means.
         raise ValueError(f"{path.name} cannot be read as NetCDF, it is truncated or damaged ({type(error).__name__}: {error})") from None
@@ -26,7 +29,10 @@ def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, sour
         file_crs = file_crs or "EPSG:4326"
     file_crs = _agree(path, file_crs, source_crs)
     values = _to_depth(values, positive or sign_hint, path.name, variable, nodata)
-    return (*_ascending(values, xs, ys, path.name), file_crs)
+    if sigma is not None:
+        sigma_name, sigma = sigma
+        sigma, _, _ = _ascending(check_sigma_layer(sigma, values, path.name, sigma_name), xs, ys, path.name)
+    return (*_ascending(values, xs, ys, path.name), file_crs, sigma)
 
 
 def _netcdf_values(path: Path, variable: str | None, bounds):
@@ -34,6 +40,7 @@ def _netcdf_values(path: Path, variable: str | None, bounds):
 
     with xr.open_dataset(path, engine="netcdf4", mask_and_scale=True, decode_times=False) as ds:
         two_d = [name for name, v in ds.data_vars.items() if v.ndim == 2]
+        sigma = None
         if variable is None and not two_d and _LEGACY_GMT_VARIABLES <= set(ds.variables):
             values, xs, ys, geographic, sign_hint = _legacy_gmt(ds, path)
             variable, file_crs = "z", None
@@ -41,8 +48,8 @@ def _netcdf_values(path: Path, variable: str | None, bounds):
                 sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
                 values, xs, ys = values[sy, sx], xs[sx], ys[sy]
         else:
-            values, xs, ys, geographic, file_crs, sign_hint, variable = _cf_grid(ds, path, variable, two_d, bounds)
-    return values, xs, ys, geographic, file_crs, sign_hint, variable
+            values, xs, ys, geographic, file_crs, sign_hint, variable, sigma = _cf_grid(ds, path, variable, two_d, bounds)
+    return values, xs, ys, geographic, file_crs, sign_hint, variable, sigma
 
 
 def _cf_grid(ds, path: Path, variable: str | None, two_d: list[str], bounds):
@@ -75,11 +82,21 @@ def _cf_grid(ds, path: Path, variable: str | None, two_d: list[str], bounds):
     if x_geographic != y_geographic:
         raise ValueError(f"{path.name}: one coordinate ({x_name}, {y_name}) is geographic and the other is not")
     file_crs = _netcdf_crs(ds, da)
+    sigma_name = sigma_variable(ds, variable)
+    sigma_da = None if sigma_name is None else ds[sigma_name]
+    if sigma_da is not None:
+        check_units(sigma_da.attrs, path.name, sigma_name)
+        if sigma_da.dims != da.dims:
+            shape = " x ".join(str(n) for n in sigma_da.shape)
+            raise UncertaintyLayerError(f"{path.name}: the uncertainty layer {sigma_name!r} has dimensions {sigma_da.dims} ({shape} nodes) but the "
+                                        f"depth {variable!r} {da.dims} ({' x '.join(str(n) for n in da.shape)}); a layer must match its depth node for node")
     if bounds is not None:
         sx, sy = _window(xs, bounds[0], bounds[2], path, x_name), _window(ys, bounds[1], bounds[3], path, y_name)
         da, xs, ys = da.isel({x_dim: sx, y_dim: sy}), xs[sx], ys[sy]
+        sigma_da = None if sigma_da is None else sigma_da.isel({x_dim: sx, y_dim: sy})
     values = np.asarray(da.values, dtype=np.float64)  # the file is read here, and only the window
-    return values, xs, ys, x_geographic, file_crs, _sign_from_metadata(da.attrs, variable), variable
+    sigma = None if sigma_da is None else (sigma_name, np.asarray(sigma_da.values, dtype=np.float64))
+    return values, xs, ys, x_geographic, file_crs, _sign_from_metadata(da.attrs, variable), variable, sigma
 
 
 _LEGACY_GMT_VARIABLES = {"x_range", "y_range", "spacing", "dimension", "z"}

@@ -10,20 +10,24 @@ from .bounds import _window
 from .crs import _agree
 from .depthsign import _ascending, _sign_from_metadata, _to_depth
 from .filecheck import read_gmt_native
+from .uncertainty import check_sigma_layer
 
 
 def _read_raster(path: Path, *, positive: str | None, source_crs: str | None, bounds, nodata):
+    """Band 1 as depth, coordinates, CRS, and a BAG's uncertainty layer (None for other rasters, or a BAG without one)."""
     from rasterio.errors import RasterioError
 
     try:
-        values, xs, ys, file_crs, description, tags = _raster_values(path, bounds)
+        values, xs, ys, file_crs, description, tags, sigma = _raster_values(path, bounds)
     except (RasterioError, OSError) as error:
         # GDAL reports a cut-off strip or tile as a read error of a block: name the file and say what it means.
         raise ValueError(f"{path.name} cannot be read as a raster, it is truncated or damaged ({' '.join(str(error).split())})") from None
     file_crs = _agree(path, file_crs, source_crs)
     hint = _sign_from_metadata({"positive": tags.get("positive", ""), "long_name": description}, "")
     values = _to_depth(values, positive or hint, path.name, "band 1", nodata)
-    return (*_ascending(values, xs, ys, path.name), file_crs)
+    if sigma is not None:
+        sigma, _, _ = _ascending(check_sigma_layer(sigma, values, path.name, "uncertainty"), xs, ys, path.name)
+    return (*_ascending(values, xs, ys, path.name), file_crs, sigma)
 
 
 def _raster_values(path: Path, bounds):
@@ -41,14 +45,19 @@ def _raster_values(path: Path, bounds):
         if bounds is not None:
             sx, sy = _window(xs, bounds[0], bounds[2], path, "x"), _window(ys, bounds[1], bounds[3], path, "y")
             xs, ys = xs[sx], ys[sy]
-        band = src.read(1, masked=True, window=Window.from_slices((sy.start, sy.stop), (sx.start, sx.stop)))
+        window = Window.from_slices((sy.start, sy.stop), (sx.start, sx.stop))
+        band = src.read(1, masked=True, window=window)
         # Packed rasters store integers with a scale and offset; nodata is masked before they apply.
         scale, offset = src.scales[0], src.offsets[0]
         values = np.ma.filled(band.astype(np.float64) * scale + offset, np.nan)
         file_crs = src.crs.to_string() if src.crs else None
         description = (src.descriptions[0] or "") if src.descriptions else ""
         tags = src.tags(1)
-    return values, xs, ys, file_crs, description, tags
+        layers = [d or "" for d in src.descriptions]
+        sigma = None
+        if src.driver == "BAG" and "uncertainty" in layers:
+            sigma = np.ma.filled(src.read(layers.index("uncertainty") + 1, masked=True, window=window).astype(np.float64), np.nan)
+    return values, xs, ys, file_crs, description, tags, sigma
 
 
 def _read_gmt_native(path: Path, kind: str, *, positive, source_crs, bounds, nodata):
@@ -60,6 +69,6 @@ def _read_gmt_native(path: Path, kind: str, *, positive, source_crs, bounds, nod
         values, xs, ys = values[sy, sx], xs[sx], ys[sy]
     hint = _sign_from_metadata({"long_name": header["z_units"]}, "")
     values = _to_depth(values, positive or hint, path.name, f"the GMT native grid ({kind.split(':')[1]})", nodata)
-    return (*_ascending(values, xs, ys, path.name), file_crs)
+    return (*_ascending(values, xs, ys, path.name), file_crs, None)
 
 

@@ -81,7 +81,7 @@ def grid_survey(paths: str | os.PathLike | Iterable[str | os.PathLike], *, node_
         mean = np.where(count > 0, total / count, np.nan)
         variance = np.where(count > 1, (squares - count * mean * mean) / (count - 1), np.nan)
     std = np.sqrt(np.maximum(variance, 0.0), where=np.isfinite(variance), out=np.full_like(variance, np.nan))
-    grid = Grid((mean + reference).reshape(rows, cols), float(x0), float(y0), float(node_m), survey.crs)
+    grid = Grid((mean + reference).reshape(rows, cols), float(x0), float(y0), float(node_m), survey.crs, std.reshape(rows, cols))
     return SurveyGrid(grid, std.reshape(rows, cols), count.reshape(rows, cols), dict(survey.skipped), dict(survey.notes))
 
 

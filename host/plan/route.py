@@ -1,13 +1,29 @@
-"""The predicted error along a route: the map's bound at each update, and the growth between informative stretches.
+"""The predicted error along a route: the lock on the true position, its accuracy, and the look-alikes that take it.
 
-The vehicle follows the waypoints at a constant speed and correlates a patch every ``interval_s``. Between updates the
-error grows as the dead reckoning's does: the velocity noise as a random walk (``velocity_noise_mps``) and a free
-INS's bias terms (Nygren eq. 6.2, ``lost.host.nav.trust.ins_position_sigma``) from the last update, added in
-variance. An update whose bound (:mod:`lost.host.plan.accuracy`) is within ``usable_sigma_m`` fuses as a Gaussian
-measurement (``1/P = 1/P_prior + 1/bound^2``, per axis); a larger bound is no fix (terrain that says too little), and
-the error keeps growing. ``usable`` says where the prediction trusts the terrain. The filters keep their density at
-least ``floor_m`` wide (``NavParameters``' position floor: ``hypot(position_floor_nodes * node, position_floor_tracking_m)``),
-so no update takes the prediction below it.
+The vehicle follows the waypoints at a constant speed and correlates a patch every ``interval_s``. The prediction is a
+mixture of two states, as a Monte Carlo of the filters shows them:
+
+- Holding the lock: a Gaussian error (per axis variance ``P``). Between updates it grows as the dead reckoning's does:
+  the velocity noise as a random walk (``velocity_noise_mps``) and a free INS's bias terms (Nygren eq. 6.2,
+  ``lost.host.nav.trust.ins_position_sigma``) from the last update. An update whose bound (:mod:`lost.host.plan.accuracy`)
+  is within ``usable_sigma_m`` fuses as a Gaussian measurement of the share of its patch that is new (the filters
+  temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
+  error keeps growing. The filters keep
+  their density at least ``floor_m`` wide, so no update takes ``P`` below it.
+- Not holding it (probability ``unlocked``): the filter sits on another placement, at a mean square distance that
+  starts at the initial search's (``2 initial_sigma_m^2``) and drifts with the dead reckoning.
+
+The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr`` and distance)
+move the probability between the states. A patch prefers a placement of separation ``snr`` at distance ``d`` over
+the truth with probability ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``;
+``d^2 / 2P`` the locked density's own odds against a jump). A lock slips with that probability, summed over the rings
+beyond three sigma, per new patch; the error is then the look-alike's distance. A filter without the lock finds it
+where the terrain fixes the position and no look-alike within twice its error competes: per new patch, one minus the
+rivals of the rings within twice its error (:attr:`Lookalike.rivals`), with ``acquisitions_per_patch`` chances in
+the length of a patch. A lost lock therefore persists over smooth or look-alike
+ground and is regained on informative terrain. The predicted error is ``sqrt((1 - unlocked) 2P + unlocked E^2)``.
+
+Without look-alikes the filter is taken to hold the lock from the start (the bound and the growth only).
 """
 
 from __future__ import annotations
@@ -18,15 +34,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.special import ndtr
 
 from ..grid import Grid
+from .ambiguity import Lookalike
 
-__all__ = ["RouteModel", "read_route", "route_points", "predict_route", "predict_along"]
+__all__ = ["RouteModel", "read_route", "route_points", "predict_route", "predict_along", "false_lock_probability"]
 
 
 @dataclass(frozen=True, kw_only=True)
 class RouteModel:
-    """The motion and dead-reckoning assumptions of a route prediction."""
+    """The motion, dead reckoning and filter assumptions of a route prediction (module docstring).
+
+    ``patch_length_m`` is a patch's extent along the track (the share of it new at each update is the filters'
+    tempering); ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the shipped floors
+    (``benchmarks/plan_check.py``, ``docs/campaign.md``), as the look-alikes' ``evidence_scale`` is.
+    """
 
     speed_mps: float = 1.5
     interval_s: float = 1.0
@@ -36,17 +59,20 @@ class RouteModel:
     accel_bias_mps2: float = 10e-6 * 9.81
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
+    patch_length_m: float = 100.0
+    acquisitions_per_patch: float = 30.0
 
     @classmethod
-    def from_navigation(cls, params: Any, node_m: float, **motion: float) -> RouteModel:
-        """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m``: its dead reckoning's
-        noise and biases, its usable threshold and its density's floor; ``motion`` sets speed_mps, interval_s and initial_sigma_m."""
-        return cls(velocity_noise_mps=params.velocity_noise_mps, gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2,
-                   usable_sigma_m=params.usable_sigma_nodes * node_m,
-                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), **motion)
+    def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
+        """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m`` with a patch of
+        ``patch_nodes`` a side: its initial search, dead reckoning's noise and biases, usable threshold and density's floor;
+        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m)."""
+        return cls(**{"initial_sigma_m": params.initial_sigma_m, **motion}, velocity_noise_mps=params.velocity_noise_mps,
+                   gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2, usable_sigma_m=params.usable_sigma_nodes * node_m,
+                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m)
 
     def __post_init__(self) -> None:
-        for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m"):
+        for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m", "patch_length_m", "acquisitions_per_patch"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
@@ -86,32 +112,99 @@ def route_points(waypoints: np.ndarray, model: RouteModel) -> tuple[np.ndarray, 
     return t, np.column_stack([np.interp(along, distance, waypoints[:, 0]), np.interp(along, distance, waypoints[:, 1])])
 
 
-def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel) -> dict[str, np.ndarray]:
-    """The predicted 1-sigma horizontal error at every update along the waypoints, with the map's bound there."""
+def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None) -> dict[str, np.ndarray]:
+    """The prediction at every update along the waypoints, with the map's bound (and look-alikes) there."""
     t, xy = route_points(waypoints, model)
-    return predict_along(accuracy, t, xy, model)
+    return predict_along(accuracy, t, xy, model, lookalike)
 
 
-def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel) -> dict[str, np.ndarray]:
-    """The predicted 1-sigma horizontal error at updates at times ``t`` and positions ``xy`` (a track already known)."""
-    from ..nav.trust import ins_position_sigma
-
+def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nearest node of each position, and which positions are on the map."""
     row, col = accuracy.row_col(xy[:, 0], xy[:, 1])
     finite = np.isfinite(row) & np.isfinite(col)
     r, c = np.rint(np.where(finite, row, -1)).astype(int), np.rint(np.where(finite, col, -1)).astype(int)
     on_map = finite & (r >= 0) & (r < accuracy.shape[0]) & (c >= 0) & (c < accuracy.shape[1])
+    return r, c, on_map
+
+
+def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None) -> dict[str, np.ndarray]:
+    """The predicted 1-sigma horizontal error at updates at times ``t`` and positions ``xy`` (a track already known).
+
+    Without ``lookalike`` the filter is taken to hold the true position from the start (the bound and the growth
+    only); with it, the lock is acquired, lost and regained as the module docstring says, and the result also
+    carries ``unlocked`` (the probability of not holding the true position) and ``locked_m`` (the error when holding it).
+    """
+    from ..nav.trust import ins_position_sigma
+
+    r, c, on_map = _sample(accuracy, xy)
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
     usable = bound <= model.usable_sigma_m
-    variance = np.empty(len(t))  # per axis
-    p_fix, last_fix, previous = model.initial_sigma_m**2 / 2, float(t[0]) if len(t) else 0.0, None
+    rings = None
+    if lookalike is not None:
+        rings = tuple(np.full((len(lookalike.ring_edges_m), len(t)), np.nan) for _ in range(3))
+        for along, grid in zip(rings, (lookalike.snr, lookalike.distance_m, lookalike.rivals)):
+            along[:, on_map] = grid[:, r[on_map], c[on_map]]
+    share = min(1.0, model.speed_mps * model.interval_s / model.patch_length_m)  # of a patch new at each update (tempering)
+    variance = np.empty(len(t))  # per axis, holding the lock
+    unlocked = np.zeros(len(t))
+    unlocked_ms = np.zeros(len(t))  # horizontal mean square error while not holding it
+    p_fix, last_fix, previous, fixed = model.initial_sigma_m**2 / 2, float(t[0]) if len(t) else 0.0, None, False
+    lost, lost_ms = (1.0, 2.0 * model.initial_sigma_m**2) if lookalike is not None else (0.0, 0.0)
     for n, time_s in enumerate(t):
         since = time_s - last_fix
         step = model.interval_s if previous is None else max(time_s - previous, 0.0)
         ins = float(ins_position_sigma(since, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
         p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2
+        lost_ms += 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
         if usable[n]:
-            p = max(1.0 / (1.0 / p + 2.0 / bound[n] ** 2), model.floor_m**2 / 2)  # the bound is horizontal: half its variance on each axis
-            p_fix, last_fix = p, time_s
-        variance[n], previous = p, time_s
-    return {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": np.sqrt(2.0 * variance)}
+            new = share if fixed else min(1.0, model.speed_mps * since / model.patch_length_m) if n else 1.0
+            p = max(1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2), model.floor_m**2 / 2)  # horizontal: half an axis
+            p_fix, last_fix, fixed = p, time_s, True
+        else:
+            fixed = False
+        if rings is not None:
+            lose, lose_ms = _loss(rings[0][:, n], rings[1][:, n], p, lookalike.evidence_scale)
+            gain = _acquisition(rings[2][:, n], lost_ms, lookalike.ring_edges_m) if usable[n] else 0.0
+            stay = lost * (1.0 - min(1.0, share * model.acquisitions_per_patch) * gain)
+            fresh = (1.0 - lost) * share * lose
+            lost_ms = (stay * lost_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
+            lost = stay + fresh
+        variance[n], unlocked[n], unlocked_ms[n], previous = p, lost, lost_ms, time_s
+    predicted = np.sqrt((1.0 - unlocked) * 2.0 * variance + unlocked * unlocked_ms)
+    result = {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": predicted}
+    if rings is not None:
+        result.update(unlocked=unlocked, locked_m=np.sqrt(2.0 * variance))
+    return result
+
+
+def _flip(separation: np.ndarray, penalty: np.ndarray | float, scale: float) -> np.ndarray:
+    """The probability that a patch prefers a placement of ``separation`` (and a prior ``penalty``, log-odds) over the truth."""
+    evidence = separation / scale
+    with np.errstate(invalid="ignore", divide="ignore"):
+        flip = ndtr(-(evidence / 2.0 + penalty) / np.sqrt(evidence))
+    return np.where(np.isinf(evidence), 0.0, np.where(evidence > 0, flip, 0.5))
+
+
+def _loss(separation: np.ndarray, distance_m: np.ndarray, p: float, evidence_scale: float) -> tuple[float, float]:
+    """A lock's hazard of slipping onto a look-alike per patch (capped at 1), and the mean square distance it slips."""
+    ok = np.isfinite(separation) & (distance_m > 3.0 * np.sqrt(2.0 * p))
+    if not ok.any():
+        return 0.0, 0.0
+    flips = _flip(separation[ok], distance_m[ok] ** 2 / (2.0 * p), evidence_scale)
+    total = float(flips.sum())
+    return min(total, 1.0), float(np.sum(flips * distance_m[ok] ** 2) / total) if total > 0 else 0.0
+
+
+def false_lock_probability(lookalike: Lookalike) -> np.ndarray:
+    """At every node, the chance that one patch there prefers a look-alike anywhere within the search radius over the truth
+    (the rivals of every ring, capped at 1; NaN where there is no patch): where a filter without a lock locks wrongly,
+    or not at all."""
+    return np.where(np.isnan(lookalike.rivals).all(axis=0), np.nan, np.minimum(np.nansum(lookalike.rivals, axis=0), 1.0))
+
+
+def _acquisition(rivals: np.ndarray, lost_ms: float, edges_m: np.ndarray) -> float:
+    """The chance per patch that a filter not holding the truth finds it: no look-alike within twice its error wins."""
+    inner = np.concatenate(([0.0], edges_m[:-1]))
+    within = np.isfinite(rivals) & (inner <= 2.0 * np.sqrt(lost_ms))
+    return float(max(0.0, 1.0 - np.sum(rivals[within])))

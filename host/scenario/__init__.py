@@ -31,8 +31,8 @@ cable, vehicle, and :func:`simulate`), ``sensors`` (readings and the USBL), ``sw
 """
 
 from .floor import scenario_floor
-from .load import builtin_scenario_path, builtin_scenarios, load_scenario
-from .map import scenario_grid, survey_map
+from .load import builtin_descriptions, builtin_scenario_path, builtin_scenarios, load_scenario
+from .map import exact_map, scenario_grid, survey_map
 from .sensors import usbl_profile
 from .spec import (
     KNOT_MPS,
@@ -56,5 +56,5 @@ from .tow import simulate
 __all__ = [
     "Scenario", "TerrainSpec", "ShipSpec", "CableSpec", "CurrentSpec", "VehicleSpec", "SensorSpec", "SonarSpec", "SlantRangeSpec",
     "UsblSpec", "usbl_profile", "MapSpec", "Feature", "FaultSpec", "load_scenario", "scenario_floor", "survey_map", "scenario_grid",
-    "builtin_scenarios", "builtin_scenario_path", "simulate", "KNOT_MPS", "MAX_SCENARIO_BYTES",
+    "exact_map", "builtin_scenarios", "builtin_scenario_path", "builtin_descriptions", "simulate", "KNOT_MPS", "MAX_SCENARIO_BYTES",
 ]

@@ -78,6 +78,14 @@ def cell_mean_depth(floor: Grid, x: np.ndarray, y: np.ndarray, node_m: float) ->
     f = max(int(round(node_m / floor.node_m)), 1)
     if f == 1:
         return floor_depth(floor, x, y)
+    if f % 2:
+        # Whole-node offsets: the mean of f x f bilinear reads is one bilinear read of the floor's f x f running mean
+        # (NaN wherever a read would leave the floor or touch a hole, as the reads would be).
+        finite = np.isfinite(floor.depth_m)
+        share = ndimage.uniform_filter(finite.astype(float), f, mode="constant", cval=0.0)
+        means = ndimage.uniform_filter(np.where(finite, floor.depth_m, 0.0), f, mode="constant", cval=0.0)
+        means[share < 1 - 1e-9] = np.nan
+        return floor_depth(Grid(means, floor.x0_m, floor.y0_m, floor.node_m), x, y)
     offsets = (np.arange(f) - (f - 1) / 2) * floor.node_m
     total = np.zeros(np.shape(x))
     for dy in offsets:

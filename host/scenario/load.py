@@ -12,7 +12,7 @@ from ..terrain import Feature
 from .map import check_before_simulating
 from .spec import SENSORS, CableSpec, CurrentSpec, FaultSpec, MapSpec, Scenario, ShipSpec, TerrainSpec, VehicleSpec
 
-__all__ = ["load_scenario", "builtin_scenarios", "builtin_scenario_path"]
+__all__ = ["load_scenario", "builtin_scenarios", "builtin_scenario_path", "builtin_descriptions"]
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -79,3 +79,8 @@ def builtin_scenario_path(name: str) -> Path:
     """Path of a shipped scenario by name (``"demo"``)."""
     return shipped_path("lost.host", name, what="scenario")
 
+
+
+def builtin_descriptions() -> dict[str, str]:
+    """Each shipped scenario's name and its one-line ``description`` (what ``lost run --list`` prints)."""
+    return {name: str(read_toml(builtin_scenario_path(name), "scenario file").get("description", "")) for name in builtin_scenarios()}

@@ -12,6 +12,7 @@ so: correlated along the survey lines, coarser than the floor, with holes.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from scipy import ndimage
@@ -21,7 +22,7 @@ from ..grid import Grid
 from .floor import scenario_floor
 from .spec import MapSpec, Scenario, check_map_node
 
-__all__ = ["survey_map", "scenario_grid", "survey_soundings", "grid_soundings", "planned_map_shape", "check_patch_fits"]
+__all__ = ["survey_map", "scenario_grid", "exact_map", "survey_soundings", "grid_soundings", "planned_map_shape", "check_patch_fits"]
 
 
 def survey_map(floor: Grid, spec: MapSpec, seed: int) -> Grid:
@@ -187,3 +188,11 @@ def scenario_grid(scenario: Scenario) -> Grid:
     floor = scenario_floor(scenario)
     seed = scenario.seed + 1 if scenario.map.seed is None else scenario.map.seed
     return survey_map(floor, scenario.map, seed)
+
+
+def exact_map(scenario: Scenario) -> Scenario:
+    """The same scenario with its map equal to its floor, node for node (no survey; ``extent_m``, the map's box, kept).
+
+    The map = floor case of any scenario: the navigation's reference, where a map knows the floor exactly. The
+    sonar's patch then lies on the floor's nodes (a swath's width, when not set, follows the patch)."""
+    return replace(scenario, map=MapSpec(extent_m=scenario.map.extent_m))

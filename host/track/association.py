@@ -15,8 +15,17 @@ track's marginal probabilities ``w_t0`` (no detection) and ``w_tj``. Then
 
 - existence after the ping: ``r_t' = w_t0 * r_t (1 - pd_t P_G) / (1 - r_t pd_t P_G) + sum_j w_tj``;
 - the state update's association probabilities, given that the contact exists: ``beta_tj = w_tj / r_t'``
-  and ``beta_t0 = 1 - sum_j beta_tj``, used as in PDA (:func:`.kalman.pda_combine`);
+  and ``beta_t0 = 1 - sum_j beta_tj``, used as in PDA (:func:`.kalman.pda_combine`) (from JPDA*'s events
+  by default, below);
 - the probability that detection ``j`` is some track's: ``sum_t w_tj`` (what the search cloud is spared).
+
+JPDA* (Blom & Bloem 2000). Two tracks on contacts closer than their gates, each with a detection, have
+two joint events of like weight (each takes its own detection, or they swap); averaged over both, each
+track's update moves toward the other's detection and the two tracks are pulled together (JPDA's
+coalescence), until one is merged away. With ``permutation_pruning`` the state updates (``beta``) come from
+the events kept when, of every group of events that detect the same tracks with the same detections, only
+the likeliest is kept; the existence and the claims still come from every event (the pruning decides who
+took which detection, not whether a track was detected).
 
 For one track alone this is integrated PDA exactly (``r' = (1 - delta) r / (1 - delta r)``,
 ``delta = pd P_G - sum_j pd g_j / lambda``). Two contacts closer than their gates share detections; the
@@ -73,11 +82,14 @@ def _clusters(gated: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(label == k) for k in np.unique(label)]
 
 
-def _enumerate(weights_none: np.ndarray, weights: np.ndarray, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Marginal weights (unnormalized) of every track's 'none' and each detection over all joint events.
+def _enumerate(weights_none: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Marginal weights of every track's 'none' and each detection: over all joint events, and over JPDA*'s.
 
-    ``weights`` (k, m) are the cluster's track-detection weights over its ``columns`` (m detections),
-    zero outside the gates. Depth-first over the tracks, each taking no detection or a free gated one.
+    ``weights`` (k, m) are the cluster's track-detection weights over its m detections, zero outside the
+    gates. Depth-first over the tracks, each taking no detection or a free gated one. The events that
+    detect the same tracks with the same detections differ only by a permutation of the detections among
+    those tracks; JPDA* (Blom & Bloem 2000) keeps only the likeliest of each such group. Returns the
+    normalized ``(none, marginal)`` over all events, then over the kept ones.
     """
     k, m = weights.shape
     marginal_none = np.zeros(k)
@@ -85,6 +97,7 @@ def _enumerate(weights_none: np.ndarray, weights: np.ndarray, columns: np.ndarra
     options = [np.flatnonzero(weights[t] > 0) for t in range(k)]
     chosen = np.full(k, -1)
     used = np.zeros(m, dtype=bool)
+    best: dict[tuple[tuple[bool, ...], tuple[bool, ...]], tuple[float, tuple[int, ...]]] = {}
 
     def walk(t: int, product: float) -> float:
         if t == k:
@@ -93,6 +106,9 @@ def _enumerate(weights_none: np.ndarray, weights: np.ndarray, columns: np.ndarra
                     marginal_none[s] += product
                 else:
                     marginal[s, chosen[s]] += product
+            group = (tuple(chosen >= 0), tuple(used))
+            if product > best.get(group, (-1.0, ()))[0]:
+                best[group] = (product, tuple(chosen))
             return product
         total = walk(t + 1, product * weights_none[t])
         for j in options[t]:
@@ -103,11 +119,19 @@ def _enumerate(weights_none: np.ndarray, weights: np.ndarray, columns: np.ndarra
         return total
 
     total = walk(0, 1.0)
-    return marginal_none / total, marginal / total
+    kept_none, kept = np.zeros(k), np.zeros((k, m))
+    for product, assignment in best.values():
+        for s, j in enumerate(assignment):
+            if j < 0:
+                kept_none[s] += product
+            else:
+                kept[s, j] += product
+    kept_total = sum(product for product, _ in best.values())
+    return marginal_none / total, marginal / total, kept_none / kept_total, kept / kept_total
 
 
 def associate(likelihood: np.ndarray, gated: np.ndarray, existence: np.ndarray, pd: np.ndarray, clutter_density: float,
-              *, max_events: int = 20_000) -> JointAssociation:
+              *, max_events: int = 20_000, permutation_pruning: bool = True) -> JointAssociation:
     """Joint association of one ping (module docstring).
 
     Parameters
@@ -124,6 +148,8 @@ def associate(likelihood: np.ndarray, gated: np.ndarray, existence: np.ndarray, 
         False alarms per metre-radian.
     max_events : int
         Above this many joint events a cluster is solved track by track.
+    permutation_pruning : bool
+        Update the states from JPDA*'s events (the likeliest of each permutation group) rather than all of them.
     """
     tracks, n = likelihood.shape
     beta, beta_none = np.zeros((tracks, n)), np.ones(tracks)
@@ -140,14 +166,17 @@ def associate(likelihood: np.ndarray, gated: np.ndarray, existence: np.ndarray, 
             approximated += int(len(cluster) > 1)
             totals = weights_none[cluster] + w.sum(axis=1)
             marginal_none, marginal = weights_none[cluster] / totals, w / totals[:, None]
+            kept_none, kept = marginal_none, marginal
         else:
-            marginal_none, marginal = _enumerate(weights_none[cluster], w, columns)
+            marginal_none, marginal, kept_none, kept = _enumerate(weights_none[cluster], w)
+            if not permutation_pruning:
+                kept_none, kept = marginal_none, marginal
         r, q = existence[cluster], pd[cluster] * GATE_PROBABILITY
-        missed_but_there = marginal_none * r * (1 - q) / (1 - r * q)
-        exists = missed_but_there + marginal.sum(axis=1)
-        posterior[cluster] = exists
-        safe = np.maximum(exists, 1e-300)
-        beta[np.ix_(cluster, columns)] = marginal / safe[:, None]
-        beta_none[cluster] = missed_but_there / safe
+        missed = r * (1 - q) / (1 - r * q)  # probability that a track with no detection exists
+        posterior[cluster] = marginal_none * missed + marginal.sum(axis=1)
+        # Given existence, the association probabilities: from the kept events (all of them without pruning).
+        kept_exists = np.maximum(kept_none * missed + kept.sum(axis=1), 1e-300)
+        beta[np.ix_(cluster, columns)] = kept / kept_exists[:, None]
+        beta_none[cluster] = kept_none * missed / kept_exists
         claimed[columns] += marginal.sum(axis=0)
     return JointAssociation(beta, beta_none, posterior, np.minimum(claimed, 1.0), approximated)

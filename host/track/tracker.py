@@ -7,19 +7,23 @@ Each ping, in order:
    together by joint integrated probabilistic data association (:mod:`.association`): for the tracks
    whose gates share detections every joint assignment is weighed, so one detection never feeds two
    tracks, and each track's existence follows from the detection probability ``pd`` (0 outside the
-   sector) and the Poisson clutter density. The probability that a detection is some track's is its
-   *claim*; a detection claimed with at least ``claim_probability`` is spared to the search cloud.
+   sector) and the Poisson clutter density. The states are updated from JPDA*'s events
+   (``permutation_pruning``: of the joint events that differ only by which of them took which detection,
+   the likeliest), so two tracks on contacts closer than their gates are not pulled together. The
+   probability that a detection is some track's is its *claim*; a detection claimed with at least
+   ``claim_probability`` is spared to the search cloud.
 2. The search cloud, the paper's filter (:class:`~.particle.DiverParticleFilter`) with the Poisson-clutter
    floor, steps on the *unclaimed* detections, so it hunts for contacts no track holds yet; a share of it
    (``reseed_fraction``) is drawn afresh over the sector each ping so that no corner goes unwatched.
 3. The cloud is clustered by expectation-maximization (:mod:`.cluster`), started at the unclaimed
    detections. A cluster holding at least ``birth_share`` of the cloud and no wider than ``birth_spread_m``
    is a contact the cloud has followed over consecutive pings (one ping's clutter holds a few per cent; a
-   repeated return holds most of it): a *tentative* track is born at the unclaimed detection nearest the
-   cluster's centre, with the measurement's covariance, an unknown velocity and existence
-   ``birth_existence``, unless that detection lies within ``birth_exclusion_m`` of a track. A second contact
-   beside a track (a diver who splits from another) is born this way: its detections are the ones the
-   joint association leaves unclaimed.
+   repeated return holds most of it): a *tentative* track is born at each unclaimed detection inside the
+   cluster's 99 % ellipse (one cluster may hold two contacts side by side), nearest the centre first, with
+   the measurement's covariance, an unknown velocity and existence ``birth_existence``, unless that
+   detection lies within ``birth_exclusion_m`` of a track. A second contact beside a track (a diver who
+   splits from another) is born this way: its detections are the ones the joint association leaves
+   unclaimed.
 4. Track management from the existence alone: a tentative track is *confirmed* when its existence reaches
    ``confirm_existence``, and deleted when it falls below ``delete_tentative_existence``; a confirmed track is
    deleted below ``delete_confirmed_existence`` or when its position is known worse than
@@ -48,7 +52,7 @@ from .association import associate
 from .cluster import fit_mixture
 from .detections import Ping
 from .geometry import Sonar, polar_to_world, world_to_polar
-from .kalman import ContactState, innovations, pda_combine, predict
+from .kalman import GATE_CHI2, ContactState, innovations, pda_combine, predict
 from .particle import DiverParticleFilter, PaperParameters, clutter_floor
 
 __all__ = ["TrackerParameters", "Track", "TrackReport", "MultiTargetTracker", "CLASSES"]
@@ -84,6 +88,7 @@ class TrackerParameters:
     delete_tentative_existence: float = 0.002
     delete_confirmed_existence: float = 0.01
     merge_chi2: float = 0.5
+    permutation_pruning: bool = True
     max_position_sigma_m: float = 60.0
     reach_radius_m: float = 10.0
     class_speed_sigma_mps: float = 0.15
@@ -220,7 +225,7 @@ class MultiTargetTracker:
             np.array([inn.gated for inn in innovations_]).reshape(len(self.tracks), ping.detections),
             np.array([t.existence for t in self.tracks]),
             np.array([p.pd if self._in_sector(t.state.x, ping) else 0.0 for t in self.tracks]),
-            self._clutter_density)
+            self._clutter_density, permutation_pruning=p.permutation_pruning)
         for k, (track, inn) in enumerate(zip(self.tracks, innovations_)):
             track.state = pda_combine(track.state, inn, joint.beta[k], float(joint.beta_none[k]))
             track.existence = float(joint.existence[k])
@@ -265,13 +270,15 @@ class MultiTargetTracker:
         for share, mean, cov in zip(mixture.shares, mixture.means, mixture.covariances):
             if share < p.birth_share or math.sqrt(max(np.linalg.eigvalsh(cov))) > p.birth_spread_m:
                 continue
-            # The cluster says a contact is there; the detection that fed it says where, to the sensor's accuracy.
-            k = int(np.argmin(np.hypot(*(detections_xy - mean).T)))
-            if any(np.hypot(*(detections_xy[k] - track.state.x[:2])) < p.birth_exclusion_m for track in self.tracks):
-                continue
-            track = Track(self._next_id, self._newborn(ping, candidates[k]), ping.index, p.birth_existence)
-            self._next_id += 1
-            self.tracks.append(track)
+            # The cluster says contacts are there; the detections inside it say where, to the sensor's accuracy.
+            # One cluster may hold two contacts side by side: each of its detections can start a track.
+            offset = detections_xy - mean
+            inside = np.einsum("ni,ij,nj->n", offset, np.linalg.inv(cov), offset) < GATE_CHI2
+            for k in np.flatnonzero(inside)[np.argsort(np.hypot(*offset[inside].T))]:
+                if any(np.hypot(*(detections_xy[k] - track.state.x[:2])) < p.birth_exclusion_m for track in self.tracks):
+                    continue
+                self.tracks.append(Track(self._next_id, self._newborn(ping, candidates[k]), ping.index, p.birth_existence))
+                self._next_id += 1
 
     def _newborn(self, ping: Ping, detection: int) -> ContactState:
         """A track's start at one detection: its position and the measurement's covariance, velocity unknown."""

@@ -5,7 +5,7 @@ import re
 import pytest
 
 from lost.hdl.flow.bitstream import CLOCK_HZ, CLOCK_NET, NAME, UlX3SDevice, _summary, build_plan
-from lost.hdl.flow.synth import FlowError
+from lost.hdl.flow.pnr import FlowError
 
 SMALL = {"tile_shape": (16, 16), "area_shape": (8, 8), "patch_shape": (3, 3), "exclusion_radius": 1}
 

@@ -119,7 +119,7 @@ def synthesized_cells(design, name, out_dir):
     import json
     from collections import Counter
 
-    from lost.hdl.flow.synth import synthesize
+    from lost.hdl.flow.pnr import synthesize
 
     netlist = json.loads(synthesize(design, name, out_dir).read_text())
     return Counter(cell["type"] for cell in netlist["modules"]["top"]["cells"].values())

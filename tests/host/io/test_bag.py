@@ -44,3 +44,12 @@ def test_read_grid_reads_a_bags_depth_like_read_bag(bag):
     g = read_grid(bag)
     np.testing.assert_array_equal(g.depth_m, read_bag(bag).grid.depth_m)
     assert (g.x0_m, g.y0_m, g.node_m) == (500_005.0, 5_700_005.0, 10.0)
+
+
+def test_a_bags_uncertainty_is_read_grids_sigma(tmp_path):
+    elevation = -(100.0 + np.arange(12.0).reshape(3, 4))
+    uncertainty = 0.25 + np.arange(12.0).reshape(3, 4) / 100
+    elevation[1, 2] = uncertainty[1, 2] = 1e6
+    path = write_bag(tmp_path / "s.bag", elevation, uncertainty)
+    grid = read_grid(path)
+    np.testing.assert_array_equal(grid.sigma_m, read_bag(path).uncertainty_m)

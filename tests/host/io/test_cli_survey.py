@@ -57,3 +57,16 @@ def test_survey_of_a_file_that_is_no_survey_is_one_line_naming_it(tmp_path, caps
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "lost survey: notes.gsf is not a Kongsberg .all, .kmall or GSF file" in err
     assert not list(tmp_path.glob("*.nc*"))
+
+
+@needs_real
+def test_lost_correlate_takes_a_lost_grid_whose_layer_has_gaps(tmp_path, capsys):
+    out = tmp_path / "ex1604.nc"
+    assert main(["grid", str(GSF), "--node-m", "100", "--out", str(out)]) == 0
+    grid = read_grid(out)
+    assert np.any(np.isfinite(grid.depth_m) & np.isnan(grid.sigma_m))  # nodes of one sounding: no spread
+    patch = tmp_path / "p.csv"
+    np.savetxt(patch, np.full((2, 2), float(np.nanmedian(grid.depth_m))), delimiter=",")
+    capsys.readouterr()
+    assert main(["correlate", str(out), str(patch)]) == 0
+    assert "best fit" in capsys.readouterr().out

@@ -209,19 +209,25 @@ def test_eq_5_2_the_ml_variance_on_ar1_terrain_within_1_5_and_falling_as_1_over_
     assert variances[100] / variances[25] == pytest.approx(0.25, rel=0.35)
 
 
-def test_the_nees_of_the_filters_on_the_short_tow_lies_in_its_band():
+# On the map = floor (short_exact_map): RMS under half a 10 m node, NEES in band 0.8. On the 30 m survey map (short,
+# seed 5) the filters are worse, and these bounds are what they do there with a margin: over seeds 5-14 of `short`,
+# the PMF's RMS is 6.4 m median, 24 m p90 (seed 5: 14.7 m), NEES in band 0.88 / 0.56 at the
+# 10th percentile (seed 5: 0.56, 93 false fixes); the PF's 4.7 m / 33 m (seed 5: 13.1 m), NEES in band 0.57 median
+# (seed 5: 0.54); converged within 84 s on every seed.
+@pytest.mark.parametrize("scenario_name, rms_m, nees_in_band", [("short_exact_map", 5.0, 0.8), ("short", 20.0, 0.45)])
+def test_the_nees_of_the_filters_on_the_short_tow_lies_in_its_band(scenario_name, rms_m, nees_in_band):
     from lost.host.report import summarize
     from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
 
-    scenario = load_scenario(builtin_scenario_path("short"))
+    scenario = load_scenario(builtin_scenario_path(scenario_name))
     grid, records = simulate(scenario)
     result = navigate(records, grid, NavParameters(**scenario.navigation), estimators=("pmf", "pf"))
-    summary = summarize(result, name="short", parameters={})
+    summary = summarize(result, name=scenario_name, parameters={})
     band = (chi2.ppf(0.025, 2), chi2.ppf(0.975, 2))
     for name in ("pmf", "pf"):
         figures = summary["methods"][name]
         assert figures["converged"] and figures["convergence_time_s"] < 120.0, (name, figures)
-        assert figures["rms_m"] < 5.0 and figures["nees_in_band"] >= 0.8, (name, figures, band)
+        assert figures["rms_m"] < rms_m and figures["nees_in_band"] >= nees_in_band, (name, figures, band)
 
 
 def test_the_bilinear_read_matches_scipy_and_knows_where_it_is_valid():
@@ -322,9 +328,9 @@ def test_a_slant_range_outlier_is_refused_by_its_innovation(kind):
 
 def test_a_velocity_bias_misplaces_a_realtime_patch_by_bias_times_age_and_the_particles_shift_it_back():
     """The model behind ``SonarPatch.age_s``: on a tow whose velocity reads 5 and -4 cm/s off, the patches fit best b * age from the truth."""
-    from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
+    from lost.host.scenario import builtin_scenario_path, exact_map, load_scenario, simulate
 
-    scenario = load_scenario(builtin_scenario_path("usbl_nav"))
+    scenario = exact_map(load_scenario(builtin_scenario_path("usbl_nav")))  # the patch's placement to half a metre needs the map to be the floor
     grid, records = simulate(replace(scenario, duration_s=500.0))
     bias = np.array([0.05, -0.04])  # the scenario's [sensors.velocity] bias
     lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=0.6)

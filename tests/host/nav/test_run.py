@@ -1,4 +1,4 @@
-"""The whole pipeline on the shipped short scenario, with its errors asserted."""
+"""The whole pipeline on the shipped short tow with the map equal to its floor (short_exact_map), with its errors asserted."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
 
 @pytest.fixture(scope="module")
 def short_run():
-    scenario = load_scenario(builtin_scenario_path("short"))
+    scenario = load_scenario(builtin_scenario_path("short_exact_map"))
     grid, records = simulate(scenario)
     params = NavParameters(**scenario.navigation)
     result = run_lost(records, grid, params)

@@ -84,7 +84,9 @@ def test_the_error_grows_where_the_terrain_says_too_little_and_shrinks_where_it_
     blind = (column >= 80) & (column < 140)
     assert np.array_equal(route["usable"], ~blind)
     assert np.all(np.diff(route["predicted_m"][blind]) > 0)
-    assert route["predicted_m"][0] < 1.0 and route["predicted_m"][-1] < 1.0  # fused at once where it fixes
+    assert route["predicted_m"][0] < 1.0  # the first patch is wholly new: fused at once
+    before = route["predicted_m"][np.flatnonzero(blind)[0] - 1]  # then each update adds the new share of its patch: a steady level
+    assert route["predicted_m"][-1] == pytest.approx(before, rel=0.02)
     assert route["predicted_m"][blind].max() > 3 * route["predicted_m"][0]
     assert route["predicted_m"].min() >= 0.5 - 1e-12  # the filters' floor
 
@@ -94,7 +96,7 @@ def test_lost_plan_writes_a_grid_read_grid_reads_back_node_for_node(tmp_path):
     write_npz(grid, tmp_path / "map.npz")
     (tmp_path / "route.csv").write_text("east_m,north_m\n1200,2300\n1600,2300\n")
     out = tmp_path / "plan"
-    assert main(["plan", str(tmp_path / "map.npz"), "--route", str(tmp_path / "route.csv"), "--out", str(out)]) == EXIT_OK
+    assert main(["plan", str(tmp_path / "map.npz"), "--route", str(tmp_path / "route.csv"), "--out", str(out), "--lookalike-radius-m", "100"]) == EXIT_OK
     expected = accuracy_grid(grid, SonarModel(), map_sigma(grid)).depth_m
     back = read_grid(out / "accuracy.nc", variable="accuracy_m")
     assert back.shape == grid.shape and (back.x0_m, back.y0_m, back.node_m) == (1000.0, 2000.0, 10.0)
@@ -124,3 +126,13 @@ def test_the_map_error_is_the_filters_own_and_a_grid_layer_wins():
     assert np.allclose(map_sigma(layered, 0.3) ** 2, node_variance(grid.depth_m, grid.node_m, 2.0))
     assert np.all(accuracy_grid(layered, SonarModel(), map_sigma(layered)).depth_m[20:40, 20:60]
                   > accuracy_grid(grid, SonarModel(), map_sigma(grid, 0.3)).depth_m[20:40, 20:60])
+
+
+def test_the_route_model_takes_the_navigations_search_noise_and_floor():
+    from lost.host.nav import NavParameters
+
+    params = NavParameters(initial_sigma_m=250.0, velocity_noise_mps=0.1, usable_sigma_nodes=2.0)
+    model = RouteModel.from_navigation(params, 25.0, patch_nodes=8.0, speed_mps=2.0)
+    assert (model.initial_sigma_m, model.velocity_noise_mps, model.usable_sigma_m, model.patch_length_m, model.speed_mps) == (250.0, 0.1, 50.0, 200.0, 2.0)
+    assert model.floor_m == pytest.approx(np.hypot(params.position_floor_nodes * 25.0, params.position_floor_tracking_m))
+    assert RouteModel.from_navigation(params, 25.0, initial_sigma_m=40.0).initial_sigma_m == 40.0

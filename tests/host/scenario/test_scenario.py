@@ -15,8 +15,10 @@ from lost.host.scenario import (
     ShipSpec,
     SonarSpec,
     TerrainSpec,
+    builtin_descriptions,
     builtin_scenario_path,
     builtin_scenarios,
+    exact_map,
     load_scenario,
     simulate,
 )
@@ -28,6 +30,39 @@ def test_the_shipped_scenarios_load():
     for name in names:
         scenario = load_scenario(builtin_scenario_path(name))
         assert scenario.name == name and scenario.duration_s > 0
+
+
+def test_every_shipped_scenario_navigates_on_a_survey_map_but_the_named_map_equals_floor_one():
+    for name in builtin_scenarios():
+        scenario = load_scenario(builtin_scenario_path(name))
+        if name == "short_exact_map":
+            assert not scenario.map.surveyed
+            continue
+        spec = scenario.map
+        node = spec.node_m / scenario.terrain.node_m
+        assert 3 <= node <= 10 and spec.line_spacing_m and spec.line_offset_m > 0 and spec.sounding_noise_m > 0 and spec.offset_m != 0, name
+    descriptions = builtin_descriptions()
+    assert set(descriptions) == set(builtin_scenarios()) and all(descriptions.values())
+    assert "map = floor" in descriptions["short_exact_map"]
+
+
+def test_short_exact_map_is_the_short_tow_on_its_floor_and_short_a_survey_of_it():
+    short = load_scenario(builtin_scenario_path("short"))
+    exact_grid, exact = simulate(load_scenario(builtin_scenario_path("short_exact_map")))
+    grid, records = simulate(exact_map(short))
+    np.testing.assert_array_equal(grid.depth_m, exact_grid.depth_m)
+    np.testing.assert_array_equal(records.truth_x_m, exact.truth_x_m)
+    assert grid.sigma_m is None and grid.node_m == short.terrain.node_m
+    survey_grid, surveyed = simulate(short)
+    np.testing.assert_array_equal(surveyed.truth_x_m, exact.truth_x_m)  # the same tow; only the map and the patch's node differ
+    assert survey_grid.node_m == 3 * grid.node_m and survey_grid.sigma_m is not None and np.isnan(survey_grid.depth_m).any()
+    patch = next(p for p in surveyed.sonar if p is not None)
+    assert patch.node_m == survey_grid.node_m
+    # The survey's map departs from the floor's block means by its line errors and datum, not by metres of noise.
+    rows, cols = survey_grid.shape
+    means = grid.depth_m[: rows * 3, : cols * 3].reshape(rows, 3, cols, 3).mean(axis=(1, 3))
+    error = survey_grid.depth_m - means
+    assert abs(np.nanmedian(error) - short.map.offset_m) < 0.2 and 0.2 < np.nanstd(error) < 1.5
 
 
 def test_an_unknown_field_is_an_error(tmp_path):
@@ -291,3 +326,12 @@ def test_a_grid_files_sign_and_nodata_can_be_named_in_the_scenario(tmp_path, mon
     path.write_text('[terrain]\nfile = "elevation.tif"\npositive = "sideways"\n')
     with pytest.raises(ValueError, match="terrain.positive"):
         load_scenario(path)
+
+
+def test_lost_run_lists_the_shipped_scenarios_with_their_descriptions(capsys):
+    from lost.host.cli import main
+
+    assert main(["run", "--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in lines] == builtin_scenarios()
+    assert any(line.startswith("short_exact_map") and "map = floor" in line for line in lines)

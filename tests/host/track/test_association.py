@@ -27,15 +27,30 @@ def test_one_track_is_integrated_pda():
     assert joint.beta[0, 2] == 0 and not gated[2]
 
 
-def _brute_force(weights_none, weights):
-    """Marginals by listing every joint event (each detection to at most one track)."""
-    k, m = weights.shape
-    none, marginal, total = np.zeros(k), np.zeros((k, m)), 0.0
+def _events(weights_none, weights):
+    """Every joint event (each detection to at most one track) with its weight."""
+    k = weights.shape[0]
     for choice in itertools.product(*[[-1, *np.flatnonzero(weights[t] > 0)] for t in range(k)]):
         taken = [j for j in choice if j >= 0]
-        if len(taken) != len(set(taken)):
-            continue
-        w = np.prod([weights_none[t] if j < 0 else weights[t, j] for t, j in enumerate(choice)])
+        if len(taken) == len(set(taken)):
+            yield choice, np.prod([weights_none[t] if j < 0 else weights[t, j] for t, j in enumerate(choice)])
+
+
+def _jpda_star_events(weights_none, weights):
+    """The likeliest event of each group that detects the same tracks with the same detections (Blom & Bloem 2000)."""
+    best = {}
+    for choice, w in _events(weights_none, weights):
+        group = (tuple(j >= 0 for j in choice), frozenset(j for j in choice if j >= 0))
+        if w > best.get(group, (None, -1.0))[1]:
+            best[group] = (choice, w)
+    return best.values()
+
+
+def _brute_force(weights_none, weights, events=_events):
+    """Marginals by listing the joint events."""
+    k, m = weights.shape
+    none, marginal, total = np.zeros(k), np.zeros((k, m)), 0.0
+    for choice, w in events(weights_none, weights):
         total += w
         for t, j in enumerate(choice):
             if j < 0:
@@ -50,7 +65,7 @@ def test_tracks_sharing_detections_match_the_sum_over_joint_events():
     density = rng.uniform(0.5, 3.0, (3, 4))
     gated = np.array([[1, 1, 0, 0], [0, 1, 1, 0], [0, 0, 1, 1]], dtype=bool)  # a chain: one cluster of three
     r, pd, clutter = np.array([0.9, 0.5, 0.99]), np.array([0.9, 0.9, 0.6]), 0.02
-    joint = associate(density, gated, r, pd, clutter)
+    joint = associate(density, gated, r, pd, clutter, permutation_pruning=False)
     weights = np.where(gated, r[:, None] * pd[:, None] * density / clutter, 0.0)
     none, marginal = _brute_force(1 - r * pd * GATE_PROBABILITY, weights)
     q = pd * GATE_PROBABILITY
@@ -59,6 +74,35 @@ def test_tracks_sharing_detections_match_the_sum_over_joint_events():
     np.testing.assert_allclose(joint.beta, marginal / exists[:, None], rtol=1e-12)
     np.testing.assert_allclose(joint.claimed, marginal.sum(axis=0), rtol=1e-12)
     assert np.all(joint.claimed <= 1 + 1e-12) and joint.approximated == 0
+
+
+def test_jpda_star_updates_from_the_likeliest_permutation_and_keeps_the_full_existence():
+    rng = np.random.default_rng(5)
+    density = rng.uniform(0.5, 3.0, (3, 4))
+    gated = np.array([[1, 1, 1, 0], [1, 1, 0, 1], [0, 1, 1, 1]], dtype=bool)
+    r, pd, clutter = np.array([0.95, 0.6, 0.99]), np.array([0.9, 0.9, 0.7]), 0.02
+    joint = associate(density, gated, r, pd, clutter)
+    full = associate(density, gated, r, pd, clutter, permutation_pruning=False)
+    weights = np.where(gated, r[:, None] * pd[:, None] * density / clutter, 0.0)
+    none, marginal = _brute_force(1 - r * pd * GATE_PROBABILITY, weights, _jpda_star_events)
+    q = pd * GATE_PROBABILITY
+    exists = none * r * (1 - q) / (1 - r * q) + marginal.sum(axis=1)
+    np.testing.assert_allclose(joint.beta, marginal / exists[:, None], rtol=1e-12)
+    np.testing.assert_allclose(joint.beta_none, none * r * (1 - q) / (1 - r * q) / exists, rtol=1e-12)
+    np.testing.assert_allclose(joint.existence, full.existence, rtol=1e-12)
+    np.testing.assert_allclose(joint.claimed, full.claimed, rtol=1e-12)
+    assert not np.allclose(joint.beta, full.beta, rtol=1e-3)  # the pruning changed the updates
+
+
+def test_jpda_star_keeps_two_close_tracks_apart():
+    """Two tracks on two nearly alike detections: JPDA pulls both toward the middle, JPDA* gives each its own."""
+    density = np.array([[2.0, 1.8], [1.8, 2.0]])
+    gated = np.ones((2, 2), bool)
+    r, pd = np.ones(2) * 0.999, np.full(2, 0.9)
+    star = associate(density, gated, r, pd, 0.001)
+    full = associate(density, gated, r, pd, 0.001, permutation_pruning=False)
+    assert 0.4 < full.beta[0, 1] < full.beta[0, 0] < 0.6  # coalescence: about as much of each
+    assert star.beta[0, 0] > 0.9 and star.beta[1, 1] > 0.9 and star.beta[0, 1] < 0.05
 
 
 def test_one_detection_between_two_tracks_is_not_given_to_both():

@@ -13,7 +13,7 @@ from lost.host.track import Ping, Sonar
 from lost.host.track.cluster import fit_mixture
 from lost.host.track.kalman import ContactState, measurement, pda_update, predict
 from lost.host.track.metrics import pings_to_lock
-from lost.host.track.simulate import TargetSpec, builtin_scenario_path, load_scenario, simulate
+from lost.host.track.simulate import PlatformSpec, TargetSpec, TrackScenario, builtin_scenario_path, load_scenario, simulate
 from lost.host.track.tracker import MultiTargetTracker, TrackerParameters, _cpa
 
 R = np.diag([4.0, np.radians(1.5) ** 2])
@@ -201,12 +201,46 @@ def test_two_divers_twenty_metres_apart_are_two_tracks():
     """Side by side at 350 m (20 m is about two bearing sigmas there): JIPDA keeps one detection from feeding both."""
     targets = tuple(TargetSpec(start_range_m=350.0, start_bearing_deg=b, speed_mps=0.5, course_deg=180.0) for b in (-1.637, 1.637))
     scenario = dataclasses.replace(load_scenario(builtin_scenario_path("one_diver")), seed=7, duration_s=100.0, targets=targets)
-    sim = simulate(scenario)
-    tracker = MultiTargetTracker(sonar=sim.scenario.sonar.sonar, parameters=TrackerParameters(), rng=np.random.default_rng(7))
+    assert _both_held_after(simulate(scenario), TrackerParameters(), 7, radius_m=15.0) >= 0.9
+
+
+def _both_held_after(sim, parameters: TrackerParameters, seed: int, after: int = 20, radius_m: float = 25.0) -> float:
+    """Share of the pings after ``after`` at which two distinct confirmed tracks hold one diver each."""
+    tracker = MultiTargetTracker(sonar=sim.scenario.sonar.sonar, parameters=parameters, rng=np.random.default_rng(seed))
     both = []
     for i, ping in enumerate(sim.pings):
         confirmed = [r for r in tracker.step(ping) if r.status == "confirmed"]
-        if i >= 20:
-            near = [{k for k in (0, 1) if math.hypot(r.x_m - sim.truth.xy[i, k, 0], r.y_m - sim.truth.xy[i, k, 1]) <= 15.0} for r in confirmed]
+        if i >= after:
+            near = [{k for k in (0, 1) if math.hypot(r.x_m - sim.truth.xy[i, k, 0], r.y_m - sim.truth.xy[i, k, 1]) <= radius_m} for r in confirmed]
             both.append(any(0 in a and 1 in b for a, b in itertools.permutations(near, 2)))
-    assert np.mean(both) >= 0.8
+    return float(np.mean(both))
+
+
+@pytest.mark.parametrize("seed", [0])
+def test_jpda_star_keeps_two_divers_fifteen_metres_apart_as_two_tracks(seed):
+    """15 m apart at 350 m (1.6 bearing sigmas): with every joint event the tracks coalesce and one is lost; with JPDA*'s both stay."""
+    half = math.degrees(7.5 / 350.0)
+    targets = tuple(TargetSpec(start_range_m=350.0, start_bearing_deg=b, speed_mps=0.5, course_deg=180.0) for b in (-half, half))
+    sim = simulate(TrackScenario(name="fifteen_apart", seed=seed, duration_s=80.0, targets=targets,
+                                 platform=PlatformSpec(yaw_amplitude_deg=8.0, yaw_period_s=90.0)))
+    assert _both_held_after(sim, TrackerParameters(), seed) >= 0.9
+    assert _both_held_after(sim, TrackerParameters(permutation_pruning=False), seed) < 0.8
+
+
+def test_one_cloud_cluster_over_two_contacts_starts_a_track_at_each_of_its_detections(monkeypatch):
+    """EM found one cluster over two contacts 20 m apart: each of its detections starts a track; clutter outside it none."""
+    import lost.host.track.tracker as tracker_module
+    from lost.host.track.cluster import Mixture
+
+    sonar = Sonar(max_range_m=500.0, half_fov_deg=45.0, ping_interval_s=1.3)
+    tracker = MultiTargetTracker(sonar=sonar, parameters=TrackerParameters(particles=1000), rng=np.random.default_rng(1))
+    ping = Ping(0, 0.0, np.zeros(2), 0.0, np.array([350.0, 350.0, 200.0]), np.array([-1.637, 1.637, -30.0]))
+    contacts = ping.detections_xy()[:2]
+    cluster = Mixture(np.array([0.9]), contacts.mean(axis=0)[None], np.diag([12.0**2, 4.0**2])[None])
+    monkeypatch.setattr(tracker_module, "fit_mixture", lambda points, seeds: cluster)
+    tracker.cloud.xy = np.zeros((1000, 2))
+    tracker._births(ping, np.ones(3, dtype=bool))
+    born = np.array([t.state.x[:2] for t in tracker.tracks])
+    assert len(born) == 2
+    np.testing.assert_allclose(born[np.argsort(born[:, 0])], contacts[np.argsort(contacts[:, 0])], atol=1e-9)
+    assert all(t.existence == TrackerParameters().birth_existence and not t.confirmed for t in tracker.tracks)

@@ -55,3 +55,9 @@ def test_outputs_are_written(turns):
 def test_the_summary_states_each_goal(turns):
     goals = turns[0]["goals"]
     assert len(goals) == 5 and all(goals.values())
+
+
+def test_the_summary_names_the_cast_where_the_run_keeps_it(turns):
+    summary, _, out = turns
+    assert summary["cast"]["source"] == str(out / "inputs" / "cast.csv")
+    assert (out / "inputs" / "cast.csv").is_file()

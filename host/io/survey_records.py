@@ -1,0 +1,245 @@
+"""A recorded multibeam survey as the navigation's records: pings in, one record out per interval.
+
+The platform is the surveying ship itself (a hull-mounted multibeam), so a record has no cable
+(``cable_out_m`` 0) and no slant range. The file's positions are the truth (``truth_x_m``/``truth_y_m``)
+and are not given to the navigation: it dead-reckons from the velocity of the file's positions,
+differenced ping to ping, plus an injected velocity bias (``dr_bias_mps``), from the file's first
+position plus an injected offset (``start_offset_m``). That dead-reckoned track is also the record's
+``ship_x_m``/``ship_y_m`` (the frame the patent pipeline measures cross-track in, and the lay-back
+model's start), so no record carries the truth to the estimators.
+
+Each record closes an interval of ``interval_s`` seconds of pings (counted from the first ping); its time
+is the interval's last ping's. Its patch is :func:`lost.host.io.sonar.grid_soundings` of the valid beams of
+the pings of the last ``window_s`` seconds up to the record (default ``interval_s``: the interval's own
+pings; longer, a patch that reaches along the track as well as across it), at the map's ``node_m``, placed relative to the vehicle at the record as the
+navigation knows it: the beam's offset from its own ping plus the ping's position reckoned back from
+the record over the ping's age (the true displacement plus the velocity bias times the age, as a
+dead-reckoned vehicle would place it), with the patch's ``age_s`` the soundings' mean age. The patch is
+centred on the vehicle (``patch_centre="vehicle"``) or on the middle of the soundings (``"soundings"``).
+
+:class:`SurveyRecorder` is streaming: :meth:`~SurveyRecorder.add` takes one ping and returns the
+records that ping closed; :meth:`~SurveyRecorder.finish` closes the last. :func:`survey_records` runs it
+over a :class:`~lost.host.io.survey.Survey` into :class:`~lost.host.records.NavRecords`, the same value the
+navigation log reader produces.
+
+Counted, never silent (:attr:`SurveyRecorder.skipped`): a record interval whose pings have no valid beam
+(the record is kept without a patch: the navigation dead-reckons through it); valid beams beyond the
+patch; a ping earlier than a record already closed. Refused by name: a ping of a sonar head or ship not
+seen in the first record (:class:`~lost.host.io.errors.DifferentShipsError`: files of different ships given
+together).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..records import NavRecords, SonarPatch
+from .errors import DifferentShipsError, NoPingsError, SurveyOffMapError
+from .sonar import grid_soundings, soundings_centre
+from .survey import Ping, Survey
+
+__all__ = ["SurveyRecord", "SurveyRecorder", "survey_records", "check_survey_on_map", "SURVEY_PATCH_CENTRES", "DEFAULT_RECORD_S"]
+
+SURVEY_PATCH_CENTRES = ("vehicle", "soundings")
+#: Seconds of pings per record when the caller names none (``lost run --survey``'s ``--record-s``).
+DEFAULT_RECORD_S = 5.0
+
+
+@dataclass(frozen=True)
+class SurveyRecord:
+    """One record of a recorded survey: the values of one row of :class:`~lost.host.records.NavRecords`."""
+
+    t_s: float
+    ship_x_m: float
+    ship_y_m: float
+    ship_heading_deg: float
+    vehicle_depth_m: float
+    altitude_m: float
+    vel_x_mps: float
+    vel_y_mps: float
+    truth_x_m: float
+    truth_y_m: float
+    sonar: SonarPatch | None
+    pings: int
+    soundings: int
+
+
+class SurveyRecorder:
+    """Pings in, records out (see the module).
+
+    Parameters
+    ----------
+    node_m : float
+        The map's node spacing, metres: the patches' nodes.
+    patch_shape : (rows, cols)
+        Nodes of each record's patch, north by east.
+    interval_s : float
+        Seconds of pings per record.
+    window_s : float, optional
+        Seconds of pings up to a record that make its patch; default ``interval_s``.
+    dr_bias_mps : (east, north)
+        Added to the velocity the navigation dead-reckons with, m/s.
+    start_offset_m : (east, north)
+        The navigation's start less the file's first position, metres.
+    patch_centre : {"vehicle", "soundings"}
+        Where each record's patch is centred.
+    """
+
+    def __init__(self, *, node_m: float, patch_shape: tuple[int, int], interval_s: float, window_s: float | None = None,
+                 dr_bias_mps=(0.0, 0.0), start_offset_m=(0.0, 0.0), patch_centre: str = "vehicle") -> None:
+        window_s = interval_s if window_s is None else window_s
+        for name, value in (("interval_s", interval_s), ("window_s", window_s)):
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
+        if patch_centre not in SURVEY_PATCH_CENTRES:
+            raise ValueError(f"patch_centre must be one of {SURVEY_PATCH_CENTRES}, got {patch_centre!r}")
+        self.node_m, self.patch_shape, self.patch_centre = float(node_m), tuple(patch_shape), patch_centre
+        self.interval_s, self.window_s = float(interval_s), float(window_s)
+        self.bias = _pair(dr_bias_mps, "dr_bias_mps")
+        self.start_offset = _pair(start_offset_m, "start_offset_m")
+        self.skipped: Counter[str] = Counter()
+        self.epoch_s: float | None = None  # the first ping's time: record times count from it
+        self._interval: int | None = None  # the index of the interval being filled
+        self._recent: deque[Ping] = deque()  # the pings of the last window_s, the interval's included
+        self._heads: set[int] | None = None
+        self._last: tuple[float, np.ndarray, np.ndarray] | None = None  # the last record: time, truth, dead reckoning
+
+    def add(self, ping: Ping) -> list[SurveyRecord]:
+        """Take one ping; the records it closed (none, or one per interval it passed)."""
+        if self.epoch_s is None:
+            self.epoch_s = ping.time_s
+        if self._heads is not None and ping.head not in self._heads:
+            raise DifferentShipsError(
+                f"a ping of sonar head or ship {ping.head} at {ping.time_s - self.epoch_s:.1f} s, after records of {sorted(self._heads)} only: "
+                "files of different ships (or sonars) cannot make one survey's records; run each on its own")
+        index = math.floor((ping.time_s - self.epoch_s) / self.interval_s)
+        closed: list[SurveyRecord] = []
+        if self._interval is not None and index > self._interval:
+            closed += self._close()
+        if self._last is not None and ping.time_s - self.epoch_s <= self._last[0]:
+            self.skipped["ping earlier than a record already closed"] += 1
+            return closed
+        if self._interval is None:
+            self._interval = index
+        self._recent.append(ping)
+        return closed
+
+    def finish(self) -> list[SurveyRecord]:
+        """Close the last interval."""
+        return self._close() if self._interval is not None else []
+
+    def _close(self) -> list[SurveyRecord]:
+        self._interval = None
+        last = max(self._recent, key=lambda p: p.time_s)
+        while self._recent[0].time_s <= last.time_s - self.window_s:
+            self._recent.popleft()
+        pings = list(self._recent)
+        if self._heads is None:
+            self._heads = {p.head for p in pings}
+        t = last.time_s - self.epoch_s
+        truth = np.array([last.east_m, last.north_m])
+        if self._last is None:
+            velocity = np.full(2, np.nan)  # the first record starts the navigation; it moves nobody
+            reckoned = truth + self.start_offset
+        else:
+            t0, truth0, reckoned0 = self._last
+            velocity = (truth - truth0) / (t - t0) + self.bias
+            reckoned = reckoned0 + velocity * (t - t0)
+        self._last = (t, truth, reckoned)
+        patch, soundings = self._patch(pings, last)
+        nadir = _nadir_depth(last)
+        vehicle_depth = last.origin_depth_m if math.isfinite(last.origin_depth_m) else 0.0
+        return [SurveyRecord(t_s=t, ship_x_m=float(reckoned[0]), ship_y_m=float(reckoned[1]),
+                             ship_heading_deg=(last.heading_deg + last.convergence_deg) % 360.0, vehicle_depth_m=vehicle_depth,
+                             altitude_m=nadir - vehicle_depth, vel_x_mps=float(velocity[0]), vel_y_mps=float(velocity[1]),
+                             truth_x_m=float(truth[0]), truth_y_m=float(truth[1]), sonar=patch, pings=len(pings), soundings=soundings)]
+
+    def _patch(self, pings: list[Ping], last: Ping) -> tuple[SonarPatch | None, int]:
+        east, north, depth, age = [], [], [], []
+        for p in pings:
+            if not p.valid.any():
+                continue
+            ping_age = last.time_s - p.time_s
+            # Where the navigation places the ping: the true displacement plus the velocity bias over its age, backwards.
+            dx = p.east_m - last.east_m - self.bias[0] * ping_age
+            dy = p.north_m - last.north_m - self.bias[1] * ping_age
+            v = p.valid & np.isfinite(p.depth_m)
+            east.append(p.beam_east_m[v] - p.east_m + dx)
+            north.append(p.beam_north_m[v] - p.north_m + dy)
+            depth.append(p.depth_m[v])
+            age.append(np.full(int(v.sum()), ping_age))
+        if not east:
+            self.skipped["record interval with no valid beam (kept without a patch)"] += 1
+            return None, 0
+        east, north, depth, age = (np.concatenate(a) for a in (east, north, depth, age))
+        centre = soundings_centre(east, north) if self.patch_centre == "soundings" else (0.0, 0.0)
+        gridded = grid_soundings(east, north, depth, patch_shape=self.patch_shape, node_m=self.node_m, centre_m=centre, age_s=age)
+        if gridded.outside:
+            self.skipped["valid beams beyond the patch"] += gridded.outside
+        if not gridded.used:
+            self.skipped["record interval with no valid beam in the patch (kept without a patch)"] += 1
+            return None, 0
+        return gridded.patch, gridded.used
+
+
+def _nadir_depth(ping: Ping) -> float:
+    """The depth of the valid beam nearest the ping's nadir (NaN without one): the record's ocean depth."""
+    v = ping.valid & np.isfinite(ping.depth_m)
+    if not v.any():
+        return math.nan
+    k = int(np.argmin(np.hypot(ping.along_m[v], ping.across_m[v])))
+    return float(ping.depth_m[v][k])
+
+
+def _pair(value, name: str) -> np.ndarray:
+    pair = np.asarray(value, dtype=np.float64).ravel()
+    if pair.size != 2 or not np.all(np.isfinite(pair)):
+        raise ValueError(f"{name} must be two finite numbers (east, north), got {value!r}")
+    return pair
+
+
+def survey_records(survey: Survey, recorder: SurveyRecorder) -> NavRecords:
+    """Every record of ``survey`` through ``recorder``, as :class:`~lost.host.records.NavRecords`.
+
+    Raises
+    ------
+    NoPingsError
+        The survey yields no ping with a position.
+    DifferentShipsError
+        A ping of a sonar head or ship the first record did not have.
+    """
+    rows: list[SurveyRecord] = []
+    for ping in survey:
+        rows += recorder.add(ping)
+    rows += recorder.finish()
+    if not rows:
+        names = ", ".join(p.name for p in survey.paths)
+        raise NoPingsError(f"{names}: no ping with a position to make records of (skipped: {dict(survey.skipped) or 'nothing'})")
+    column = {name: np.array([getattr(r, name) for r in rows], dtype=np.float64)
+              for name in ("t_s", "ship_x_m", "ship_y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps",
+                           "truth_x_m", "truth_y_m")}
+    n = len(rows)
+    return NavRecords(**column, slant_range_m=np.full(n, np.nan), cable_out_m=np.zeros(n), sonar=tuple(r.sonar for r in rows))
+
+
+def check_survey_on_map(records: NavRecords, grid, names: str) -> list[str]:
+    """Refuse a survey whose track misses the map (:class:`SurveyOffMapError`); warnings for a track partly off it.
+
+    The track is the file's positions (the truth): the navigation needs the map where the ship sailed, not
+    where its dead reckoning wanders.
+    """
+    inside = grid.contains(records.truth_x_m, records.truth_y_m)
+    if not inside.any():
+        rows, cols = grid.shape
+        raise SurveyOffMapError(
+            f"{names}: no position of the survey's track lies on the map: the track spans east {np.min(records.truth_x_m):.0f} to "
+            f"{np.max(records.truth_x_m):.0f} m, north {np.min(records.truth_y_m):.0f} to {np.max(records.truth_y_m):.0f} m, the map east "
+            f"{grid.x0_m:.0f} to {grid.x0_m + (cols - 1) * grid.node_m:.0f} m, north {grid.y0_m:.0f} to {grid.y0_m + (rows - 1) * grid.node_m:.0f} m "
+            f"(CRS {grid.crs}); give the map of this survey's area")
+    if not inside.all():
+        return [f"{int((~inside).sum())} of {inside.size} records of the survey lie off the map (the first at {float(records.t_s[~inside][0]):.1f} s)"]
+    return []

@@ -1,0 +1,237 @@
+"""The receiving side: UDP datagrams in, pings and fixes out, every fault counted and none a stop.
+
+:class:`LiveDecoder` takes one datagram's bytes at a time (from a socket, or from anything) and returns what it
+completed: :class:`~lost.host.io.survey.Ping` values (raw: latitude/longitude, no projection yet, as the file
+readers yield them before :class:`~lost.host.io.survey.Survey` projects them), :class:`~lost.host.live.nmea.PositionFix`
+and :class:`~lost.host.live.nmea.HeadingFix`. A datagram is ``.kmall`` when its first four bytes are its own
+length and the next a ``#`` and three capitals, NMEA when it starts with ``$``.
+
+- ``#MRZ`` is decoded by pykmall, as :mod:`lost.host.io.kmall` decodes a file's, its attitude interpolated from the
+  ``#SKM`` samples received before it (the last :data:`ATTITUDE_SAMPLES`); partitions (``numOfDgms`` > 1) are joined
+  in ``dgmNum`` order whatever order they come in; a ping whose parts are not all in while :data:`PENDING_PINGS`
+  later pings begin, or at :meth:`~LiveDecoder.finish`, is dropped and counted;
+- a datagram or a part seen before (the same bytes, among the last few thousand) is counted and skipped; two
+  partitioned MRZ of one time (two heads) cannot be told apart by their later parts: counted and dropped;
+- a datagram whose length fields disagree with its size, or that pykmall cannot decode, is counted and skipped;
+- a ping whose #MRZ never came whole shows as a gap in the MRZ ping counter, counted at the end;
+- a ping decoded without attitude after #SKM samples were received (its own sample late or lost) is counted;
+- NMEA sentences through :class:`~lost.host.live.nmea.NmeaDecoder` (checksums checked, bad ones counted).
+
+:class:`UdpReceiver` binds a socket and feeds a decoder until stopped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import socket
+import struct
+import threading
+from collections import Counter, OrderedDict, deque
+
+import numpy as np
+
+from ..io.kmall import _ping as _mrz_ping
+from ..io.kmall import _read_mrz
+from ..io.survey import Ping
+from .nmea import HeadingFix, NmeaDecoder, PositionFix
+
+__all__ = ["LiveDecoder", "UdpReceiver", "ATTITUDE_SAMPLES", "PENDING_PINGS"]
+
+ATTITUDE_SAMPLES = 4096
+PENDING_PINGS = 4
+_RECENT_KEYS = 4096
+_HEADER = struct.Struct("<I4sBBHII")
+_PARTITION = struct.Struct("<HH")
+
+
+class LiveDecoder:
+    """Datagrams in, pings and fixes out (see the module); ``counts`` holds reason -> count."""
+
+    def __init__(self) -> None:
+        self.counts: Counter[str] = Counter()
+        self._nmea = NmeaDecoder(self.counts)
+        self._attitude: deque[tuple[float, float, float, float]] = deque(maxlen=ATTITUDE_SAMPLES)
+        self._parts: OrderedDict[tuple, dict[int, bytes]] = OrderedDict()
+        self._seen: OrderedDict[int, None] = OrderedDict()
+        # The MRZ ping counters, unwrapped past 65,535: first, highest, how many distinct, the recent ones (bounded memory).
+        self._counter_span: list[int] | None = None
+        self._counters_received = 0
+        self._recent_counters: OrderedDict[int, None] = OrderedDict()
+
+    def feed(self, payload: bytes) -> list[Ping | PositionFix | HeadingFix]:
+        """What this datagram completes (often nothing); never raises on bad bytes."""
+        if payload[:1] == b"$":
+            out: list = []
+            for line in payload.decode("ascii", errors="replace").splitlines():
+                if line.strip():
+                    out += self._nmea.feed(line)
+            return out
+        if len(payload) >= _HEADER.size + 4 and payload[4:5] == b"#" and payload[5:8].isalpha() and payload[5:8].isupper():
+            return self._kmall(payload)
+        self.counts["datagram of neither .kmall nor NMEA (skipped)"] += 1
+        return []
+
+    def finish(self) -> list[Ping | PositionFix]:
+        """The end of the stream: the fix held for its VTG; pings still missing parts are counted as lost, so are gaps in the ping counter."""
+        if self._parts:
+            self.counts["MRZ with parts lost (ping dropped)"] += len(self._parts)
+        self._parts.clear()
+        if self._counter_span:
+            missing = self._counter_span[1] - self._counter_span[0] + 1 - self._counters_received
+            if missing > 0:
+                self.counts["pings missing from the ping counter's sequence"] += missing
+        return list(self._nmea.flush())
+
+    def _kmall(self, payload: bytes) -> list[Ping]:
+        size, kind, _version, system, _sounder, sec, nanosec = _HEADER.unpack_from(payload)
+        name = kind.decode("ascii")
+        if size != len(payload) or int.from_bytes(payload[-4:], "little") != size:
+            self.counts[f"kmall {name} datagram whose length fields disagree with its size (skipped)"] += 1
+            return []
+        if self._already_seen(hash(payload)):
+            self.counts["duplicate kmall datagram (skipped)"] += 1
+            return []
+        self.counts[f"kmall {name} datagrams"] += 1
+        if name == "#SKM":
+            self._skm(payload)
+            return []
+        if name != "#MRZ":
+            return []
+        if len(payload) < _HEADER.size + _PARTITION.size + 4 + 4:
+            self.counts["kmall #MRZ datagram too short for its parts (skipped)"] += 1
+            return []
+        count, number = _PARTITION.unpack_from(payload, _HEADER.size)
+        # The parts after the first carry no common part: a partitioned ping is known by its time and part count.
+        ping_key = (system, sec, nanosec, count)
+        if not 1 <= number <= count:
+            self.counts["kmall #MRZ with an impossible partition number (skipped)"] += 1
+            return []
+        if count == 1:
+            return self._decoded(payload)
+        self.counts["kmall #MRZ parts"] += 1
+        parts = self._parts.setdefault(ping_key, {})
+        if number in parts:
+            del self._parts[ping_key]
+            self.counts["MRZ parts of two pings of one time (both dropped)"] += 1
+            return []
+        parts[number] = payload
+        if len(parts) < count:
+            while len(self._parts) > PENDING_PINGS:
+                self._parts.popitem(last=False)
+                self.counts["MRZ with parts lost (ping dropped)"] += 1
+            return []
+        del self._parts[ping_key]
+        self.counts["MRZ joined from parts"] += 1
+        return self._decoded(_joined([parts[k] for k in range(1, count + 1)]))
+
+    def _already_seen(self, key: int) -> bool:
+        if key in self._seen:
+            return True
+        self._seen[key] = None
+        if len(self._seen) > _RECENT_KEYS:
+            self._seen.popitem(last=False)
+        return False
+
+    def _skm(self, payload: bytes) -> None:
+        reader = _reader(payload)
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                samples = reader.read_EMdgmSKM()["sample"]["KMdefault"]
+        except (struct.error, KeyError, ValueError, IndexError, UnicodeDecodeError):
+            self.counts["kmall #SKM that does not decode (skipped)"] += 1
+            return
+        for sample in zip(samples["dgtime"], samples["roll_deg"], samples["pitch_deg"], samples["heave_m"], strict=True):
+            self._attitude.append(tuple(float(v) for v in sample))
+
+    def _decoded(self, datagram: bytes) -> list[Ping]:
+        reader = _reader(datagram)
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                dg = _read_mrz(reader)
+            ping = _mrz_ping(dg, self._attitude_arrays())
+        except (struct.error, KeyError, ValueError, IndexError) as error:
+            self.counts[f"kmall #MRZ that does not decode ({type(error).__name__}; skipped)"] += 1
+            return []
+        self.counts["pings"] += 1
+        self._count_ping(int(dg["cmnPart"]["pingCnt"]))
+        if self._attitude and not np.isfinite(ping.roll_deg):
+            self.counts["ping without attitude at its time (its #SKM late or lost)"] += 1
+        return [ping]
+
+    def _count_ping(self, counter: int) -> None:
+        if self._counter_span is None:
+            self._counter_span = [counter, counter]
+        else:
+            counter += (self._counter_span[1] - counter + 32_768) // 65_536 * 65_536  # the unwrapped value nearest the highest
+            self._counter_span = [min(self._counter_span[0], counter), max(self._counter_span[1], counter)]
+        if counter not in self._recent_counters:
+            self._counters_received += 1
+            self._recent_counters[counter] = None
+            if len(self._recent_counters) > _RECENT_KEYS:
+                self._recent_counters.popitem(last=False)
+
+    def _attitude_arrays(self) -> dict[str, np.ndarray]:
+        table = np.array(self._attitude, dtype=np.float64).reshape(-1, 4)
+        order = np.argsort(table[:, 0], kind="stable")
+        return {name: table[order, k] for k, name in enumerate(("t", "roll", "pitch", "heave"))}
+
+
+def _reader(datagram: bytes):
+    from KMALL.kmall import kmall
+
+    reader = kmall(None)
+    reader.FID = io.BytesIO(datagram)
+    reader.file_size = len(datagram)
+    return reader
+
+
+def _joined(parts: list[bytes]) -> bytes:
+    """One MRZ of its parts: the first part's header, partition 1 of 1, the parts' slices, the closing length."""
+    head = _HEADER.size + _PARTITION.size
+    body = b"".join(part[head:-4] for part in parts)
+    size = head + len(body) + 4
+    first = bytearray(parts[0][:head])
+    first[0:4] = size.to_bytes(4, "little")
+    first[_HEADER.size:head] = _PARTITION.pack(1, 1)
+    return bytes(first) + body + size.to_bytes(4, "little")
+
+
+class UdpReceiver:
+    """A UDP socket on ``(host, port)`` (port 0: any free one, see :attr:`address`) feeding a :class:`LiveDecoder`.
+
+    :meth:`run` receives until :meth:`stop`; each completed value goes to ``on_value``. The socket asks for a
+    receive buffer of ``buffer_bytes`` (the system may give less: bursts beyond it are lost by the kernel,
+    uncounted here, and show as missing pings).
+    """
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, buffer_bytes: int = 4 << 20) -> None:
+        self.decoder = LiveDecoder()
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        with contextlib.suppress(OSError):
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, buffer_bytes)
+        self.sock.bind((host, port))
+        self.sock.settimeout(0.05)
+        self.address: tuple[str, int] = self.sock.getsockname()
+        self._stop = threading.Event()
+
+    def run(self, on_value) -> None:
+        """Receive and decode until :meth:`stop`; then the decoder's :meth:`~LiveDecoder.finish`, and the socket closed."""
+        try:
+            while True:
+                try:
+                    payload = self.sock.recv(65_535)
+                except TimeoutError:
+                    if self._stop.is_set():
+                        break
+                    continue
+                for value in self.decoder.feed(payload):
+                    on_value(value)
+            for value in self.decoder.finish():
+                on_value(value)
+        finally:
+            self.sock.close()
+
+    def stop(self) -> None:
+        """Stop once the datagrams already received are read."""
+        self._stop.set()

@@ -1,0 +1,143 @@
+"""The sending side: pings as the live datagrams a ship's network carries, optional faults, and their pacing over UDP.
+
+Per ping, all at the ping's time: the GNSS's NMEA sentences (ZDA, GGA, VTG, HDT: :func:`lost.host.live.nmea.fix_sentences`;
+course and speed differenced from the ping before, none for the first), one sentence per UDP datagram with its
+CR LF; then the sonar's ``.kmall`` datagrams as a K-Controller broadcasts them (#SPO with the GGA as its sensor
+text, #SKM when the ping has attitude, #MRZ; :func:`lost.host.io.kmall_write.ping_datagrams`), one datagram per
+UDP datagram, an MRZ larger than ``max_datagram_bytes`` split into partitions. The pings of two heads at one
+time share one fix: its sentences, #SPO and #SKM are sent once, with the first.
+
+Faults (:class:`Faults`, one seeded NumPy generator, drawn per datagram in this order): lost (not sent), duplicated
+(sent twice), reordered (held back and sent after the next one). Each is counted.
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import time
+from collections import Counter
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..io.kmall_write import UDP_PART_BYTES, HeadIndex, ping_datagrams, split_datagram
+from ..io.survey import Ping
+from .nmea import fix_sentences
+
+__all__ = ["LiveDatagram", "Faults", "live_datagrams", "with_faults", "send_datagrams"]
+
+_EARTH_RADIUS_M = 6_371_000.0
+
+
+@dataclass(frozen=True)
+class LiveDatagram:
+    """One UDP datagram to send: its time (POSIX s), what it is (``"kmall"`` or ``"nmea"``), its bytes."""
+
+    time_s: float
+    kind: str
+    payload: bytes
+
+
+@dataclass(frozen=True)
+class Faults:
+    """Probabilities per datagram of its loss, duplication and reordering, and the generator's seed."""
+
+    loss: float = 0.0
+    reorder: float = 0.0
+    duplicate: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("loss", "reorder", "duplicate"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
+                raise ValueError(f"{name} must be a probability from 0 to 1, got {value!r}")
+
+    @property
+    def any(self) -> bool:
+        return bool(self.loss or self.reorder or self.duplicate)
+
+
+def _course_speed(before: Ping | None, ping: Ping) -> tuple[float, float]:
+    if before is None or ping.time_s <= before.time_s:
+        return math.nan, math.nan
+    north = math.radians(ping.lat_deg - before.lat_deg) * _EARTH_RADIUS_M
+    east = math.radians(ping.lon_deg - before.lon_deg) * _EARTH_RADIUS_M * math.cos(math.radians(ping.lat_deg))
+    return math.degrees(math.atan2(east, north)) % 360.0, math.hypot(east, north) / (ping.time_s - before.time_s)
+
+
+def live_datagrams(pings: Iterable[Ping], *, max_datagram_bytes: int = UDP_PART_BYTES) -> Iterator[LiveDatagram]:
+    """The live datagrams of ``pings`` (see the module), in sending order."""
+    heads = HeadIndex()
+    before = latest = None  # the last ping of an earlier time; the last ping
+    for count, ping in enumerate(pings):
+        # A second head's ping of the same time: its MRZ only (the sensors' fix and attitude are sent once).
+        same_time = latest is not None and ping.time_s == latest.time_s
+        if not same_time:
+            before = latest
+        course, speed = _course_speed(before, ping)
+        sentences = fix_sentences(ping.time_s, ping.lat_deg, ping.lon_deg, heading_deg=ping.heading_deg, course_deg=course, speed_mps=speed)
+        if not same_time:
+            for sentence in sentences:
+                yield LiveDatagram(ping.time_s, "nmea", (sentence + "\r\n").encode("ascii"))
+        datagrams = ping_datagrams(ping, rx_index=heads(ping.head), ping_count=count, speed_mps=speed, course_deg=course,
+                                   position_text=sentences[1])
+        for datagram in datagrams[-1:] if same_time else datagrams:
+            for part in split_datagram(datagram, max_datagram_bytes):
+                yield LiveDatagram(ping.time_s, "kmall", part)
+        latest = ping
+
+
+def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Counter) -> Iterator[LiveDatagram]:
+    """``datagrams`` with the faults drawn (see the module).
+
+    ``counts`` gets ``datagrams``, ``lost``, ``duplicated``, ``reordered``, and the first two per kind (``lost kmall``, ...).
+    """
+    rng = np.random.default_rng(faults.seed)
+    held: list[LiveDatagram] = []
+    for datagram in datagrams:
+        counts["datagrams"] += 1
+        lost, doubled, reordered = rng.random(3) < (faults.loss, faults.duplicate, faults.reorder)
+        if lost:
+            counts["lost"] += 1
+            counts[f"lost {datagram.kind}"] += 1
+            continue
+        copies = [datagram, datagram] if doubled else [datagram]
+        counts["duplicated"] += int(doubled)
+        counts[f"duplicated {datagram.kind}"] += int(doubled)
+        if reordered and not held:
+            counts["reordered"] += 1
+            held = copies
+            continue
+        yield from copies
+        yield from held
+        held = []
+    yield from held
+
+
+def send_datagrams(datagrams: Iterable[LiveDatagram], address: tuple[str, int], *, speed: float = 1.0,
+                   sock: socket.socket | None = None) -> Counter:
+    """Send over UDP at the datagrams' own times divided by ``speed`` (``0``: as fast as possible); counts sent per kind and bytes."""
+    if not (math.isfinite(speed) and speed >= 0):
+        raise ValueError(f"speed must be 0 (as fast as possible) or a positive factor of real time, got {speed!r}")
+    own = sock is None
+    sock = sock or socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sent: Counter = Counter()
+    start_wall = first = None
+    try:
+        for datagram in datagrams:
+            if speed > 0:
+                if first is None:
+                    first, start_wall = datagram.time_s, time.monotonic()
+                wait = (datagram.time_s - first) / speed - (time.monotonic() - start_wall)
+                if wait > 0:
+                    time.sleep(wait)
+            sock.sendto(datagram.payload, address)
+            sent[f"{datagram.kind} datagrams sent"] += 1
+            sent["bytes sent"] += len(datagram.payload)
+    finally:
+        if own:
+            sock.close()
+    return sent

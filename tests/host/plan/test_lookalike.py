@@ -1,0 +1,105 @@
+"""The planner's look-alikes: the runner-up per ring against a placement-by-placement search, periodic terrain against
+rough, the lock along a route lost over look-alike ground and regained on informative terrain, and accuracy.nc's layers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+from scipy import ndimage
+
+from lost.host.cli import EXIT_OK, main
+from lost.host.grid import Grid
+from lost.host.io import write_npz
+from lost.host.plan import RouteModel, SonarModel, lookalike_grid, predict_along
+from lost.host.plan.ambiguity import EXCLUSION_NODES
+from lost.host.plan.route import false_lock_probability
+
+
+def _rough(shape=(50, 70), seed=1, relief=40.0) -> Grid:
+    depth = 500.0 + relief * ndimage.gaussian_filter(np.random.default_rng(seed).normal(size=shape), 2.0)
+    return Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=10.0)
+
+
+def _direct(depth: np.ndarray, row: int, col: int, shape, reach: int, edges_nodes: np.ndarray, noise_var: float) -> dict[int, tuple[float, float]]:
+    """Every placement within ``reach`` written out: the smallest n D / s^2 per ring and its distance (nodes)."""
+    h, w = shape
+    patch = depth[row - h // 2: row - h // 2 + h, col - w // 2: col - w // 2 + w]
+    best: dict[int, tuple[float, float]] = {}
+    for di in range(-reach, reach + 1):
+        for dj in range(-reach, reach + 1):
+            radius = float(np.hypot(di, dj))
+            i, j = row - h // 2 + di, col - w // 2 + dj
+            if max(abs(di), abs(dj)) <= EXCLUSION_NODES or radius > reach or i < 0 or j < 0 or i + h > depth.shape[0] or j + w > depth.shape[1]:
+                continue
+            other = depth[i: i + h, j: j + w]
+            if not np.isfinite(other).all():
+                continue
+            diff = patch - other
+            value = diff.size * (np.mean(diff**2) - np.mean(diff) ** 2) / noise_var
+            ring = int(np.searchsorted(edges_nodes, radius, side="left"))
+            if ring not in best or value < best[ring][0]:
+                best[ring] = (value, radius)
+    return best
+
+
+def test_the_runner_up_per_ring_equals_a_placement_by_placement_search():
+    grid = _rough()
+    depth = grid.depth_m.copy()
+    depth[30, 50] = np.nan  # a hole: placements touching it are no look-alikes, patches touching it have none
+    grid = Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    sonar = SonarModel(shape=(6, 8), noise_m=0.4)
+    found = lookalike_grid(grid, sonar, 0.3, radius_m=120.0)
+    edges = found.ring_edges_m / grid.node_m
+    for row, col in ((20, 30), (8, 9), (40, 60), (25, 45)):
+        direct = _direct(depth, row, col, sonar.shape, 12, edges, 0.4**2 + 0.3**2)
+        assert sorted(direct) == [k for k in range(len(edges)) if np.isfinite(found.snr[k, row, col])]
+        for ring, (value, radius) in direct.items():
+            assert found.snr[ring, row, col] == pytest.approx(value, rel=1e-7)
+            assert found.distance_m[ring, row, col] == pytest.approx(radius * grid.node_m)
+    assert np.isnan(found.snr[:, 28:33, 47:54]).all() and np.isnan(found.snr[:, :2]).all()
+
+
+def test_periodic_terrain_is_a_false_lock_and_rough_terrain_is_not():
+    y, x = np.mgrid[0:60, 0:80] * 10.0
+    ridges = Grid(depth_m=400.0 + 5.0 * np.sin(2 * np.pi * x / 80.0), x0_m=0.0, y0_m=0.0, node_m=10.0)  # sand waves: every 80 m alike
+    alike = false_lock_probability(lookalike_grid(ridges, SonarModel(), 0.1, radius_m=200.0, work=3e6))
+    rough = false_lock_probability(lookalike_grid(_rough((60, 80)), SonarModel(), 0.1, radius_m=200.0, work=3e6))
+    assert np.nanmin(alike) > 0.99 and np.nanmax(rough) < 0.01
+
+
+def test_the_lock_is_lost_over_look_alike_ground_and_regained_on_informative_terrain():
+    rng = np.random.default_rng(4)
+    y, x = np.mgrid[0:50, 0:240] * 10.0
+    depth = 400.0 + 5.0 * (np.sin(2 * np.pi * x / 80.0) + np.sin(2 * np.pi * y / 80.0)) + 0.02 * rng.normal(size=x.shape)
+    rough = 30.0 * ndimage.gaussian_filter(rng.normal(size=x.shape), 2.0)
+    depth[:, 160:] += rough[:, 160:]  # sand waves to 1600 m, rough ground beyond
+    grid = Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    sonar = SonarModel(noise_m=0.3)
+    from lost.host.plan import accuracy_grid
+
+    accuracy, lookalike = accuracy_grid(grid, sonar, 0.1), lookalike_grid(grid, sonar, 0.1, radius_m=200.0, work=3e6)
+    t = np.arange(0.0, 1500.0, 3.0)
+    xy = np.column_stack([100.0 + 1.5 * t, np.full(t.size, 250.0)])
+    model = RouteModel(speed_mps=1.5, interval_s=3.0, initial_sigma_m=100.0, usable_sigma_m=10.0, floor_m=1.0, patch_length_m=100.0,
+                       acquisitions_per_patch=10.0)
+    route = predict_along(accuracy, t, xy, model, lookalike)
+    waves, beyond = xy[:, 0] < 1500.0, xy[:, 0] > 1800.0
+    assert route["unlocked"][waves].min() > 0.99  # no lock where every 80 m looks alike
+    assert route["unlocked"][beyond][-1] < 0.01 and route["predicted_m"][beyond][-1] < 5.0
+    assert route["predicted_m"][waves].min() > 50.0  # the error is the search's, not the bound's
+    locked = predict_along(accuracy, t, xy, model)  # without look-alikes: the bound alone, locked from the start
+    assert "unlocked" not in locked and locked["predicted_m"][waves][-1] < 10.0
+
+
+def test_lost_plan_writes_the_look_alike_layers(tmp_path):
+    y, x = np.mgrid[0:40, 0:60] * 10.0
+    grid = Grid(depth_m=400.0 + 5.0 * (np.sin(2 * np.pi * x / 80.0) + np.sin(2 * np.pi * y / 80.0)), x0_m=0.0, y0_m=0.0, node_m=10.0)
+    write_npz(grid, tmp_path / "map.npz")
+    out = tmp_path / "plan"
+    assert main(["plan", str(tmp_path / "map.npz"), "--out", str(out), "--lookalike-radius-m", "150"]) == EXIT_OK
+    with xr.open_dataset(out / "accuracy.nc") as data:
+        assert set(data.data_vars) == {"accuracy_m", "false_lock_probability", "lookalike_separation", "lookalike_distance_m"}
+        inner = data["false_lock_probability"].values[10:30, 10:50]
+        assert np.all(inner > 0.99) and np.isnan(data["false_lock_probability"].values[:3]).all()
+        assert np.nanmin(data["lookalike_distance_m"].values) >= 30.0  # beyond the truth's own two nodes
