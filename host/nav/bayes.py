@@ -177,7 +177,7 @@ class BayesFilter:
     def _terrain_update(self, observation: Observation) -> None:
         patch = observation.patch
         length = max(patch.depth_m.shape) * patch.node_m
-        weight = self._trust.patch_weight(length)
+        weight = self._trust.patch_weight(length, self._moments()[1])
         self._before_patch(patch, weight)
         x, y, mass = self._candidates()
         shift_x, shift_y = self._patch_shift(patch.age_s)
@@ -200,7 +200,9 @@ class BayesFilter:
         if self._apply(result.log_likelihood, terrain=True):
             self._trust.note_misfit(result.misfit)
             mean, cov = self._moments()
-            shift = [float(np.average(np.broadcast_to(s, mass.shape), weights=mass)) for s in (shift_x, shift_y)]
+            # One shift for the point-mass filter's cells, one per particle: their mean by the density's mass.
+            shift = [float(s) if np.ndim(s) == 0 else float(np.ravel(s) @ np.ravel(mass)) / float(mass.sum()) for s in (shift_x, shift_y)]
+            self._trust.note_independence(self._lik, mean + shift, cov, patch)
             if self._trust.look_alike(self._lik, mean + shift, cov, patch):
                 self._reinitialize()
                 self._stage = "reinitialized"

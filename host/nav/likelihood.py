@@ -39,9 +39,11 @@ from ..records import SonarPatch
 from .maperror import window_variance
 from .mapprep import PreparedMap
 
-__all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "map_error_estimate"]
+__all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "MIN_INDEPENDENT_SHARE", "map_error_estimate"]
 
 LIKELIHOODS = ("laplace", "gaussian")
+#: The least share of a patch's nodes counted independent (:meth:`TerrainLikelihood.independent_share`).
+MIN_INDEPENDENT_SHARE = 0.05
 
 
 def map_error_estimate(depth_m: np.ndarray) -> float:
@@ -266,13 +268,72 @@ class TerrainLikelihood:
         per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
         if self.form == "gaussian":
             per_node = np.sqrt(per_node)
-        score = -per_node / self._placement_sigma((h, w), i0, i1, j0, j1)  # per valid node, in nominal residual units
-        ii, jj = np.meshgrid(np.arange(i0, i1 + 1) - ci, np.arange(j0, j1 + 1) - cj, indexing="ij")
-        near = valid & (np.maximum(np.abs(ii), np.abs(jj)) * grid.node_m <= exclusion_m)
-        far = valid & ~near
-        if not (near.any() and far.any()):
+        score = np.where(valid, -per_node / self._placement_sigma((h, w), i0, i1, j0, j1), -np.inf)  # per valid node, nominal units
+        # Near: the placements within exclusion_m (Chebyshev) of the centre, a rectangle of the region.
+        e = exclusion_m / grid.node_m
+        r0, r1 = max(math.ceil(ci - e - 1e-9), i0) - i0, min(math.floor(ci + e + 1e-9), i1) - i0 + 1
+        c0, c1 = max(math.ceil(cj - e - 1e-9), j0) - j0, min(math.floor(cj + e + 1e-9), j1) - j0 + 1
+        if r0 >= r1 or c0 >= c1:
             return float("nan")
-        return float(score[near].max() - score[far].max())
+        near = float(score[r0:r1, c0:c1].max())
+        score[r0:r1, c0:c1] = -np.inf
+        far = float(score.max())
+        if not (math.isfinite(near) and math.isfinite(far)):
+            return float("nan")
+        return near - far
+
+    def independent_share(self, centre_m: np.ndarray, patch: SonarPatch) -> float:
+        """The share of a patch's nodes whose residuals are independent, N_eff / n, at the placement nearest ``centre_m``.
+
+        A survey map's error is correlated over the patch (line offsets, drift, refraction, gridding, relief
+        under a node) and so is a real-time patch's (soundings placed by dead reckoning): the residuals of
+        neighbouring nodes are alike, and a log-likelihood summed over n nodes as if independent is about
+        n / N_eff times too peaked. For residuals correlated as a separable first-order autoregression with
+        lag-one correlations rho_x, rho_y, ``N_eff / n = (1 - rho_x) / (1 + rho_x) * (1 - rho_y) / (1 + rho_y)``
+        (the variance of a mean of such a series). Measured at the true place: about 0.6 on ``short``'s
+        map = floor, 0.5 on its 30 m survey map, 0.09-0.11 on ``shelf_canyon`` and ``seamount_ridges``.
+        Bounded to [``MIN_INDEPENDENT_SHARE``, 1]; NaN where the placement leaves the map or has too few valid
+        neighbour pairs.
+        """
+        grid = self._grid
+        depth = np.asarray(patch.depth_m, float)
+        h, w = depth.shape
+        row, col = grid.row_col(centre_m[0] + patch.centre_offset_m[0], centre_m[1] + patch.centre_offset_m[1])
+        i, j = int(round(float(row) - (h - 1) / 2)), int(round(float(col) - (w - 1) / 2))
+        rows, cols = grid.shape
+        if not (0 <= i <= rows - h and 0 <= j <= cols - w):
+            return float("nan")
+        residual = grid.depth_m[i : i + h, j : j + w] - depth
+        valid = np.isfinite(residual)
+        if valid.sum() < 3 * max(h, w):
+            return float("nan")
+        # The estimate lies a fraction of a node from the placement: that misplacement is the map's slope times a
+        # position error, correlated over the patch but not the map's error. Taken out by least squares on the
+        # map's gradients (with the mean), what is left is the residual whose correlation counts.
+        r0, c0 = max(i - 1, 0), max(j - 1, 0)
+        grad_y, grad_x = np.gradient(grid.depth_m[r0 : i + h + 1, c0 : j + w + 1])  # NaN next to a hole: such nodes leave the fit
+        grad_y, grad_x = (g[i - r0 : i - r0 + h, j - c0 : j - c0 + w] for g in (grad_y, grad_x))
+        valid &= np.isfinite(grad_x) & np.isfinite(grad_y)
+        if valid.sum() < 3 * max(h, w):
+            return float("nan")
+        design = np.stack([np.ones(int(valid.sum())), grad_x[valid], grad_y[valid]])
+        try:
+            fit = np.linalg.solve(design @ design.T + 1e-9 * np.eye(3), design @ residual[valid])
+        except np.linalg.LinAlgError:
+            return float("nan")
+        residual = np.where(valid, residual, 0.0)
+        residual[valid] -= fit @ design
+        share = 1.0
+        for axis in (0, 1):
+            a, b = np.moveaxis(residual, axis, 0), np.moveaxis(valid, axis, 0)
+            pair = b[1:] & b[:-1]
+            x, y = a[1:][pair], a[:-1][pair]
+            scale = math.sqrt(float(np.sum(x * x) * np.sum(y * y)))
+            if pair.sum() < max(h, w) or scale <= 0.0:
+                return float("nan")
+            rho = min(max(float(np.sum(x * y)) / scale, 0.0), 0.99)
+            share *= (1.0 - rho) / (1.0 + rho)
+        return max(share, MIN_INDEPENDENT_SHARE)
 
     def _residuals(self, words: np.ndarray, mask: np.ndarray, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, np.ndarray]:
         """Over placements i0..i1 x j0..j1: the mean |residual| (Laplace, from the correlator) or mean residual**2

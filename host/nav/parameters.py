@@ -105,6 +105,10 @@ class NavParameters:
         hardware gives it; Gaussian is eq. 3.4 (a sum of squares on the host).
     likelihood_weight : float
         Multiplies every terrain log-likelihood (after the new-share tempering). Default 1.
+    temper_by_correlation : bool
+        Temper each terrain log-likelihood by the share of the patch's nodes whose residuals are independent
+        (N_eff / n, learned from the residuals at the estimate while the density is narrow;
+        :meth:`~lost.host.nav.likelihood.TerrainLikelihood.independent_share`). Default True.
     initial_sigma_m : float
         1-sigma of the start position about the lay-back model, each axis; also the width a
         re-initialization widens to. Default 300 m.
@@ -233,6 +237,7 @@ class NavParameters:
     survey_sigma_m: float = 0.5
     likelihood: str = "laplace"
     likelihood_weight: float = 1.0
+    temper_by_correlation: bool = True
     initial_sigma_m: float = 300.0
     velocity_noise_mps: float = 0.05
     gyro_bias_rps: float = math.radians(0.01) / 3600.0

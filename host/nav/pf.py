@@ -23,7 +23,7 @@ from ..grid import Grid
 from .bayes import BayesFilter
 from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
-from .trust import moments
+from .trust import eigenvalues_2x2, moments
 
 __all__ = ["ParticleFilter", "systematic_resample"]
 
@@ -103,7 +103,8 @@ class ParticleFilter(BayesFilter):
     @property
     def velocity_bias_sigma_mps(self) -> np.ndarray:
         """The particles' weighted spread of their biases."""
-        return np.sqrt(((self._b - self.velocity_bias_mps[:, None]) ** 2) @ self._w)
+        mean = self._b @ self._w
+        return np.sqrt(np.maximum((self._b * self._b) @ self._w - mean * mean, 0.0))
 
     def start(self, t_s: float, position: np.ndarray, observation: Observation) -> None:
         self._spawn(np.asarray(position, float), None, self._p.initial_sigma_m)
@@ -128,7 +129,7 @@ class ParticleFilter(BayesFilter):
 
         The estimate reports the cloud's own covariance (see ``PointMassFilter._keep_floor``).
         """
-        missing = self._floor_var - float(np.linalg.eigvalsh(covariance)[0])
+        missing = self._floor_var - eigenvalues_2x2(covariance)[0]
         if missing > self._pending_var:
             self._pending_var, self._cached = missing, None
 
