@@ -43,7 +43,7 @@ __all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "MIN_INDEPENDE
 
 LIKELIHOODS = ("laplace", "gaussian")
 #: The least share of a patch's nodes counted independent (:meth:`TerrainLikelihood.independent_share`).
-MIN_INDEPENDENT_SHARE = 0.05
+MIN_INDEPENDENT_SHARE = 0.2
 
 
 def map_error_estimate(depth_m: np.ndarray) -> float:
