@@ -34,7 +34,8 @@ class Grid:
         The projected CRS (anything ``pyproj.CRS.from_user_input`` takes), or None for a local frame.
     sigma_m : (rows, cols) float64 array or None
         The standard deviation of each node's depth, metres, as gridding reports it (the spread of the
-        soundings in the node's cell; a BAG's uncertainty layer); NaN where the depth is a hole. None: not known.
+        soundings in the node's cell; a BAG's uncertainty layer); NaN where the depth is a hole, and where a
+        node's single sounding has no spread (``lost run`` fills those with ``survey_sigma_m``). None: not known.
     """
 
     depth_m: np.ndarray
