@@ -27,12 +27,12 @@ import numpy as np
 
 from .survey import Ping, interpolate_at
 
-__all__ = ["read_kmall_pings"]
+__all__ = ["MRZ_SOUNDING", "mrz_ping", "read_kmall_pings", "read_mrz"]
 
 _MAX_ATTITUDE_GAP_S = 1.0
 # One MRZ sounding (EMdgmMRZ_sounding_def, 120 bytes): pykmall's own layout "1H8B1H6f2H18f4H", read for all
 # soundings at once instead of one dict per sounding.
-_SOUNDING = np.dtype([
+MRZ_SOUNDING = np.dtype([
     ("soundingIndex", "<u2"), ("txSectorNumb", "u1"), ("detectionType", "u1"), ("detectionMethod", "u1"), ("rejectionInfo1", "u1"),
     ("rejectionInfo2", "u1"), ("postProcessingInfo", "u1"), ("detectionClass", "u1"), ("detectionConfidenceLevel", "u1"),
     ("padding", "<u2"), ("rangeFactor", "<f4"), ("qualityFactor", "<f4"), ("detectionUncertaintyVer_m", "<f4"),
@@ -55,7 +55,7 @@ def read_kmall_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[P
         if dg["partition"]["numOfDgms"] != 1:
             skipped[f"{path.name}: MRZ datagram split over partitions (not read)"] += 1
             continue
-        yield _ping(dg, attitude)
+        yield mrz_ping(dg, attitude)
 
 
 def _datagrams(path: Path, wanted: str, skipped: Counter) -> Iterator[dict]:
@@ -85,7 +85,7 @@ def _datagrams(path: Path, wanted: str, skipped: Counter) -> Iterator[dict]:
             if name[1:].decode() == wanted:
                 try:
                     with contextlib.redirect_stdout(io.StringIO()):  # pykmall prints while it scans
-                        yield _read_mrz(reader) if wanted == "MRZ" else getattr(reader, f"read_EMdgm{wanted}")()
+                        yield read_mrz(reader) if wanted == "MRZ" else getattr(reader, f"read_EMdgm{wanted}")()
                 except (struct.error, KeyError, ValueError, IndexError) as error:
                     skipped[f"{path.name}: damaged datagram '{wanted}' ({type(error).__name__})"] += 1
             reader.FID.seek(at + size)
@@ -93,7 +93,7 @@ def _datagrams(path: Path, wanted: str, skipped: Counter) -> Iterator[dict]:
         reader.closeFile()
 
 
-def _read_mrz(reader) -> dict:
+def read_mrz(reader) -> dict:
     """pykmall's read_EMdgmMRZ, its parts in its order, with the soundings read as one array."""
     dg = {"header": reader.read_EMdgmHeader(), "partition": reader.read_EMdgmMpartition(), "cmnPart": reader.read_EMdgmMbody(),
           "pingInfo": reader.read_EMdgmMRZ_pingInfo()}
@@ -103,12 +103,12 @@ def _read_mrz(reader) -> dict:
     for _ in range(rx["numExtraDetectionClasses"]):
         reader.read_EMdgmMRZ_extraDetClassInfo()
     count = rx["numSoundingsMaxMain"] + rx["numExtraDetections"]
-    if rx["numBytesPerSounding"] != _SOUNDING.itemsize:
-        raise ValueError(f"MRZ soundings of {rx['numBytesPerSounding']} bytes; this reader knows {_SOUNDING.itemsize}")
-    data = reader.FID.read(count * _SOUNDING.itemsize)
-    if len(data) < count * _SOUNDING.itemsize:
+    if rx["numBytesPerSounding"] != MRZ_SOUNDING.itemsize:
+        raise ValueError(f"MRZ soundings of {rx['numBytesPerSounding']} bytes; this reader knows {MRZ_SOUNDING.itemsize}")
+    data = reader.FID.read(count * MRZ_SOUNDING.itemsize)
+    if len(data) < count * MRZ_SOUNDING.itemsize:
         raise ValueError("MRZ datagram shorter than its soundings")
-    dg["sounding"] = np.frombuffer(data, _SOUNDING)
+    dg["sounding"] = np.frombuffer(data, MRZ_SOUNDING)
     return dg
 
 
@@ -133,7 +133,9 @@ def _attitude(path: Path, skipped: Counter) -> dict:
     return {k: v[order] for k, v in out.items()}
 
 
-def _ping(dg: dict, attitude: dict) -> Ping:
+def mrz_ping(dg: dict, attitude: dict) -> Ping:
+    """The ping of an MRZ datagram as :func:`read_mrz` gives it; roll, pitch and heave from ``attitude`` (the SKM
+    samples' times ``t`` and their ``roll``, ``pitch``, ``heave``) at the ping's time."""
     info, rx, sounding = dg["pingInfo"], dg["rxInfo"], dg["sounding"]
     main = int(rx["numSoundingsMaxMain"])
     t = np.array([dg["header"]["dgtime"]])

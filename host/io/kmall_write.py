@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .crs import offset_degrees
-from .kmall import _SOUNDING  # the 120-byte sounding: the reader's own layout, one place for it
+from .kmall import MRZ_SOUNDING  # the 120-byte sounding: the reader's own layout, one place for it
 from .survey import Ping
 
 __all__ = ["write_kmall_pings", "ping_datagrams", "HeadIndex", "encode_mrz", "encode_skm", "encode_spo", "split_datagram",
@@ -143,10 +143,10 @@ def encode_mrz(ping: Ping, *, rx_index: int = 0, ping_count: int = 0, system_id:
     info["latitude_deg"], info["longitude_deg"] = ping.lat_deg, ping.lon_deg
     sector = np.zeros(1, _TX_SECTOR)
     rx = np.zeros(1, _RX_INFO)
-    rx["numBytesRxInfo"], rx["numSoundingsMaxMain"], rx["numBytesPerSounding"] = _RX_INFO.itemsize, ping.beams, _SOUNDING.itemsize
+    rx["numBytesRxInfo"], rx["numSoundingsMaxMain"], rx["numBytesPerSounding"] = _RX_INFO.itemsize, ping.beams, MRZ_SOUNDING.itemsize
     rx["numSoundingsValidMain"] = int(np.count_nonzero(ping.valid))
     rx["numBytesPerClass"] = 4
-    beams = np.zeros(ping.beams, _SOUNDING)
+    beams = np.zeros(ping.beams, MRZ_SOUNDING)
     valid = np.asarray(ping.valid, dtype=bool)
     beams["soundingIndex"] = np.arange(ping.beams)
     beams["detectionType"] = np.where(valid, _VALID_DETECTION, _REJECTED_DETECTION)

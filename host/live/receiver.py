@@ -31,8 +31,7 @@ from collections import Counter, OrderedDict, deque
 
 import numpy as np
 
-from ..io.kmall import _ping as _mrz_ping
-from ..io.kmall import _read_mrz
+from ..io.kmall import mrz_ping, read_mrz
 from ..io.survey import Ping
 from .nmea import HeadingFix, NmeaDecoder, PositionFix
 
@@ -149,8 +148,8 @@ class LiveDecoder:
         reader = _reader(datagram)
         try:
             with contextlib.redirect_stdout(io.StringIO()):
-                dg = _read_mrz(reader)
-            ping = _mrz_ping(dg, self._attitude_arrays())
+                dg = read_mrz(reader)
+            ping = mrz_ping(dg, self._attitude_arrays())
         except (struct.error, KeyError, ValueError, IndexError, TypeError, UnicodeDecodeError) as error:
             self.counts[f"kmall #MRZ that does not decode ({type(error).__name__}; skipped)"] += 1
             return []
