@@ -14,10 +14,14 @@ import logging
 import tomllib
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..config import ConfigError
 from ..errors import UsageError
+
+if TYPE_CHECKING:
+    from ..grid import Grid
+    from ..nav.parameters import NavParameters
 
 __all__ = [
     "PROGRESS_ITEMS", "progress_bar", "warnings_collected", "setting_argument", "merge_settings", "positive_metres",
@@ -152,3 +156,15 @@ def configure_hardware(args: argparse.Namespace) -> None:
         configure_backend("fpga", port=port, baud=args.baud)
     elif backend == "rtl" and variant:
         configure_backend("rtl", variant=variant)
+
+
+def map_uncertainty(grid: Grid, params: NavParameters) -> tuple[Grid, dict]:
+    """The grid's uncertainty layer made whole for the map error model, and the summary's account of it (``lost run``,
+    ``lost serve``)."""
+    from ..io.uncertainty import fill_sigma_gaps
+
+    grid, report = fill_sigma_gaps(grid, params.survey_sigma_m)
+    report["used"] = params.map_error_m is None and params.map_error_model == "per_node"
+    if not report["used"]:
+        report["not_used_because"] = ("map_error_m is set" if params.map_error_m is not None else f"map_error_model = {params.map_error_model!r}")
+    return grid, {"map_uncertainty": report}

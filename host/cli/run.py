@@ -31,6 +31,7 @@ from ..runfolder import run_folder, write_summary
 from .common import (
     configure_hardware,
     hardware_options,
+    map_uncertainty,
     merge_settings,
     output_options,
     positive_metres,
@@ -99,17 +100,6 @@ def _print_map_uncertainty(summary: dict) -> None:
     used = "" if m["used"] else f" (not used: {m['not_used_because']})"
     print(f"map uncertainty: {m['source']}, {m['nodes_from_layer']} nodes from the layer, {m['nodes_from_survey_sigma_m']} at "
           f"survey_sigma_m {m['survey_sigma_m']:g} m{used}")
-
-
-def _map_uncertainty(grid: Grid, params: NavParameters) -> tuple[Grid, dict]:
-    """The grid's uncertainty layer made whole for the map error model, and the summary's account of it."""
-    from ..io.uncertainty import fill_sigma_gaps
-
-    grid, report = fill_sigma_gaps(grid, params.survey_sigma_m)
-    report["used"] = params.map_error_m is None and params.map_error_model == "per_node"
-    if not report["used"]:
-        report["not_used_because"] = ("map_error_m is set" if params.map_error_m is not None else f"map_error_model = {params.map_error_model!r}")
-    return grid, {"map_uncertainty": report}
 
 
 def _print_usbl(summary: dict) -> None:
@@ -219,7 +209,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     out = args.out = args.out or Path("runs") / Path(args.log).stem
     with run_folder(out, replace=args.replace) as folder, warnings_collected() as warnings:
         grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
-        grid, extra = _map_uncertainty(grid, params)
+        grid, extra = map_uncertainty(grid, params)
         records, report = read_navlog(args.log, sonar=args.sonar, crs=grid.crs, node_m=grid.node_m,
                                       patch_shape=args.patch_shape, patch_centre=args.patch_centre)
         print(report.summary())
@@ -251,7 +241,7 @@ def _run_survey(args: argparse.Namespace) -> int:
         grid = read_grid(args.bathy, node_m=args.node_m, crs=args.crs, source_crs=args.source_crs, positive=args.positive, nodata=args.nodata)
         if grid.crs is None:
             raise ValueError(f"{args.bathy} has no CRS: a survey's positions (latitude, longitude) cannot be placed on it")
-        grid, extra = _map_uncertainty(grid, params)
+        grid, extra = map_uncertainty(grid, params)
         survey = open_survey(files, crs=grid.crs)
         interval = args.record_s if args.record_s is not None else DEFAULT_RECORD_S
         recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=args.patch_shape, interval_s=interval, window_s=args.window_s,

@@ -18,6 +18,7 @@ import shutil
 from pathlib import Path
 
 from ..runfolder import run_folder, write_summary
+from .common import map_uncertainty
 
 __all__ = ["register"]
 
@@ -31,7 +32,6 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     from ..live.server import LiveServer
     from ..live.settings import address, read_serve_settings
     from ..nav import navigation_parameters
-    from .run import _map_uncertainty
 
     settings = read_serve_settings(args.config)
     params = navigation_parameters(settings.navigation, f"{args.config} [navigation]")
@@ -41,7 +41,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         grid = read_grid(settings.bathy)
         if grid.crs is None:
             raise ValueError(f"{settings.bathy} has no CRS: received positions (latitude, longitude) cannot be placed on it")
-        grid, extra = _map_uncertainty(grid, params)
+        grid, extra = map_uncertainty(grid, params)
         recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=settings.patch_shape, interval_s=settings.record_s,
                                   window_s=settings.window_s, dr_bias_mps=settings.dr_bias_mps, start_offset_m=settings.start_offset_m,
                                   patch_centre=settings.patch_centre)

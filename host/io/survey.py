@@ -27,7 +27,7 @@ import numpy as np
 
 from .errors import SurveyFileError
 
-__all__ = ["Ping", "Survey", "open_survey", "survey_format", "SURVEY_FORMATS"]
+__all__ = ["Ping", "Survey", "open_survey", "project_ping", "survey_format", "SURVEY_FORMATS"]
 
 SURVEY_FORMATS = ("kongsberg-all", "kmall", "gsf")
 # Kongsberg .all datagram types (EM Series datagram formats), enough to recognise a file by its first.
@@ -184,10 +184,15 @@ class Survey:
             elif not _crs(self.crs).is_projected:
                 raise ValueError(f"crs must be a projected (metric) CRS, got {self.crs!r}")
             self._transformer = _transformer("EPSG:4326", self.crs)
-        # True north's grid bearing: where a small step north lands on the map.
-        east, north = self._transformer.transform([ping.lon_deg, ping.lon_deg], [ping.lat_deg, min(ping.lat_deg + 1e-5, 90.0)])
-        convergence = math.degrees(math.atan2(east[1] - east[0], north[1] - north[0]))
-        return Ping(**{**ping.__dict__, "east_m": float(east[0]), "north_m": float(north[0]), "convergence_deg": convergence})
+        return project_ping(ping, self._transformer)
+
+
+def project_ping(ping: Ping, transformer) -> Ping:
+    """``ping`` with its projected position and meridian convergence, by a pyproj ``transformer`` from EPSG:4326."""
+    # True north's grid bearing: where a small step north lands on the map.
+    east, north = transformer.transform([ping.lon_deg, ping.lon_deg], [ping.lat_deg, min(ping.lat_deg + 1e-5, 90.0)])
+    convergence = math.degrees(math.atan2(east[1] - east[0], north[1] - north[0]))
+    return Ping(**{**ping.__dict__, "east_m": float(east[0]), "north_m": float(north[0]), "convergence_deg": convergence})
 
 
 def open_survey(paths: str | os.PathLike | Iterable[str | os.PathLike], *, crs: str | None = None) -> Survey:

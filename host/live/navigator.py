@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grid import Grid
-from ..io.survey import Ping
+from ..io.survey import Ping, project_ping
 from ..io.survey_records import SurveyRecord, SurveyRecorder, nav_records
 from ..nav.bank import EstimatorBank
 from ..nav.loop import StreamLoop
@@ -92,10 +92,7 @@ class LiveNavigator:
         return [estimate for record in self.recorder.finish() for estimate in self._step(record)]
 
     def _projected(self, ping: Ping) -> Ping:
-        # As Survey._projected: the same transform, so a received ping lands where the file's does, to the bit.
-        east, north = self._transformer.transform([ping.lon_deg, ping.lon_deg], [ping.lat_deg, min(ping.lat_deg + 1e-5, 90.0)])
-        convergence = math.degrees(math.atan2(east[1] - east[0], north[1] - north[0]))
-        return Ping(**{**ping.__dict__, "east_m": float(east[0]), "north_m": float(north[0]), "convergence_deg": convergence})
+        return project_ping(ping, self._transformer)  # as a Survey does: a received ping lands where the file's does
 
     def _step(self, record: SurveyRecord) -> list[LiveEstimate]:
         if record.sonar is None:

@@ -145,7 +145,7 @@ def test_served_estimates_equal_the_batch_runs_record_for_record(tow, tmp_path, 
 
 def test_the_served_values_are_the_batch_navigations_to_the_bit(tow, tmp_path, capsys):
     """The same records through navigate() (the batch path's engine) and through the live navigator: equal floats."""
-    from lost.host.cli.run import _map_uncertainty
+    from lost.host.cli.common import map_uncertainty
     from lost.host.io import read_grid
     from lost.host.io.survey import open_survey
     from lost.host.io.survey_records import SurveyRecorder, survey_records
@@ -156,7 +156,7 @@ def test_the_served_values_are_the_batch_navigations_to_the_bit(tow, tmp_path, c
 
     path, map_path = tow
     params = NavParameters()
-    grid, _ = _map_uncertainty(read_grid(map_path), params)
+    grid, _ = map_uncertainty(read_grid(map_path), params)
 
     def recorder():
         return SurveyRecorder(node_m=grid.node_m, patch_shape=(10, 10), interval_s=5.0, window_s=20.0, dr_bias_mps=(0.1, 0.05),
