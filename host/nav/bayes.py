@@ -318,6 +318,7 @@ class BayesFilter:
             return False
         self._accept(posterior, post_cov, post_mean - prior_mean, terrain)
         if terrain:
+            self._trust.note_correction(post_mean - prior_mean, prior_cov, post_cov)
             self._trust.accepted(post_cov)
             self._stage = "tracking" if self._trust.usable else "acquisition"
             self.counts["terrain_updates"] += 1

@@ -189,6 +189,11 @@ class NavParameters:
         the wrong place; ``reinit_after`` such patches among the last ``2 reinit_after`` re-initialize the
         filter (counted ``reinitialized_elsewhere``). Default 0.5 (measured on ``offset`` over six terrain
         seeds: -1 to -3 on a wrong lock, never below 0 at the true place).
+    drift_gate : float or None
+        The drift test of the usable flag: the sum of the last ``usable_updates`` terrain updates' shifts of
+        the mean against the sum of their expected covariances (``P_prior - P_post`` each) is chi-square with
+        2 degrees of freedom for a consistent filter; above this the density is trailing the truth and the
+        flag stays down (counted ``corrections_drifting``). Default 13.8 (0.999); None: no test.
     reinit_after : int
         Terrain updates refused among the last ``2 reinit_after`` before the filter re-initializes. Default 10.
     off_map_usable_s : float
@@ -265,6 +270,7 @@ class NavParameters:
     lookalike_radius_m: float = 600.0
     lookalike_margin: float = 0.15
     elsewhere_margin: float = 0.5
+    drift_gate: float | None = 13.8
     reinit_after: int = 10
     off_map_usable_s: float = 10.0
     max_patch_age_s: float = 600.0
@@ -298,7 +304,7 @@ class NavParameters:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number, at least 0, got {value!r}.")
-        for name in ("map_error_m", "pmf_min_cell_m"):
+        for name in ("map_error_m", "pmf_min_cell_m", "drift_gate"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number or None, got {value!r}.")

@@ -30,7 +30,12 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   is an outlier, several say the estimate has moved away from the range). Settled: the filter has
   been usable since its last (re)start and no terrain update has been refused since, so its misfit
   level and velocity bias are learned; a look-alike or a covariance grown on smooth ground lowers the
-  usable flag, not this (it chooses the density's floor, see ``BayesFilter._floor_var``). Look-alike terrain: a
+  usable flag, not this (it chooses the density's floor, see ``BayesFilter._floor_var``). Drift: each
+  accepted terrain update's shift of the mean d has covariance ``P_prior - P_post`` when the filter is
+  consistent, so the sum of the last ``usable_updates`` shifts against the sum of those covariances is
+  chi-square with 2 degrees of freedom; above ``drift_gate`` the updates keep pulling one way, the density
+  trails the truth (an unlearned velocity error: a towfish lagging the ship whose velocity it is given)
+  and the flag stays down (``corrections_drifting``). Look-alike terrain: a
   density can collapse onto one of several equally good modes (particles by resampling, cells by
   their offsets), so once the covariance is small enough to be usable, each patch is also matched
   over ``lookalike_radius_m`` around the estimate; if a placement beyond three sigma fits within
@@ -169,6 +174,8 @@ class Trust:
         self.independent_share = 1.0
         self._narrow_patches = 0
         self.settled = False
+        self._corrections: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=params.usable_updates)
+        self.drift = float("nan")
         self.restart_cause = ""  # the last re-initialization's, one of RESTART_CAUSES' values
 
     def misfit_refused(self, misfit: float) -> bool:
@@ -227,13 +234,39 @@ class Trust:
         """
         self.since_update_s = 0.0
 
+    def note_correction(self, shift_m: np.ndarray, prior_cov: np.ndarray, post_cov: np.ndarray) -> float:
+        """A terrain update's shift of the mean and its expected covariance join the drift test; the drift statistic.
+
+        Each shift d of a consistent update is zero-mean with covariance ``P_prior - P_post`` (see :func:`nis`);
+        the sum of the last ``usable_updates`` shifts against the sum of their covariances is chi-square with 2
+        degrees of freedom. A density that trails the truth (an unlearned velocity error) is pulled the same way
+        update after update: each shift is modest, their sum is not.
+        """
+        expected = prior_cov - post_cov + 1e-6 * np.trace(prior_cov) * np.eye(2)
+        if eigenvalues_2x2(expected)[0] <= 0:
+            expected = prior_cov
+        self._corrections.append((np.asarray(shift_m, float), expected))
+        if len(self._corrections) < self._corrections.maxlen:
+            self.drift = float("nan")
+            return self.drift
+        total = sum(d for d, _ in self._corrections)
+        spread = sum(c for _, c in self._corrections)
+        try:
+            self.drift = float(total @ np.linalg.solve(spread, total))
+        except np.linalg.LinAlgError:
+            self.drift = float("nan")
+        return self.drift
+
     def accepted(self, covariance: np.ndarray) -> None:
         """An update was used: reset growth and tempering, and advance the usable rule."""
         self.since_update_s = 0.0
         self.travelled_m = 0.0
         self.outcomes.append(False)
         sigma = largest_sigma(covariance)
-        if sigma <= self._p.usable_sigma_nodes * self._node_m:
+        drifting = self._p.drift_gate is not None and self.drift > self._p.drift_gate
+        if drifting:
+            self.counts["corrections_drifting"] += 1
+        if sigma <= self._p.usable_sigma_nodes * self._node_m and not drifting:
             self.good_in_row += 1
         else:
             self.good_in_row = 0
@@ -314,6 +347,7 @@ class Trust:
         self._ranges.clear()
         self._ranges_refused_in_row = 0
         self._elsewhere.clear()
+        self._corrections.clear()
         self.settled = False
         self.counts["reinitializations"] += 1
         if reason:
