@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -55,6 +55,11 @@ bench-nav-seeds: setup
 # build/bench/nav_filters.json.
 bench-nav: setup
 	$(BIN)/python benchmarks/nav_filters.py
+
+# CPU time per record of the navigation on short (about a minute): PMF alone, PF alone, all three, seven repeats
+# each in turn, median and least, with the load average; build/bench/nav_speed.json.
+bench-nav-speed: setup
+	$(BIN)/python benchmarks/nav_speed.py
 
 # LOST and the terrain filters with a USBL on the shipped usbl_nav scenario, three seeds (about 2 minutes):
 # without it, with a constant-speed slant range, the ray-traced one, the fix; build/bench/nav_usbl.json.
