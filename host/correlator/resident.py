@@ -52,6 +52,8 @@ class ResidentCorrelator:
         Map nodes without a depth (placements where a valid node of the patch falls on one are not valid).
     backend : str or Backend
     mean_compensation : bool
+    max_hole_share : float
+        A placement may keep up to this share of the patch's valid nodes on holes (:func:`valid_placements`; 0: none).
 
     Attributes
     ----------
@@ -60,7 +62,7 @@ class ResidentCorrelator:
     """
 
     def __init__(self, words: np.ndarray, *, holes: np.ndarray | None = None, backend: str | Backend = "software",
-                 mean_compensation: bool = True) -> None:
+                 mean_compensation: bool = True, max_hole_share: float = 0.0) -> None:
         self._backend = _backend(backend)
         probe = np.zeros((1, 1), np.int16)
         self._words, _, _ = model.check_inputs(words, probe, None, mean_compensation)
@@ -68,6 +70,8 @@ class ResidentCorrelator:
         if self._holes is not None:
             valid_placements(self._words.shape, (1, 1), (0, 0, 1, 1), self._holes)  # refuses a mask of another shape
         self._mean_compensation = bool(mean_compensation)
+        valid_placements((1, 1), (1, 1), (0, 0, 1, 1), None, None, max_hole_share)  # refuses a share outside [0, 1)
+        self._max_hole_share = float(max_hole_share)
         self._key = ("resident", next(_KEYS))  # the device's tile belongs to this map as long as this object lives
         self._patch_key: bytes | None = None
         self._patch: tuple[np.ndarray, np.ndarray] | None = None
@@ -151,5 +155,5 @@ class ResidentCorrelator:
         outcome = self._backend.run(self._words, words, mask, self._mean_compensation, clipped, max(h, w) // 2, map_key=self._key)
         # The hole rule over the held area once per surface: each request is then a slice, as the surface is.
         self._area, self._surface = clipped, outcome.surface
-        self._hole_free = valid_placements((H, W), (h, w), clipped, self._holes, mask)
+        self._hole_free = valid_placements((H, W), (h, w), clipped, self._holes, mask, self._max_hole_share)
         self.stats["correlations"] += 1

@@ -101,18 +101,22 @@ class Correlation:
 
 def valid_placements(
     map_shape: tuple[int, int], patch_shape: tuple[int, int], area: Area, holes: np.ndarray | None = None,
-    mask: np.ndarray | None = None,
+    mask: np.ndarray | None = None, max_hole_share: float = 0.0,
 ) -> np.ndarray:
     """Bool ``(rows, cols)`` over ``area``: the patch lies inside the map and none of its valid nodes is on a hole.
 
     ``mask`` is the patch's valid mask (``patch_shape``; None: every node valid, the whole window counts).
+    ``max_hole_share``: a placement keeps up to this share of its valid nodes (rounded down) on holes, their
+    V terms then taken against the fill word (0, the default: none; the correlator's own rule).
 
     Raises
     ------
     ValueError
-        ``holes`` not a boolean array of the map's shape, ``mask`` not one of the patch's.
+        ``holes`` not a boolean array of the map's shape, ``mask`` not one of the patch's, a share outside [0, 1).
     """
     (H, W), (h, w) = map_shape, patch_shape
+    if not (isinstance(max_hole_share, (int, float)) and 0.0 <= max_hole_share < 1.0):
+        raise ValueError(f"max_hole_share must be a number in [0, 1), got {max_hole_share!r}")
     i0, j0, rows, cols = area
     i = np.arange(i0, i0 + rows)[:, None]
     j = np.arange(j0, j0 + cols)[None, :]
@@ -131,7 +135,8 @@ def valid_placements(
     r0, r1 = (int(np.clip(v, 0, H - h)) for v in (i0, i0 + rows - 1))
     c0, c1 = (int(np.clip(v, 0, W - w)) for v in (j0, j0 + cols - 1))
     covered = holes[r0 : r1 + h, c0 : c1 + w]
-    touching = _touching(covered, mask, (h, w))
+    nodes = h * w if mask is None else int(mask.sum())
+    touching = _touching(covered, mask, (h, w), int(max_hole_share * nodes))
     inside = np.clip(i, 0, H - h) - r0, np.clip(j, 0, W - w) - c0
     return valid & ~touching[inside]
 
@@ -140,8 +145,8 @@ def valid_placements(
 _HOLE_BLOCK_ROWS = 512
 
 
-def _touching(covered: np.ndarray, mask: np.ndarray | None, patch_shape: tuple[int, int]) -> np.ndarray:
-    """Bool over the placements of ``covered`` (a part of the hole mask): a valid patch node falls on a hole."""
+def _touching(covered: np.ndarray, mask: np.ndarray | None, patch_shape: tuple[int, int], allowed: int = 0) -> np.ndarray:
+    """Bool over the placements of ``covered`` (a part of the hole mask): more than ``allowed`` valid patch nodes on holes."""
     h, w = patch_shape
     if mask is None or mask.all():
         # Box sum of the hole mask over the windows, by a 2-D prefix sum of the nodes they cover alone: over the
@@ -149,18 +154,18 @@ def _touching(covered: np.ndarray, mask: np.ndarray | None, patch_shape: tuple[i
         count_type = np.int32 if covered.size < 2**31 else np.int64  # half the memory of a map-sized prefix sum
         prefix = np.zeros((covered.shape[0] + 1, covered.shape[1] + 1), dtype=count_type)
         prefix[1:, 1:] = np.cumsum(np.cumsum(covered, axis=0), axis=1)
-        return (prefix[h:, w:] - prefix[:-h, w:] - prefix[h:, :-w] + prefix[:-h, :-w]) > 0
+        return (prefix[h:, w:] - prefix[:-h, w:] - prefix[h:, :-w] + prefix[:-h, :-w]) > allowed
     rows, cols = covered.shape[0] - h + 1, covered.shape[1] - w + 1
     touching = np.zeros((rows, cols), dtype=bool)
     if not mask.any():
         return touching
     # The count of holes under the valid nodes is the hole mask correlated with the patch's mask: an FFT's
-    # rounding error is some 1e-12 of a count of at most h * w, so "more than half a hole" is exact.
+    # rounding error is some 1e-12 of a count of at most h * w, so "more than half a hole over" is exact.
     kernel = mask[::-1, ::-1].astype(np.float64)
     for top in range(0, rows, _HOLE_BLOCK_ROWS):
         bottom = min(top + _HOLE_BLOCK_ROWS, rows)
         block = covered[top : bottom + h - 1].astype(np.float64)
-        touching[top:bottom] = signal.fftconvolve(block, kernel, mode="valid") > 0.5
+        touching[top:bottom] = signal.fftconvolve(block, kernel, mode="valid") > allowed + 0.5
     return touching
 
 

@@ -14,6 +14,7 @@ from typing import Any
 from ..config import ConfigError, validate_fields
 from ..correlator import BACKENDS
 from .likelihood import LIKELIHOODS
+from .mapprep import MAX_HOLE_SHARE
 from .stages import CrossTrackTracker
 
 __all__ = ["NavParameters", "navigation_parameters", "MATCHING", "LAYBACK_MODELS", "MAP_ERROR_MODELS"]
@@ -194,6 +195,11 @@ class NavParameters:
         the mean against the sum of their expected covariances (``P_prior - P_post`` each) is chi-square with
         2 degrees of freedom for a consistent filter; above this the density is trailing the truth and the
         flag stays down (counted ``corrections_drifting``). Default 13.8 (0.999); None: no test.
+    max_hole_share : float
+        A placement may put up to this share of a patch's valid soundings on map holes, which then count
+        against the fill (the nearest depth, ``PreparedMap``); beyond it the placement is refused. Holes under
+        nodes without a sounding never count. Default 0.2 (measured on ``short``: see
+        ``lost.host.nav.mapprep.MAX_HOLE_SHARE``); 0: any sounding on a hole refuses the placement.
     reinit_after : int
         Terrain updates refused among the last ``2 reinit_after`` before the filter re-initializes. Default 10.
     off_map_usable_s : float
@@ -271,6 +277,7 @@ class NavParameters:
     lookalike_margin: float = 0.15
     elsewhere_margin: float = 0.5
     drift_gate: float | None = 13.8
+    max_hole_share: float = MAX_HOLE_SHARE
     reinit_after: int = 10
     off_map_usable_s: float = 10.0
     max_patch_age_s: float = 600.0
@@ -315,6 +322,8 @@ class NavParameters:
                 raise ValueError(f"{name} must be a whole number of at least {low}, got {value!r}.")
         if not (math.isfinite(self.min_distinctness) and self.min_distinctness >= 0.0):
             raise ValueError(f"min_distinctness must be a finite number, at least 0 (0 disables the test), got {self.min_distinctness!r}.")
+        if not (isinstance(self.max_hole_share, (int, float)) and 0.0 <= self.max_hole_share < 1.0):
+            raise ValueError(f"max_hole_share must lie in [0, 1), got {self.max_hole_share!r}.")
         if not 0.0 < self.min_valid_fraction <= 1.0:
             raise ValueError(f"min_valid_fraction must lie in (0, 1], got {self.min_valid_fraction!r}.")
         if len(self.initial_offset_m) != 2 or not all(math.isfinite(float(x)) for x in self.initial_offset_m):

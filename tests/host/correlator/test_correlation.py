@@ -164,3 +164,26 @@ def test_a_hole_band_under_the_patchs_empty_part_leaves_the_true_placement_valid
     np.testing.assert_array_equal(results[0].surface[results[0].valid], results[1].surface[results[1].valid])
     # The whole window's rule (no mask) would have refused the true placement.
     assert not correlation(terrain, patch, holes=holes, backend=backend).valid[11, 17]
+
+
+def test_valid_placements_allow_a_share_of_the_valid_nodes_on_holes(monkeypatch):
+    from lost.host.correlator import result as result_module
+
+    monkeypatch.setattr(result_module, "_HOLE_BLOCK_ROWS", 4)
+    rng = np.random.default_rng(12)
+    for _ in range(150):
+        H, W = (int(v) for v in rng.integers(5, 25, 2))
+        h, w = (int(v) for v in rng.integers(1, min(H, W) + 1, 2))
+        holes = rng.random((H, W)) < rng.choice([0.05, 0.3])
+        mask = None if rng.random() < 0.3 else rng.random((h, w)) < 0.8
+        share = float(rng.choice([0.0, 0.1, 0.25, 0.5]))
+        counted = np.ones((h, w), bool) if mask is None else mask
+        allowed = int(share * counted.sum())
+        i0, j0 = int(rng.integers(-5, H)), int(rng.integers(-5, W))
+        rows, cols = (int(v) for v in rng.integers(1, 20, 2))
+        want = np.array([[0 <= i <= H - h and 0 <= j <= W - w and (holes[i : i + h, j : j + w] & counted).sum() <= allowed
+                          for j in range(j0, j0 + cols)] for i in range(i0, i0 + rows)])
+        assert np.array_equal(valid_placements((H, W), (h, w), (i0, j0, rows, cols), holes, mask, share), want)
+    for bad in (-0.1, 1.0, float("nan")):
+        with pytest.raises(ValueError, match="max_hole_share"):
+            valid_placements((10, 10), (3, 3), (0, 0, 8, 8), None, None, bad)

@@ -89,3 +89,21 @@ def test_bad_inputs_are_refused_with_the_correlators_messages():
         resident.correlation(np.zeros((5, 5), np.int16), np.ones((5, 5), bool), (0, 0, 0, 3))
     with pytest.raises(ValueError, match="holes must be a boolean array"):
         ResidentCorrelator(_map(), holes=np.ones((3, 3), bool))
+
+
+def test_a_share_of_soundings_on_holes_is_served_as_valid_placements_says():
+    from lost.host.correlator import valid_placements
+
+    terrain = _map()
+    rng = np.random.default_rng(3)
+    holes = rng.random(terrain.shape) < 0.2
+    resident = ResidentCorrelator(terrain, holes=holes, max_hole_share=0.25)
+    patch = terrain[20:27, 30:36].copy()
+    mask = rng.random(patch.shape) > 0.2
+    for area in [(12, 22, 17, 17), (-10, -10, 40, 40)]:
+        got = resident.correlation(patch, mask, area)
+        want = correlation(terrain, patch, mask=mask, area=area)
+        assert np.array_equal(got.surface, want.surface)
+        assert np.array_equal(got.valid, valid_placements(terrain.shape, patch.shape, area, holes, mask, 0.25))
+    with pytest.raises(ValueError, match="max_hole_share"):
+        ResidentCorrelator(terrain, holes=holes, max_hole_share=1.5)

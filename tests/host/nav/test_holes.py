@@ -48,8 +48,8 @@ def _params():
                          usable_updates=3, estimate_velocity_bias=False, initial_sigma_m=30.0)
 
 
-def _tow(kind, grid, floor, steps=12):
-    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+def _tow(kind, grid, floor, steps=12, prepared=None):
+    likelihood = TerrainLikelihood(prepared or PreparedMap(grid=grid), sigma_m=1.0)
     params = _params()
     f = PointMassFilter(likelihood, params, grid=grid) if kind == "pmf" else ParticleFilter(likelihood, params, grid=grid, seed=3)
     y = 300.0
@@ -113,10 +113,26 @@ def test_the_gaussian_form_follows_the_same_rule():
     assert gaussian.patch(np.array([TRACK_X]), np.array([500.0]), _patch(floor, 500.0)).informative.all()
 
 
-def test_a_patch_without_empty_nodes_keeps_the_whole_window_rule():
+def test_a_patch_without_empty_nodes_keeps_the_whole_window_rule_up_to_the_share():
     floor = _floor()
     west = int(TRACK_X / NODE) - HALF
-    grid = _map_with_holes(floor, west, west)
+    grid = _map_with_holes(floor, west, west)  # one column of holes under the full patch: 9 of its 81 nodes
     full = replace(_patch(floor, 500.0), depth_m=floor[46:55, 36:45] + 2.0)
-    result = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0).patch(np.array([TRACK_X]), np.array([500.0]), full)
-    assert not result.informative.any()
+    x, y = np.array([TRACK_X]), np.array([500.0])
+    strict = TerrainLikelihood(PreparedMap(grid=grid, max_hole_share=0.0), sigma_m=1.0).patch(x, y, full)
+    assert not strict.informative.any()
+    assert TerrainLikelihood(PreparedMap(grid=grid, max_hole_share=0.2), sigma_m=1.0).patch(x, y, full).informative.all()
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_holes_beside_the_patchs_soundings_are_no_edge_within_the_share(kind):
+    """A band of holes right beside the soundings: a placement one node across puts a sixth of them on holes."""
+    floor = _floor()
+    west = int(TRACK_X / NODE) - HALF
+    grid = _map_with_holes(floor, west - 2, west + EMPTY_WEST - 1)
+    f, truth = _tow(kind, grid, floor, prepared=PreparedMap(grid=grid, max_hole_share=0.2))
+    assert f.counts["terrain_updates"] == 12 and f.estimate().usable
+    assert np.hypot(*(f.estimate().position - truth)) < 3.0
+    # Refusing every such placement, the narrow density straddles the holes as it would the map's edge.
+    f, _ = _tow(kind, grid, floor, prepared=PreparedMap(grid=grid, max_hole_share=0.0))
+    assert f.counts["patch_at_map_edge"] >= 10 and not f.estimate().usable

@@ -39,7 +39,7 @@ def test_holes_are_filled_and_every_touching_placement_is_flagged():
     neighbours = [depth[2, 4], depth[4, 4], depth[3, 3], depth[3, 5]]
     filled = model.dequantize(words[3, 4], prepared.lsb_m, offset_m=prepared.offset_m)
     assert min(abs(filled - n) for n in neighbours) < prepared.lsb_m
-    touching = prepared.placements_touching_holes((2, 3))
+    touching = PreparedMap(grid=_grid(depth), max_hole_share=0.0).placements_touching_holes((2, 3))
     assert touching.shape == (5, 6)
     expected = np.zeros((5, 6), dtype=bool)
     expected[2:4, 2:5] = True  # windows with top-left rows 2..3 and cols 2..4 cover node (3, 4)
@@ -75,6 +75,22 @@ def test_touching_holes_matches_a_naive_scan(holes, h, w):
     if holes.all() or h > rows or w > cols:
         return
     depth = np.where(holes, np.nan, 100.0 + np.arange(holes.size).reshape(holes.shape))
-    touching = PreparedMap(grid=_grid(depth)).placements_touching_holes((h, w))
+    touching = PreparedMap(grid=_grid(depth), max_hole_share=0.0).placements_touching_holes((h, w))
     naive = np.array([[holes[i : i + h, j : j + w].any() for j in range(cols - w + 1)] for i in range(rows - h + 1)])
     assert np.array_equal(touching, naive.reshape(rows - h + 1, cols - w + 1))
+
+
+def test_a_share_of_the_patchs_soundings_may_lie_on_holes():
+    depth = np.arange(100, dtype=float).reshape(10, 10)
+    depth[4, 4] = depth[4, 5] = np.nan
+    mask = np.ones((5, 5), bool)
+    mask[0, 0] = False
+    strict = PreparedMap(grid=_grid(depth), max_hole_share=0.0).placements_touching_holes((5, 5), mask=mask)
+    tolerant = PreparedMap(grid=_grid(depth), max_hole_share=0.05).placements_touching_holes((5, 5), mask=mask)
+    # 24 valid nodes: 0.05 allows one on a hole. Placement (0, 1) covers both holes; (0, 0) covers only (4, 4);
+    # (4, 4) covers both, but (4, 4) falls on the patch's empty corner: one counts.
+    assert strict[0, 1] and tolerant[0, 1]
+    assert strict[0, 0] and not tolerant[0, 0]
+    assert strict[4, 4] and not tolerant[4, 4]
+    with pytest.raises(ValueError, match="max_hole_share"):
+        PreparedMap(grid=_grid(depth), max_hole_share=1.0)

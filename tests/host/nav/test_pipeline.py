@@ -103,19 +103,22 @@ def test_every_backend_gives_the_same_track():
     assert np.array_equal(a.estimate, b.estimate) and np.array_equal(a.mle, b.mle, equal_nan=True)
 
 
-def test_a_hole_excludes_every_placement_that_touches_it():
+def test_a_hole_excludes_every_placement_that_puts_a_sounding_on_it_beyond_the_allowed_share():
     depth = synthetic_terrain((80, 60), seed=4, roughness_m=10.0, hurst=0.5)
     grid, records, truth = _tow(n=6, depth_grid=depth)
     row, col = (int(round(v)) for v in grid.row_col(*truth[3]))
     holed = depth.copy()
     holed[row, col] = np.nan  # under the vehicle at record 3
     grid_holed = Grid(holed, 0.0, 0.0, NODE)
-    result = run_lost(records, grid_holed, NavParameters())
+    result = run_lost(records, grid_holed, NavParameters(max_hole_share=0.0))
     # Every placement covering the hole is out, the true one among them: no match on the truth.
     mle_error = np.hypot(*(result.mle[3] - truth[3]))
     assert not mle_error < NODE
     clean = run_lost(records, grid, NavParameters())
     assert np.hypot(*(clean.mle[3] - truth[3])) < 1.0
+    # One node of the patch on the hole is within the default share: it counts against the fill, the truth is found.
+    tolerant = run_lost(records, grid_holed, NavParameters())
+    assert np.hypot(*(tolerant.mle[3] - truth[3])) < 1.0
 
 
 def test_leaving_the_map_dead_reckons_flagged_and_counted():
