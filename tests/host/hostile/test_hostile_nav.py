@@ -99,7 +99,9 @@ def test_a_diffusion_wider_than_the_grid_leaves_it_flat():
     assert np.isfinite(p).all() and np.isclose(p.sum(), 1.0)
 
 
-@pytest.mark.parametrize("field, value", [("off_map_usable_s", 0.0), ("max_patch_age_s", -1.0), ("max_patch_age_s", float("nan"))])
+@pytest.mark.parametrize("field, value", [("off_map_usable_s", 0.0), ("max_patch_age_s", -1.0), ("max_patch_age_s", float("nan")),
+                                          ("max_hole_share", 1.0), ("max_hole_share", -0.1), ("max_hole_share", float("nan")),
+                                          ("drift_gate", 0.0), ("drift_gate", float("inf"))])
 def test_the_new_bounds_are_validated(field, value):
     with pytest.raises(ValueError, match=field):
         NavParameters(**{field: value})
