@@ -198,7 +198,7 @@ class NavParameters:
     max_hole_share : float
         A placement may put up to this share of a patch's valid soundings on map holes, which then count
         against the fill (the nearest depth, ``PreparedMap``); beyond it the placement is refused. Holes under
-        nodes without a sounding never count. Default 0.2 (measured on ``short``: see
+        nodes without a sounding never count. Default 0.1 (measured on ``short`` and ``shelf_canyon``: see
         ``lost.host.nav.mapprep.MAX_HOLE_SHARE``); 0: any sounding on a hole refuses the placement.
     reinit_after : int
         Terrain updates refused among the last ``2 reinit_after`` before the filter re-initializes. Default 10.
