@@ -6,7 +6,7 @@ Each configuration navigates the same simulated records ``--repeats`` times, in 
 ...), so that a change of the machine's load falls on every one alike; the CPU time of the process
 (``time.process_time``, not the wall clock) over the records is divided by their number. Reported: the
 median and the least of the repeats, and the load average before and after (a shared machine's load moves
-CPU figures too, by cache and memory contention). The goal (issue 28): all three estimators together at
+CPU figures too, by cache and memory contention). The goal: all three estimators together at
 most 4 ms per record, one correlation per record. Nothing is asserted: the figures go to docs/nav.md with
 the command, the commit and the load.
 """
