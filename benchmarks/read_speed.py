@@ -9,8 +9,10 @@ second over the repeats. Then a Kongsberg ``.all`` file of ``--big-gb`` gigabyte
 export (``--big-from export``: the ``short`` scenario's tow with 512 beams a ping, :func:`simulated_pings`,
 written by :func:`write_all_pings` streaming, the tow repeated with its times shifted by its duration until the
 size is reached), or from the RV Investigator file's datagrams repeated with their times shifted (checksums
-recomputed), and read by ``summarize_survey`` in a child process whose peak resident memory (``ru_maxrss``) is
-reported beside the file's size: reading is streamed when the first is a small fraction of the second.
+recomputed), and read by ``summarize_survey`` in a child process whose peak resident memory is reported beside
+the file's size: reading is streamed when the first is a small fraction of the second. The peak is the child's own
+``VmHWM`` (``/proc/self/status``): its ``ru_maxrss`` would not do, as Linux carries the parent's peak into a child
+started by vfork and exec.
 """
 
 from __future__ import annotations
@@ -111,8 +113,10 @@ def read_big_in_child(path: Path) -> dict:
         "start = time.perf_counter()\n"
         f"s = summarize_survey({str(path)!r})\n"
         "seconds = time.perf_counter() - start\n"
+        "hwm = [line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM:')]\n"
+        "peak = int(hwm[0]) / 1024 if hwm else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024\n"
         "print(json.dumps({'pings': s['pings'], 'soundings': s['soundings'], 'seconds': seconds, "
-        "'peak_rss_mb': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 'skipped': s['skipped']}))\n"
+        "'peak_rss_mb': peak, 'skipped': s['skipped']}))\n"
     )
     done = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
