@@ -15,6 +15,9 @@ Cases, each over ``--seeds`` seeds (0, 1, ...); every figure is a distribution o
 - ``pd06``: the shipped ``one_diver`` with pd 0.6, for ``--pd-s`` seconds; all three trackers.
 - ``paper``: the paper's filter as stated (no clutter floor) on the shipped ``one_diver``.
 
+Every tracker is told the scenario's own sonar model (pd, clutter rate, noise); our tracker also its strengths'
+Gaussian fit (``strength_moments``), which the baselines do not weigh.
+
 Metrics, the same code for every tracker (``lost.host.track.evaluate``): coverage, first lock, identity
 switches and the all-held share from the one-to-one holding within 25 m; false tracks per hour; Stone Soup's
 GOSPA (c = 50 m, p = 1, alpha = 2) per ping on the pings with a target in the sector, mean and 95th
@@ -241,8 +244,10 @@ def goals(results: dict, ms: np.ndarray) -> list[tuple[str, str, bool | None]]:
             continue
         medians = {t: float(np.median([x["gospa_mean"] for x in rows[t]])) for t in TRACKERS if rows[t]}
         figures_.append(f"{separation} m: " + ", ".join(f"{t} {v:.2f}" for t, v in medians.items()))
-        verdicts.append(all(medians["ours"] <= v for v in medians.values()))
-    out.append(("median GOSPA <= GM-PHD's and JPDA's at every separation from 15 m", "; ".join(figures_) or "-", all(verdicts) if verdicts else None))
+        # Judged only beside both baselines: a run of ours alone (an ablation) says nothing of this goal.
+        verdicts.append(all(medians["ours"] <= v for v in medians.values()) if len(medians) == len(TRACKERS) else None)
+    judged = verdicts and None not in verdicts
+    out.append(("median GOSPA <= GM-PHD's and JPDA's at every separation from 15 m", "; ".join(figures_) or "-", all(verdicts) if judged else None))
     cov = [x["coverage"][0] for x in results["pd06"].get("ours", [])]
     out.append(("pd 0.6: coverage >= 0.9 (every seed)", f"median {np.median(cov):.3f}, worst {min(cov):.3f}" if cov else "-", min(cov) >= 0.9 if cov else None))
     if len(ms):
