@@ -44,7 +44,7 @@ from lost.host.track.baseline import run_gm_phd, run_jpda
 from lost.host.track.evaluate import contact_metrics, holding, score
 from lost.host.track.particle import DiverParticleFilter, PaperParameters
 from lost.host.track.run import run_tracker
-from lost.host.track.simulate import PlatformSpec, TargetSpec, TrackScenario, builtin_scenario_path, load_scenario, simulate, strength_moments
+from lost.host.track.simulate import PlatformSpec, TargetSpec, TrackScenario, builtin_scenario_path, load_scenario, simulate, tracker_model
 from lost.host.track.tracker import TrackerParameters
 
 TRACKERS = ("ours", "gm_phd", "jpda")
@@ -54,9 +54,7 @@ OURS_SETTINGS: dict = {}
 
 def params_for(sim) -> TrackerParameters:
     """The sonar model the trackers assume: the scenario's own (its strengths as our tracker's Gaussian fit of them)."""
-    model = sim.scenario.sonar
-    return TrackerParameters(pd=model.pd, clutter_per_ping=model.clutter_per_ping, range_sigma_m=model.range_sigma_m,
-                             bearing_sigma_deg=model.bearing_sigma_deg, **strength_moments(model))
+    return TrackerParameters(**tracker_model(sim.scenario.sonar))
 
 
 def run(tracker: str, sim, seed: int, step_ms: list) -> tuple[list, float]:

@@ -51,7 +51,8 @@ from .geometry import Sonar, polar_to_world, world_to_polar
 
 __all__ = ["SonarModel", "PlatformSpec", "TargetSpec", "TrackScenario", "Truth", "Simulation",
            "load_scenario", "simulate", "builtin_scenarios", "builtin_scenario_path", "TARGET_KINDS",
-           "check_size", "MAX_SCENARIO_BYTES", "target_strength_db", "clutter_strength_db", "strength_moments"]
+           "check_size", "MAX_SCENARIO_BYTES", "target_strength_db", "clutter_strength_db", "strength_moments",
+           "tracker_model"]
 
 #: Truth labels of simulated targets (the tracker's classes, plus what a scenario means by them).
 TARGET_KINDS = ("diver", "drifting", "animal")
@@ -287,6 +288,13 @@ def strength_moments(model: SonarModel, samples: int = 400_000) -> dict[str, flo
     clutter = clutter_strength_db(model.clutter_tail, model.clutter_scale, samples, rng)
     return {"target_strength_db": float(target.mean()), "target_strength_sigma_db": float(target.std()),
             "clutter_strength_db": float(clutter.mean()), "clutter_strength_sigma_db": float(clutter.std())}
+
+
+def tracker_model(model: SonarModel) -> dict[str, float]:
+    """The sonar model a tracker is told for a scenario, as :class:`~.tracker.TrackerParameters` fields: its pd and clutter
+    rate (kept positive, as the tracker needs), its noise, and its strengths' Gaussian fit (:func:`strength_moments`)."""
+    return {"pd": max(model.pd, 1e-3), "clutter_per_ping": max(model.clutter_per_ping, 1e-3), "range_sigma_m": model.range_sigma_m,
+            "bearing_sigma_deg": model.bearing_sigma_deg, **strength_moments(model)}
 
 
 def simulate(scenario: TrackScenario) -> Simulation:
