@@ -3,8 +3,8 @@
 A detector that reports each detection's strength says more than where it is: a contact's echoes are on
 the whole stronger than the clutter that crosses the same threshold. Lerro & Bar-Shalom ("Interacting
 multiple model tracking with target amplitude feature", IEEE Trans. AES 29(2), 1993) weigh each
-detection's association by the ratio of the two strength densities; Musicki & Evans carry it into
-integrated PDA. Here the ratio multiplies the spatial density of detection ``j`` about track ``t`` in the
+detection's association by the ratio of the two strength densities; the same ratio enters integrated
+PDA's existence update (IPDA with amplitude information). Here the ratio multiplies the spatial density of detection ``j`` about track ``t`` in the
 joint association (:mod:`.association`), so a strong return raises a track's existence faster and a weak
 one less, while a missed ping weighs as before (``pd`` is already the probability of crossing the
 threshold).
