@@ -11,10 +11,13 @@ Each ping, in order:
    (``permutation_pruning``: of the joint events that differ only by which of them took which detection,
    the likeliest), so two tracks on contacts closer than their gates are not pulled together. The
    probability that a detection is some track's is its *claim*; a detection claimed with at least
-   ``claim_probability`` is spared to the search cloud.
+   ``claim_probability`` is spared to the search cloud. Where the detector reports strengths, each
+   detection's spatial density is scaled by its amplitude likelihood ratio (:mod:`.amplitude`).
 2. The search cloud, the paper's filter (:class:`~.particle.DiverParticleFilter`) with the Poisson-clutter
    floor, steps on the *unclaimed* detections, so it hunts for contacts no track holds yet; a share of it
-   (``reseed_fraction``) is drawn afresh over the sector each ping so that no corner goes unwatched.
+   (``reseed_fraction``) is drawn afresh over the sector each ping so that no corner goes unwatched. Each
+   detection's pull on it is scaled by its amplitude ratio (``cloud_amplitude``), so a strong return
+   gathers the cloud at its first ping.
 3. The cloud is clustered by expectation-maximization (:mod:`.cluster`), started at the unclaimed
    detections. A cluster holding at least ``birth_share`` of the cloud and no wider than ``birth_spread_m``
    is a contact the cloud has followed over consecutive pings (one ping's clutter holds a few per cent; a
