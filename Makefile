@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live bench-live-memory synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -93,6 +93,10 @@ bench-read-survey: setup
 bench-live: setup
 	$(BIN)/python benchmarks/live_faults.py --seeds 1 2 3 4 5 6 7 8 9 10
 	$(BIN)/python benchmarks/live_latency.py --speed 20
+
+# lost serve's resident memory over the two_hour tow served as fast as possible in one process (build/bench/live_memory.json, about a minute).
+bench-live-memory: setup
+	$(BIN)/python benchmarks/live_memory.py --scenario two_hour
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

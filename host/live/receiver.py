@@ -40,6 +40,9 @@ __all__ = ["LiveDecoder", "UdpReceiver", "ATTITUDE_SAMPLES", "PENDING_PINGS"]
 ATTITUDE_SAMPLES = 4096
 PENDING_PINGS = 4
 _RECENT_KEYS = 4096
+# The .kmall datagram kinds counted by name; any other is counted as "other" (a bounded set of counters whatever arrives).
+_KMALL_KINDS = frozenset({"#IIP", "#IOP", "#IBE", "#IBR", "#IBS", "#MRZ", "#MWC", "#SPO", "#SKM", "#SVP", "#SVT", "#SCL", "#SDE", "#SHI",
+                          "#SHA", "#CPO", "#CHE", "#FCF"})
 _HEADER = struct.Struct("<I4sBBHII")
 _PARTITION = struct.Struct("<HH")
 
@@ -84,7 +87,7 @@ class LiveDecoder:
 
     def _kmall(self, payload: bytes) -> list[Ping]:
         size, kind, _version, system, _sounder, sec, nanosec = _HEADER.unpack_from(payload)
-        name = kind.decode("ascii")
+        name = kind.decode("ascii") if kind.decode("ascii") in _KMALL_KINDS else "(other kind)"
         if size != len(payload) or int.from_bytes(payload[-4:], "little") != size:
             self.counts[f"kmall {name} datagram whose length fields disagree with its size (skipped)"] += 1
             return []

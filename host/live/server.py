@@ -24,13 +24,12 @@ import time
 from collections import Counter
 from typing import TextIO
 
-import numpy as np
-
 from ..io.survey import Ping
 from .navigator import LiveEstimate, LiveNavigator
 from .nmea import HeadingFix, PositionFix
 from .outputs import RunLog, UdpSender
 from .receiver import UdpReceiver
+from .stats import EstimatorStats, LogHistogram
 
 __all__ = ["LiveServer"]
 
@@ -44,9 +43,10 @@ class LiveServer:
         self.status_s, self.idle_stop_s = status_s, idle_stop_s
         self.status_stream = status_stream if status_stream is not None else sys.stderr
         self.counts: Counter[str] = Counter()
-        self.latency_ms: list[float] = []
-        # Per estimator, each served record's (usable, error against the pings' positions): 16 bytes a record, for the summary.
-        self.served: dict[str, list[tuple[bool, float]]] = {}
+        # Bounded whatever the run's length: a histogram of latencies, per estimator counts and a histogram of errors.
+        self.latency_ms = LogHistogram(low=0.01, high=1e7)
+        self.served: dict[str, EstimatorStats] = {}
+        self.last_refusal = ""
         self.ended = "running"
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
@@ -71,7 +71,7 @@ class LiveServer:
                         break
                 else:
                     last_value = received
-                    self._take(received, value)
+                    self.take(received, value)
                 if time.monotonic() >= next_status:
                     print(self.status_line(), file=self.status_stream, flush=True)
                     next_status = time.monotonic() + self.status_s
@@ -86,12 +86,13 @@ class LiveServer:
                 received, value = self._queue.get_nowait()
             except queue.Empty:
                 break
-            self._take(received, value)
+            self.take(received, value)
         self._serve(self._guarded(self.navigator.finish), None)
         print(self.status_line(), file=self.status_stream, flush=True)
         return self.summary()
 
-    def _take(self, received: float, value) -> None:
+    def take(self, received: float, value) -> None:
+        """One decoded value, completed at monotonic time ``received``: a ping into the navigation, a fix counted."""
         if isinstance(value, Ping):
             self._serve(self._guarded(self.navigator.add, value), received)
         elif isinstance(value, PositionFix):
@@ -104,8 +105,8 @@ class LiveServer:
         try:
             return step(*values)
         except ValueError as error:
-            self.counts[f"pings refused by the navigation ({type(error).__name__})"] += 1
-            self.counts["last refusal: " + " ".join(str(error).split())[:120]] = 1
+            self.counts[f"pings refused by the navigation ({type(error).__name__})"] += 1  # by kind: a bounded set of keys
+            self.last_refusal = " ".join(str(error).split())[:200]
             return []
 
     def _serve(self, estimates: list[LiveEstimate], received: float | None) -> None:
@@ -117,9 +118,9 @@ class LiveServer:
                 self.sender.send(estimate)
             self.log.record(group)
             for e in group:
-                self.served.setdefault(e.estimator, []).append((e.usable, math.hypot(e.east_m - e.truth_east_m, e.north_m - e.truth_north_m)))
+                self.served.setdefault(e.estimator, EstimatorStats()).add(e.usable, math.hypot(e.east_m - e.truth_east_m, e.north_m - e.truth_north_m))
             if received is not None:
-                self.latency_ms.append((time.monotonic() - received) * 1e3)
+                self.latency_ms.add((time.monotonic() - received) * 1e3)
 
     def _drops(self) -> dict[str, int]:
         counts = _copy(self.receiver.decoder.counts)
@@ -131,28 +132,22 @@ class LiveServer:
     def status_line(self) -> str:
         records = self.navigator.counts["records stepped"]
         elapsed = max(time.monotonic() - self._started, 1e-9)
-        latency = f"{self.latency_ms[-1]:.0f} ms (max {max(self.latency_ms):.0f})" if self.latency_ms else "-"
+        latency = f"{self.latency_ms.last:.0f} ms (max {self.latency_ms.max:.0f})" if self.latency_ms.count else "-"
         drops = ", ".join(f"{reason} {n}" for reason, n in sorted(self._drops().items())) or "none"
         usable = " ".join(f"{name} {100 * fraction:.0f}%" for name, fraction in self.usable_fractions().items())
         return (f"lost serve: {records} records ({records / elapsed:.2f}/s), {_copy(self.receiver.decoder.counts)['pings']} pings, "
                 f"latency {latency}; usable {usable or '-'}; drops: {drops}")
 
     def usable_fractions(self) -> dict[str, float]:
-        return {name: float(np.mean([usable for usable, _ in rows])) for name, rows in self.served.items()}
+        return {name: stats.usable_fraction for name, stats in self.served.items()}
 
     def summary(self) -> dict:
-        latency = np.asarray(self.latency_ms)
-        methods = {}
-        for name, rows in self.served.items():
-            error = np.array([error for _, error in rows])
-            finite = error[np.isfinite(error)]
-            methods[name] = {"records": len(rows), "usable_fraction": float(np.mean([usable for usable, _ in rows])),
-                             "rms_m": float(np.sqrt(np.mean(finite**2))) if finite.size else None,
-                             "p90_m": float(np.percentile(finite, 90)) if finite.size else None}
+        latency = self.latency_ms
         return {"ended": self.ended, "records": self.navigator.counts["records stepped"], "served_for_s": time.monotonic() - self._started,
-                "latency_ms": {"count": int(latency.size), **({f"p{q}": float(np.percentile(latency, q)) for q in (50, 90, 99)} if latency.size else {}),
-                               "max": float(latency.max()) if latency.size else None},
-                "methods": methods, "received": dict(_copy(self.receiver.decoder.counts)), "navigation": dict(self.navigator.counts),
+                "latency_ms": {"count": latency.count, **({f"p{q}": latency.quantile(q / 100) for q in (50, 90, 99)} if latency.count else {}),
+                               "max": latency.max if latency.count else None},
+                "methods": {name: stats.as_dict() for name, stats in self.served.items()}, "last_refusal": self.last_refusal or None,
+                "received": dict(_copy(self.receiver.decoder.counts)), "navigation": dict(self.navigator.counts),
                 "estimator_counts": self.navigator.estimator_counts(), "server": dict(self.counts),
                 "outputs": {"addresses": [f"{h}:{p}" for h, p in self.sender.addresses], **self.sender.counts},
                 "survey": {"first_ping_utc_s": self.navigator.recorder.epoch_s, "skipped": dict(self.navigator.recorder.skipped)}}
