@@ -50,6 +50,13 @@ def _speed(text: str) -> float:
     return value
 
 
+def _count(text: str) -> int:
+    value = int(text) if text.isdigit() else 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"--reorder-by must be a whole number of datagrams from 1, got {text!r}")
+    return value
+
+
 def _datagram_bytes(text: str) -> int:
     value = int(text) if text.isdigit() else -1
     if not _SMALLEST_PART <= value <= _LARGEST_UDP:
@@ -82,7 +89,7 @@ def _pings(sources: list[str]):
 def _cmd_replay(args: argparse.Namespace) -> int:
     from ..live.stream import Faults, live_datagrams, send_datagrams, with_faults
 
-    faults = Faults(loss=args.loss, reorder=args.reorder, duplicate=args.duplicate, seed=args.seed)
+    faults = Faults(loss=args.loss, reorder=args.reorder, duplicate=args.duplicate, seed=args.seed, reorder_by=args.reorder_by)
     pings, skipped, what = _pings(args.source)
     counted = Counter()
 
@@ -118,6 +125,8 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     replay.add_argument("--speed", type=_speed, default=1.0, help="factor of real time (default 1; 0: as fast as possible)")
     replay.add_argument("--loss", type=_probability, default=0.0, metavar="P", help="probability that a datagram is lost")
     replay.add_argument("--reorder", type=_probability, default=0.0, metavar="P", help="probability that a datagram is sent after the next")
+    replay.add_argument("--reorder-by", type=_count, default=1, metavar="N",
+                        help="a reordered datagram is sent after the next N (default 1; a ping is about 6 datagrams)")
     replay.add_argument("--duplicate", type=_probability, default=0.0, metavar="P", help="probability that a datagram is sent twice")
     replay.add_argument("--seed", type=int, default=0, help="seed of the faults' generator (default 0)")
     replay.add_argument("--max-datagram-bytes", type=_datagram_bytes, default=UDP_PART_BYTES, metavar="B",

@@ -53,7 +53,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         print(f"lost serve: listening on {receiver.address[0]}:{receiver.address[1]}, estimators {', '.join(settings.estimators)}, "
               f"records of {settings.record_s:g} s, out to {', '.join(settings.outputs) or 'nowhere (log only)'}; log {log.path}", flush=True)
         try:
-            server = LiveServer(receiver, navigator, sender, log, status_s=settings.status_s, idle_stop_s=settings.idle_stop_s)
+            server = LiveServer(receiver, navigator, sender, log, status_s=settings.status_s, idle_stop_s=settings.idle_stop_s,
+                                reorder_lag_s=settings.reorder_lag_s)
             summary = server.run()
         finally:
             log.close()

@@ -29,6 +29,7 @@ from .navigator import LiveEstimate, LiveNavigator
 from .nmea import HeadingFix, PositionFix
 from .outputs import RunLog, UdpSender
 from .receiver import UdpReceiver
+from .reorder import PingReorder
 from .stats import EstimatorStats, LogHistogram
 
 __all__ = ["LiveServer"]
@@ -38,13 +39,15 @@ class LiveServer:
     """One `lost serve` run: receiver, navigator, outputs (see the module)."""
 
     def __init__(self, receiver: UdpReceiver, navigator: LiveNavigator, sender: UdpSender, log: RunLog, *, status_s: float = 5.0,
-                 idle_stop_s: float = 0.0, status_stream: TextIO | None = None) -> None:
+                 idle_stop_s: float = 0.0, reorder_lag_s: float = 0.5, status_stream: TextIO | None = None) -> None:
         self.receiver, self.navigator, self.sender, self.log = receiver, navigator, sender, log
         self.status_s, self.idle_stop_s = status_s, idle_stop_s
         self.status_stream = status_stream if status_stream is not None else sys.stderr
         self.counts: Counter[str] = Counter()
         # Bounded whatever the run's length: a histogram of latencies, per estimator counts and a histogram of errors.
-        self.latency_ms = LogHistogram(low=0.01, high=1e7)
+        self.latency_ms = LogHistogram(low=0.01, high=1e7)  # the closing ping decoded -> its record served (the reorder hold included)
+        self.navigation_ms = LogHistogram(low=0.01, high=1e7)  # the closing ping out of the reorder buffer -> its record served
+        self.reorder = PingReorder(reorder_lag_s, self.counts)
         self.served: dict[str, EstimatorStats] = {}
         self.last_refusal = ""
         self.ended = "running"
@@ -66,6 +69,7 @@ class LiveServer:
                 try:
                     received, value = self._queue.get(timeout=0.05)
                 except queue.Empty:
+                    self._navigate(self.reorder.expire(time.monotonic()))
                     if last_value is not None and self.idle_stop_s and time.monotonic() - last_value > self.idle_stop_s:
                         self.ended = f"no datagram for {self.idle_stop_s:g} s"
                         break
@@ -87,18 +91,24 @@ class LiveServer:
             except queue.Empty:
                 break
             self.take(received, value)
-        self._serve(self._guarded(self.navigator.finish), None)
+        self._navigate(self.reorder.finish())
+        self._serve(self._guarded(self.navigator.finish), None, None)
         print(self.status_line(), file=self.status_stream, flush=True)
         return self.summary()
 
     def take(self, received: float, value) -> None:
         """One decoded value, completed at monotonic time ``received``: a ping into the navigation, a fix counted."""
         if isinstance(value, Ping):
-            self._serve(self._guarded(self.navigator.add, value), received)
+            self._navigate(self.reorder.add(value, received))
         elif isinstance(value, PositionFix):
             self.counts["NMEA position fixes (not used)"] += 1
         elif isinstance(value, HeadingFix):
             self.counts["NMEA headings (not used)"] += 1
+
+    def _navigate(self, released: list[tuple[Ping, float]]) -> None:
+        for ping, received in released:
+            out_of_buffer = time.monotonic()
+            self._serve(self._guarded(self.navigator.add, ping), received, out_of_buffer)
 
     def _guarded(self, step, *values) -> list[LiveEstimate]:
         """A ping or the end through the navigation; a ping it refuses (another ship's, say) is counted, never a stop."""
@@ -109,7 +119,7 @@ class LiveServer:
             self.last_refusal = " ".join(str(error).split())[:200]
             return []
 
-    def _serve(self, estimates: list[LiveEstimate], received: float | None) -> None:
+    def _serve(self, estimates: list[LiveEstimate], received: float | None, released: float | None) -> None:
         by_record: dict[int, list[LiveEstimate]] = {}
         for estimate in estimates:
             by_record.setdefault(estimate.record, []).append(estimate)
@@ -119,14 +129,16 @@ class LiveServer:
             self.log.record(group)
             for e in group:
                 self.served.setdefault(e.estimator, EstimatorStats()).add(e.usable, math.hypot(e.east_m - e.truth_east_m, e.north_m - e.truth_north_m))
-            if received is not None:
-                self.latency_ms.add((time.monotonic() - received) * 1e3)
+            if received is not None and released is not None:
+                now = time.monotonic()
+                self.latency_ms.add((now - received) * 1e3)
+                self.navigation_ms.add((now - released) * 1e3)
 
     def _drops(self) -> dict[str, int]:
         counts = _copy(self.receiver.decoder.counts)
         drops = {reason: n for reason, n in counts.items() if any(w in reason for w in ("skipped", "lost", "dropped", "missing", "without"))}
         drops.update({reason: n for reason, n in {**self.navigator.counts, **self.counts, **self.sender.counts}.items()
-                      if any(w in reason for w in ("skipped", "refused", "silent", "without", "not sent"))})
+                      if any(w in reason for w in ("skipped", "refused", "silent", "without", "not sent", "late"))})
         return drops
 
     def status_line(self) -> str:
@@ -146,6 +158,9 @@ class LiveServer:
         return {"ended": self.ended, "records": self.navigator.counts["records stepped"], "served_for_s": time.monotonic() - self._started,
                 "latency_ms": {"count": latency.count, **({f"p{q}": latency.quantile(q / 100) for q in (50, 90, 99)} if latency.count else {}),
                                "max": latency.max if latency.count else None},
+                "navigation_ms": ({f"p{q}": self.navigation_ms.quantile(q / 100) for q in (50, 90, 99)} | {"max": self.navigation_ms.max}
+                                  if self.navigation_ms.count else {}),
+                "reorder_lag_s": self.reorder.lag_s,
                 "methods": {name: stats.as_dict() for name, stats in self.served.items()}, "last_refusal": self.last_refusal or None,
                 "received": dict(_copy(self.receiver.decoder.counts)), "navigation": dict(self.navigator.counts),
                 "estimator_counts": self.navigator.estimator_counts(), "server": dict(self.counts),

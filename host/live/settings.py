@@ -15,6 +15,7 @@
     outputs = ["127.0.0.1:5001"]            # where each estimate goes (JSON line and $LOEST sentence)
     status_s = 5.0                          # seconds between status lines on stderr
     idle_stop_s = 0.0                       # stop after this many seconds without a datagram once one came (0: never)
+    reorder_lag_s = 0.5                     # seconds a ping is held to put pings back into time order (0: not held)
 
     [navigation]                            # NavParameters, as lost run --config's
 """
@@ -61,6 +62,7 @@ class ServeSettings:
     outputs: tuple[str, ...] = ()
     status_s: PositiveFloat = 5.0
     idle_stop_s: NonNegativeFloat = 0.0
+    reorder_lag_s: NonNegativeFloat = 0.5
     navigation: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:

@@ -8,7 +8,7 @@ UDP datagram, an MRZ larger than ``max_datagram_bytes`` split into partitions. T
 time share one fix: its sentences, #SPO and #SKM are sent once, with the first.
 
 Faults (:class:`Faults`, one seeded NumPy generator, drawn per datagram in this order): lost (not sent), duplicated
-(sent twice), reordered (held back and sent after the next one). Each is counted.
+(sent twice), reordered (held back and sent after the next one, or the next ``reorder_by``). Each is counted.
 """
 
 from __future__ import annotations
@@ -46,8 +46,11 @@ class Faults:
     reorder: float = 0.0
     duplicate: float = 0.0
     seed: int = 0
+    reorder_by: int = 1  # a reordered datagram goes after this many of the ones that follow it
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.reorder_by, int) and self.reorder_by >= 1):
+            raise ValueError(f"reorder_by must be a whole number of datagrams >= 1, got {self.reorder_by!r}")
         for name in ("loss", "reorder", "duplicate"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
@@ -94,6 +97,7 @@ def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Count
     """
     rng = np.random.default_rng(faults.seed)
     held: list[LiveDatagram] = []
+    due = 0  # datagrams still to pass the held one
     for datagram in datagrams:
         counts["datagrams"] += 1
         lost, doubled, reordered = rng.random(3) < (faults.loss, faults.duplicate, faults.reorder)
@@ -106,11 +110,13 @@ def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Count
         counts[f"duplicated {datagram.kind}"] += int(doubled)
         if reordered and not held:
             counts["reordered"] += 1
-            held = copies
+            held, due = copies, faults.reorder_by
             continue
         yield from copies
-        yield from held
-        held = []
+        due -= 1
+        if due <= 0:
+            yield from held
+            held = []
     yield from held
 
 

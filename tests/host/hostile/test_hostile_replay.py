@@ -123,6 +123,8 @@ def test_a_gga_before_any_zda_has_no_date_and_is_counted(pings):
     (["--to", "127.0.0.1:9", "--speed", "-1"], "--speed"),
     (["--to", "127.0.0.1:9", "--speed", "inf"], "--speed"),
     (["--to", "127.0.0.1:9", "--max-datagram-bytes", "70000"], "--max-datagram-bytes"),
+    (["--to", "127.0.0.1:9", "--reorder-by", "0"], "--reorder-by"),
+    (["--to", "127.0.0.1:9", "--reorder-by", "two"], "--reorder-by"),
     ([], "--to"),
 ])
 def test_bad_replay_options_are_usage_errors(options, message, capsys):

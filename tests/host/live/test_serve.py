@@ -98,9 +98,11 @@ def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = ()
     return out, received
 
 
-def _batch(tow, tmp_path):
+@pytest.fixture(scope="module")
+def batch_rows(tow, tmp_path_factory):
+    """`lost run --survey`'s track.csv rows on the tow, with the served runs' settings."""
     path, map_path = tow
-    out = tmp_path / "batch"
+    out = tmp_path_factory.mktemp("batch") / "batch"
     arguments = ["run", "--survey", str(path), "--bathy", str(map_path), "--record-s", "5", "--window-s", "20", "--patch-centre", "soundings",
                  "--start-offset", "30,-20", "--dr-bias", "0.1,0.05", "--estimator", "all", "--out", str(out)]
     assert main(arguments) == 0
@@ -112,11 +114,7 @@ def _cell(value) -> str:
     return "" if value is None else f"{value:.3f}"
 
 
-def test_served_estimates_equal_the_batch_runs_record_for_record(tow, tmp_path, capsys):
-    out, datagrams = _serve_replay(tow, tmp_path)
-    rows = _batch(tow, tmp_path)
-    capsys.readouterr()
-    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+def _assert_log_is_the_batch_runs(log: list[dict], rows: list[dict]) -> None:
     assert len(log) == len(rows) > 10
     for line, row in zip(log, rows, strict=True):
         assert f"{line['t_s']:.3f}" == row["t_s"]
@@ -126,6 +124,14 @@ def test_served_estimates_equal_the_batch_runs_record_for_record(tow, tmp_path, 
             served = line["estimates"][name]
             cells = [_cell(served[k]) for k in ("east_m", "north_m", "sxx_m2", "syy_m2", "sxy_m2")] + [str(int(served["usable"])), served["stage"]]
             assert cells == [row[f"{name}_{k}"] for k in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "stage")], (line["record"], name)
+
+
+def test_served_estimates_equal_the_batch_runs_record_for_record(tow, batch_rows, tmp_path, capsys):
+    out, datagrams = _serve_replay(tow, tmp_path)
+    rows = batch_rows
+    capsys.readouterr()
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    _assert_log_is_the_batch_runs(log, rows)
     # Every estimate went out twice per record and estimator: a JSON line and a $LOEST sentence with its checksum.
     lines = [json.loads(d) for d in datagrams if d.startswith(b"{")]
     sentences = [d.decode().strip() for d in datagrams if d.startswith(b"$LOEST")]
@@ -177,6 +183,17 @@ def test_the_served_values_are_the_batch_navigations_to_the_bit(tow, tmp_path, c
         np.testing.assert_array_equal([e.covariance_m2 for e in mine], track.covariance[:, [0, 1, 0], [0, 1, 1]])
         assert [e.usable for e in mine] == list(track.usable)
     capsys.readouterr()
+
+
+def test_pings_reordered_on_the_way_are_put_back_in_time_order_and_served_as_the_batch_run(tow, batch_rows, tmp_path, capsys):
+    """10 % of datagrams sent 8 later (a ping is 6 datagrams): pings complete out of order; the 1.5 s buffer restores the batch run."""
+    out, _ = _serve_replay(tow, tmp_path, ["--reorder", "0.1", "--reorder-by", "8", "--seed", "4"], reorder_lag_s=1.5)
+    replayed = capsys.readouterr().out
+    assert int(replayed.split(" reordered")[0].rsplit(" ", 1)[1]) > 10
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reorder_lag_s"] == 1.5 and not any("late" in reason for reason in summary["server"])
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    _assert_log_is_the_batch_runs(log, batch_rows)
 
 
 def test_lost_duplicated_reordered_and_malformed_datagrams_are_counted_into_the_summary_never_a_stop(tow, tmp_path, capsys):
