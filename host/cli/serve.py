@@ -46,11 +46,11 @@ def _cmd_serve(args: argparse.Namespace) -> int:
                                   window_s=settings.window_s, dr_bias_mps=settings.dr_bias_mps, start_offset_m=settings.start_offset_m,
                                   patch_centre=settings.patch_centre)
         navigator = LiveNavigator(grid, params, settings.estimators, recorder)
-        host, port = address(settings.listen, "[serve] listen")
-        receiver = UdpReceiver(host, port)
+        where = [address(listen, "[serve] listen") for listen in settings.listens]
+        receiver = UdpReceiver(*where[0], more=tuple(where[1:]))
         sender = UdpSender([address(o, "[serve] outputs") for o in settings.outputs])
         log = RunLog(folder / "log.jsonl")
-        print(f"lost serve: listening on {receiver.address[0]}:{receiver.address[1]}, estimators {', '.join(settings.estimators)}, "
+        print(f"lost serve: listening on {', '.join(f'{h}:{p}' for h, p in receiver.addresses)}, estimators {', '.join(settings.estimators)}, "
               f"records of {settings.record_s:g} s, out to {', '.join(settings.outputs) or 'nowhere (log only)'}; log {log.path}", flush=True)
         try:
             server = LiveServer(receiver, navigator, sender, log, status_s=settings.status_s, idle_stop_s=settings.idle_stop_s,

@@ -87,10 +87,13 @@ class RunLog:
         if not estimates:
             return
         first = estimates[0]
-        line = {"record": first.record, "time_utc_s": first.time_utc_s, "t_s": first.t_s,
-                "estimates": {e.estimator: {k: v for k, v in e.as_dict().items() if k not in ("record", "time_utc_s", "t_s", "estimator")}
-                              for e in estimates}}
-        self._file.write((json.dumps(line, separators=(",", ":"), allow_nan=False) + "\n").encode("ascii"))
+        self.line({"record": first.record, "time_utc_s": first.time_utc_s, "t_s": first.t_s,
+                   "estimates": {e.estimator: {k: v for k, v in e.as_dict().items() if k not in ("record", "time_utc_s", "t_s", "estimator")}
+                                 for e in estimates}})
+
+    def line(self, value: dict) -> None:
+        """One line of the log (a record's, or an input logged as it came: ``{"usbl": {...}}``), whole, in one write."""
+        self._file.write((json.dumps(value, separators=(",", ":"), allow_nan=False) + "\n").encode("ascii"))
 
     def close(self) -> None:
         self._file.close()

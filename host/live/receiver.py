@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import selectors
 import socket
 import struct
 import threading
@@ -33,7 +34,8 @@ import numpy as np
 
 from ..io.kmall import mrz_ping, read_mrz
 from ..io.survey import Ping
-from .nmea import HeadingFix, NmeaDecoder, PositionFix
+from .inputs import JsonInputDecoder, Pd6Decoder
+from .nmea import NmeaDecoder, PositionFix
 
 __all__ = ["LiveDecoder", "UdpReceiver", "ATTITUDE_SAMPLES", "PENDING_PINGS"]
 
@@ -53,6 +55,8 @@ class LiveDecoder:
     def __init__(self) -> None:
         self.counts: Counter[str] = Counter()
         self._nmea = NmeaDecoder(self.counts)
+        self._pd6 = Pd6Decoder(self.counts)
+        self._json = JsonInputDecoder(self.counts)
         self._attitude: deque[tuple[float, float, float, float]] = deque(maxlen=ATTITUDE_SAMPLES)
         self._parts: OrderedDict[tuple, dict[int, bytes]] = OrderedDict()
         self._seen: OrderedDict[int, None] = OrderedDict()
@@ -61,17 +65,18 @@ class LiveDecoder:
         self._counters_received = 0
         self._recent_counters: OrderedDict[int, None] = OrderedDict()
 
-    def feed(self, payload: bytes) -> list[Ping | PositionFix | HeadingFix]:
+    def feed(self, payload: bytes) -> list:
         """What this datagram completes (often nothing); never raises on bad bytes."""
-        if payload[:1] == b"$":
+        lines = {b"$": self._nmea, b":": self._pd6, b"{": self._json}.get(payload[:1])
+        if lines is not None:
             out: list = []
-            for line in payload.decode("ascii", errors="replace").splitlines():
+            for line in payload.decode("utf-8", errors="replace").splitlines():
                 if line.strip():
-                    out += self._nmea.feed(line)
+                    out += lines.feed(line)
             return out
         if len(payload) >= _HEADER.size + 4 and payload[4:5] == b"#" and payload[5:8].isalpha() and payload[5:8].isupper():
             return self._kmall(payload)
-        self.counts["datagram of neither .kmall nor NMEA (skipped)"] += 1
+        self.counts["datagram of neither .kmall, NMEA, PD6 nor JSON (skipped)"] += 1
         return []
 
     def finish(self) -> list[Ping | PositionFix]:
@@ -201,44 +206,67 @@ def _joined(parts: list[bytes]) -> bytes:
 
 
 class UdpReceiver:
-    """A UDP socket on ``(host, port)`` (port 0: any free one, see :attr:`address`) feeding a :class:`LiveDecoder`.
+    """UDP sockets on ``(host, port)`` and on each of ``more`` (port 0: any free one, see :attr:`addresses`) feeding one
+    :class:`LiveDecoder`: every port takes every kind, told by its content (.kmall, NMEA, PD6, JSON lines).
 
-    :meth:`run` receives until :meth:`stop`; each completed value goes to ``on_value``. The socket asks for a
+    :meth:`run` receives until :meth:`stop`; each completed value goes to ``on_value``. Each socket asks for a
     receive buffer of ``buffer_bytes`` (the system may give less: bursts beyond it are lost by the kernel,
     uncounted here, and show as missing pings).
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, buffer_bytes: int = 4 << 20) -> None:
+    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, more: tuple[tuple[str, int], ...] = (), buffer_bytes: int = 4 << 20) -> None:
         self.decoder = LiveDecoder()
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        with contextlib.suppress(OSError):
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, buffer_bytes)
+        self.socks: list[socket.socket] = []
         try:
-            self.sock.bind((host, port))
-        except OSError as error:
-            self.sock.close()
-            raise OSError(error.errno, f"cannot listen on {host}:{port} for UDP datagrams: {error.strerror or error}") from None
-        self.sock.settimeout(0.05)
-        self.address: tuple[str, int] = self.sock.getsockname()
+            for where in ((host, port), *more):
+                self.socks.append(_bound(where, buffer_bytes))
+        except OSError:
+            for sock in self.socks:
+                sock.close()
+            raise
+        self.sock = self.socks[0]
+        self.addresses: list[tuple[str, int]] = [sock.getsockname() for sock in self.socks]
+        self.address: tuple[str, int] = self.addresses[0]
         self._stop = threading.Event()
 
     def run(self, on_value) -> None:
-        """Receive and decode until :meth:`stop`; then the decoder's :meth:`~LiveDecoder.finish`, and the socket closed."""
+        """Receive and decode until :meth:`stop`; then the decoder's :meth:`~LiveDecoder.finish`, and the sockets closed."""
+        selector = selectors.DefaultSelector()
+        for sock in self.socks:
+            selector.register(sock, selectors.EVENT_READ)
         try:
             while True:
-                try:
-                    payload = self.sock.recv(65_535)
-                except TimeoutError:
-                    if self._stop.is_set():
-                        break
-                    continue
-                for value in self.decoder.feed(payload):
-                    on_value(value)
+                ready = selector.select(timeout=0.05)
+                if not ready and self._stop.is_set():
+                    break
+                for key, _ in ready:
+                    try:
+                        payload = key.fileobj.recv(65_535)
+                    except BlockingIOError:
+                        continue
+                    for value in self.decoder.feed(payload):
+                        on_value(value)
             for value in self.decoder.finish():
                 on_value(value)
         finally:
-            self.sock.close()
+            selector.close()
+            for sock in self.socks:
+                sock.close()
 
     def stop(self) -> None:
         """Stop once the datagrams already received are read."""
         self._stop.set()
+
+
+def _bound(where: tuple[str, int], buffer_bytes: int) -> socket.socket:
+    host, port = where
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    with contextlib.suppress(OSError):
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, buffer_bytes)
+    try:
+        sock.bind((host, port))
+    except OSError as error:
+        sock.close()
+        raise OSError(error.errno, f"cannot listen on {host}:{port} for UDP datagrams: {error.strerror or error}") from None
+    sock.setblocking(False)
+    return sock

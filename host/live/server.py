@@ -25,6 +25,7 @@ from collections import Counter
 from typing import TextIO
 
 from ..io.survey import Ping
+from .inputs import DepthReading, DvlVelocity, UsblFix
 from .navigator import LiveEstimate, LiveNavigator
 from .nmea import HeadingFix, PositionFix
 from .outputs import RunLog, UdpSender
@@ -100,6 +101,11 @@ class LiveServer:
         """One decoded value, completed at monotonic time ``received``: a ping into the navigation, a fix counted."""
         if isinstance(value, Ping):
             self._navigate(self.reorder.add(value, received))
+        elif isinstance(value, DvlVelocity | DepthReading):
+            self.navigator.add_sensor(value)
+        elif isinstance(value, UsblFix):
+            self.counts["USBL fixes (logged, not used)"] += 1
+            self.log.line({"usbl": {"time_utc_s": value.time_s, "lat_deg": value.lat_deg, "lon_deg": value.lon_deg, "depth_m": value.depth_m}})
         elif isinstance(value, PositionFix):
             self.counts["NMEA position fixes (not used)"] += 1
         elif isinstance(value, HeadingFix):

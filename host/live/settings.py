@@ -3,7 +3,7 @@
 ::
 
     [serve]
-    listen = "0.0.0.0:4001"                 # HOST:PORT the .kmall and NMEA datagrams arrive on
+    listen = "0.0.0.0:4001"                 # HOST:PORT the datagrams arrive on, or several: ["0.0.0.0:4001", "0.0.0.0:4002"]
     bathy = "maps/area.nc"                  # the map, as lost run --bathy (relative to the settings file)
     estimators = ["lost", "pmf", "pf"]      # the bank's names (default: all)
     record_s = 5.0                          # seconds of pings per record, as lost run --survey --record-s
@@ -50,7 +50,7 @@ def address(text: str, what: str) -> tuple[str, int]:
 class ServeSettings:
     """``[serve]`` (see the module); ``navigation`` is the ``[navigation]`` table, validated by the navigation's own layer."""
 
-    listen: str
+    listen: str | tuple[str, ...]
     bathy: str
     estimators: tuple[str, ...] = ESTIMATORS
     record_s: PositiveFloat = DEFAULT_RECORD_S
@@ -66,7 +66,10 @@ class ServeSettings:
     navigation: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        address(self.listen, "[serve] listen")
+        if not self.listen or len(set(self.listens)) != len(self.listens):
+            raise ConfigError(f"[serve] listen must be HOST:PORT or a list of them, each once, got {self.listen!r}")
+        for listen in self.listens:
+            address(listen, "[serve] listen")
         for output in self.outputs:
             address(output, "[serve] outputs")
         unknown = sorted(set(self.estimators) - set(ESTIMATORS))
@@ -76,6 +79,12 @@ class ServeSettings:
             raise ConfigError(f"[serve] patch_centre must be one of {list(SURVEY_PATCH_CENTRES)}, got {self.patch_centre!r}")
         if not all(math.isfinite(v) for v in (*self.dr_bias_mps, *self.start_offset_m)):
             raise ConfigError("[serve] dr_bias_mps and start_offset_m must be finite")
+
+
+    @property
+    def listens(self) -> tuple[str, ...]:
+        """The addresses listened on: every one takes every input kind, told by its content."""
+        return (self.listen,) if isinstance(self.listen, str) else tuple(self.listen)
 
 
 def read_serve_settings(path: Path) -> ServeSettings:

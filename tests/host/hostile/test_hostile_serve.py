@@ -39,6 +39,9 @@ def _serve(tmp_path, text: str, capsys) -> tuple[int, str]:
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\npatch_centre = "middle"', "[serve] patch_centre must be one of"),
     ('listen = "127.0.0.1:0"', "bathy"),
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nreorder_lag_s = -0.5', "serve.reorder_lag_s"),
+    ('listen = ["127.0.0.1:4001", "127.0.0.1:4001"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
+    ('listen = []\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
+    ('listen = ["127.0.0.1:4001", "here"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
 ])
 def test_a_refused_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, table, named):
     code, err = _serve(tmp_path, f"[serve]\n{table}\n", capsys)
