@@ -25,6 +25,7 @@ from collections import Counter
 from typing import TextIO
 
 from ..io.survey import Ping
+from .fallback import FallbackBackend
 from .inputs import DepthReading, DvlVelocity, UsblFix
 from .navigator import LiveEstimate, LiveNavigator
 from .nmea import HeadingFix, PositionFix
@@ -40,7 +41,8 @@ class LiveServer:
     """One `lost serve` run: receiver, navigator, outputs (see the module)."""
 
     def __init__(self, receiver: UdpReceiver, navigator: LiveNavigator, sender: UdpSender, log: RunLog, *, status_s: float = 5.0,
-                 idle_stop_s: float = 0.0, reorder_lag_s: float = 0.5, status_stream: TextIO | None = None) -> None:
+                 idle_stop_s: float = 0.0, reorder_lag_s: float = 0.5, status_stream: TextIO | None = None,
+                 fallback: FallbackBackend | None = None) -> None:
         self.receiver, self.navigator, self.sender, self.log = receiver, navigator, sender, log
         self.status_s, self.idle_stop_s = status_s, idle_stop_s
         self.status_stream = status_stream if status_stream is not None else sys.stderr
@@ -49,6 +51,7 @@ class LiveServer:
         self.latency_ms = LogHistogram(low=0.01, high=1e7)  # the closing ping decoded -> its record served (the reorder hold included)
         self.navigation_ms = LogHistogram(low=0.01, high=1e7)  # the closing ping out of the reorder buffer -> its record served
         self.reorder = PingReorder(reorder_lag_s, self.counts)
+        self.fallback = fallback  # the device correlator with software behind it (None: the backend named, alone)
         self.served: dict[str, EstimatorStats] = {}
         self.last_refusal = ""
         self.ended = "running"
@@ -126,6 +129,7 @@ class LiveServer:
             return []
 
     def _serve(self, estimates: list[LiveEstimate], received: float | None, released: float | None) -> None:
+        self._correlator_events()
         by_record: dict[int, list[LiveEstimate]] = {}
         for estimate in estimates:
             by_record.setdefault(estimate.record, []).append(estimate)
@@ -140,6 +144,15 @@ class LiveServer:
                 self.latency_ms.add((now - received) * 1e3)
                 self.navigation_ms.add((now - released) * 1e3)
 
+    def _correlator_events(self) -> None:
+        """The device's switches to software and back: in the log (a line each) and said at once on the status stream."""
+        if self.fallback is None:
+            return
+        for when, serving, reason in self.fallback.events():
+            utc = time.time() - (time.monotonic() - when)
+            self.log.line({"correlator": {"time_utc_s": utc, "serving": serving, "reason": reason}})
+            print(f"lost serve: correlator now {serving}: {reason}", file=self.status_stream, flush=True)
+
     def _drops(self) -> dict[str, int]:
         counts = _copy(self.receiver.decoder.counts)
         drops = {reason: n for reason, n in counts.items() if any(w in reason for w in ("skipped", "lost", "dropped", "missing", "without"))}
@@ -153,8 +166,12 @@ class LiveServer:
         latency = f"{self.latency_ms.last:.0f} ms (max {self.latency_ms.max:.0f})" if self.latency_ms.count else "-"
         drops = ", ".join(f"{reason} {n}" for reason, n in sorted(self._drops().items())) or "none"
         usable = " ".join(f"{name} {100 * fraction:.0f}%" for name, fraction in self.usable_fractions().items())
+        correlator = ""
+        if self.fallback is not None:
+            correlator = (f"; correlator {self.fallback.serving}" if self.fallback.on_device
+                          else f"; correlator software ({self.fallback.device.name} not answering)")
         return (f"lost serve: {records} records ({records / elapsed:.2f}/s), {_copy(self.receiver.decoder.counts)['pings']} pings, "
-                f"latency {latency}; usable {usable or '-'}; drops: {drops}")
+                f"latency {latency}; usable {usable or '-'}{correlator}; drops: {drops}")
 
     def usable_fractions(self) -> dict[str, float]:
         return {name: stats.usable_fraction for name, stats in self.served.items()}
@@ -167,6 +184,8 @@ class LiveServer:
                 "navigation_ms": ({f"p{q}": self.navigation_ms.quantile(q / 100) for q in (50, 90, 99)} | {"max": self.navigation_ms.max}
                                   if self.navigation_ms.count else {}),
                 "reorder_lag_s": self.reorder.lag_s,
+                "correlator": ({"device": self.fallback.device.name, "serving": self.fallback.serving, **self.fallback.counts,
+                                "last_failure": self.fallback.last_failure or None} if self.fallback is not None else None),
                 "methods": {name: stats.as_dict() for name, stats in self.served.items()}, "last_refusal": self.last_refusal or None,
                 "received": dict(_copy(self.receiver.decoder.counts)), "navigation": dict(self.navigator.counts),
                 "estimator_counts": self.navigator.estimator_counts(), "server": dict(self.counts),

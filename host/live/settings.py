@@ -16,6 +16,7 @@
     status_s = 5.0                          # seconds between status lines on stderr
     idle_stop_s = 0.0                       # stop after this many seconds without a datagram once one came (0: never)
     reorder_lag_s = 0.5                     # seconds a ping is held to put pings back into time order (0: not held)
+    device_retry_s = 30.0                   # [navigation] backend fpga or rtl: seconds between tries of a device not answering
 
     [navigation]                            # NavParameters, as lost run --config's
 """
@@ -63,6 +64,7 @@ class ServeSettings:
     status_s: PositiveFloat = 5.0
     idle_stop_s: NonNegativeFloat = 0.0
     reorder_lag_s: NonNegativeFloat = 0.5
+    device_retry_s: PositiveFloat = 30.0
     navigation: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:

@@ -77,3 +77,12 @@ def test_bytes_that_are_no_datagram_are_counted_never_raised(payload):
     decoder = LiveDecoder()
     assert decoder.feed(payload) == []
     assert sum(decoder.counts.values()) >= 1
+
+
+@pytest.mark.parametrize(("options", "named"), [(["--backend", "fpga"], "--backend fpga needs --port"),
+                                                (["--port", "/dev/ttyUSB9"], "--port is for --backend fpga")])
+def test_a_device_without_its_port_or_a_port_without_the_device_is_a_usage_error(tmp_path, map_path, capsys, options, named):
+    config = tmp_path / "live.toml"
+    config.write_text('[serve]\nlisten = "127.0.0.1:0"\nbathy = "map.npz"\n')
+    assert main(["serve", "--config", str(config), "--out", str(tmp_path / "out"), *options]) == 2
+    assert named in capsys.readouterr().err and not (tmp_path / "out").exists()
