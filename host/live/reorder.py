@@ -2,14 +2,15 @@
 
 Reordered datagrams can complete pings out of time order (a ping's #MRZ, or its last part, delayed past the next
 ping's); the recorder makes records of pings in time order. :class:`PingReorder` holds each ping until either a
-ping at least ``lag_s`` later in ping time has arrived, or it has been held ``lag_s`` of wall-clock time (monotonic
-seconds, :meth:`~PingReorder.expire`, for a stream that pauses), and releases the pings it holds in time order
-(pings of one time, two heads, in the order they came). A ping that arrives after a later one was released has
-missed its slot: it is dropped and counted (``late``), never given to the recorder out of order.
+ping at least ``lag_s`` later in ping time has arrived, or it has been held ``hold_s`` of wall-clock time (monotonic
+seconds, :meth:`~PingReorder.expire`: the stream at real time, where the next ping is a ping interval away), and
+releases the pings it holds in time order (pings of one time, two heads, in the order they came). A ping that
+arrives after a later one was released has missed its slot: it is dropped and counted (``late``), never given to
+the recorder out of order.
 
-The lag is what reordering costs: at real time a ping waits up to ``lag_s`` before the navigation sees it, so a
-record's estimate comes up to ``lag_s`` later. ``lag_s = 0`` releases every ping at once (no reordering undone;
-late pings still counted and dropped).
+The hold is what reordering costs: at real time a ping waits up to ``hold_s`` before the navigation sees it, so a
+record's estimate comes up to ``hold_s`` later; a datagram delayed longer than that on the network makes its ping
+late. ``lag_s = 0`` releases every ping at once (no reordering undone; late pings still counted and dropped).
 """
 
 from __future__ import annotations
@@ -29,12 +30,14 @@ LATE = "pings late for time order, after a later one went on (dropped)"
 class PingReorder:
     """Pings in as they complete, out in time order after ``lag_s`` (see the module); ``counts`` holds ``LATE``."""
 
-    def __init__(self, lag_s: float, counts: Counter | None = None) -> None:
-        if not (isinstance(lag_s, int | float) and math.isfinite(lag_s) and lag_s >= 0):
-            raise ValueError(f"the reorder lag must be a finite number of seconds >= 0, got {lag_s!r}")
-        self.lag_s = float(lag_s)
+    def __init__(self, lag_s: float, counts: Counter | None = None, *, hold_s: float | None = None) -> None:
+        hold_s = lag_s if hold_s is None else hold_s
+        for name, value in (("lag", lag_s), ("hold", hold_s)):
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"the reorder {name} must be a finite number of seconds >= 0, got {value!r}")
+        self.lag_s, self.hold_s = float(lag_s), min(float(hold_s), float(lag_s))
         self.counts: Counter[str] = counts if counts is not None else Counter()
-        self._held: list[tuple[float, int, float, Ping]] = []  # (ping time, arrival order, monotonic arrival, ping)
+        self._held: list[tuple[float, int, float, float, Ping]] = []  # (ping time, arrival order, decoded, entered the buffer, ping)
         self._order = 0
         self._released_s = -math.inf  # the time of the latest ping let go
         self._newest_s = -math.inf  # the latest ping time seen
@@ -42,21 +45,27 @@ class PingReorder:
     def __len__(self) -> int:
         return len(self._held)
 
-    def add(self, ping: Ping, received: float) -> list[tuple[Ping, float]]:
-        """Take a ping completed at monotonic time ``received``; the pings now released, in time order, with their arrival times."""
+    def add(self, ping: Ping, received: float, now: float | None = None) -> list[tuple[Ping, float]]:
+        """Take a ping decoded at monotonic time ``received``, given to the buffer at ``now`` (default ``received``): its hold
+        counts from ``now`` (a backlog's pings are not let go at once for having waited in a queue). The pings now
+        released, in time order, with their ``received`` times."""
         if ping.time_s < self._released_s:
             self.counts[LATE] += 1
             return []
-        heapq.heappush(self._held, (ping.time_s, self._order, received, ping))
+        heapq.heappush(self._held, (ping.time_s, self._order, received, received if now is None else now, ping))
         self._order += 1
         self._newest_s = max(self._newest_s, ping.time_s)
         return self._release(lambda entry: entry[0] <= self._newest_s - self.lag_s)
 
+    def wait_s(self, now: float) -> float:
+        """Seconds from ``now`` until a held ping is due to go by its hold (infinity when none is held)."""
+        return max(min(entry[3] for entry in self._held) + self.hold_s - now, 0.0) if self._held else math.inf
+
     def expire(self, now: float) -> list[tuple[Ping, float]]:
-        """Release the pings held ``lag_s`` of wall-clock time by ``now`` (and every earlier ping before them)."""
+        """Release the pings held ``hold_s`` of wall-clock time by ``now`` (and every earlier ping before them)."""
         if not self._held:
             return []
-        due = [entry[0] for entry in self._held if now - entry[2] >= self.lag_s]
+        due = [entry[0] for entry in self._held if now - entry[3] >= self.hold_s]
         if not due:
             return []
         until = max(due)
@@ -69,7 +78,7 @@ class PingReorder:
     def _release(self, ready) -> list[tuple[Ping, float]]:
         out = []
         while self._held and ready(self._held[0]):
-            time_s, _, received, ping = heapq.heappop(self._held)
+            time_s, _, received, _, ping = heapq.heappop(self._held)
             self._released_s = time_s
             out.append((ping, received))
         return out

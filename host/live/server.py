@@ -41,7 +41,7 @@ class LiveServer:
     """One `lost serve` run: receiver, navigator, outputs (see the module)."""
 
     def __init__(self, receiver: UdpReceiver, navigator: LiveNavigator, sender: UdpSender, log: RunLog, *, status_s: float = 5.0,
-                 idle_stop_s: float = 0.0, reorder_lag_s: float = 0.5, status_stream: TextIO | None = None,
+                 idle_stop_s: float = 0.0, reorder_lag_s: float = 0.5, reorder_hold_s: float = 0.05, status_stream: TextIO | None = None,
                  fallback: FallbackBackend | None = None) -> None:
         self.receiver, self.navigator, self.sender, self.log = receiver, navigator, sender, log
         self.status_s, self.idle_stop_s = status_s, idle_stop_s
@@ -50,7 +50,7 @@ class LiveServer:
         # Bounded whatever the run's length: a histogram of latencies, per estimator counts and a histogram of errors.
         self.latency_ms = LogHistogram(low=0.01, high=1e7)  # the closing ping decoded -> its record served (the reorder hold included)
         self.navigation_ms = LogHistogram(low=0.01, high=1e7)  # the closing ping out of the reorder buffer -> its record served
-        self.reorder = PingReorder(reorder_lag_s, self.counts)
+        self.reorder = PingReorder(reorder_lag_s, self.counts, hold_s=reorder_hold_s)
         self.fallback = fallback  # the device correlator with software behind it (None: the backend named, alone)
         self.served: dict[str, EstimatorStats] = {}
         self.last_refusal = ""
@@ -71,7 +71,8 @@ class LiveServer:
         try:
             while not self._stop.is_set():
                 try:
-                    received, value = self._queue.get(timeout=0.05)
+                    # Wake for the reorder buffer's next due ping, not later than the status and idle checks need.
+                    received, value = self._queue.get(timeout=min(0.05, max(self.reorder.wait_s(time.monotonic()), 0.001)))
                 except queue.Empty:
                     self._navigate(self.reorder.expire(time.monotonic()))
                     if last_value is not None and self.idle_stop_s and time.monotonic() - last_value > self.idle_stop_s:
@@ -80,6 +81,7 @@ class LiveServer:
                 else:
                     last_value = received
                     self.take(received, value)
+                    self._navigate(self.reorder.expire(time.monotonic()))  # a busy stream: pings due by their hold go too
                 if time.monotonic() >= next_status:
                     print(self.status_line(), file=self.status_stream, flush=True)
                     next_status = time.monotonic() + self.status_s
@@ -103,7 +105,7 @@ class LiveServer:
     def take(self, received: float, value) -> None:
         """One decoded value, completed at monotonic time ``received``: a ping into the navigation, a fix counted."""
         if isinstance(value, Ping):
-            self._navigate(self.reorder.add(value, received))
+            self._navigate(self.reorder.add(value, received, time.monotonic()))
         elif isinstance(value, DvlVelocity | DepthReading):
             self.navigator.add_sensor(value)
         elif isinstance(value, UsblFix):
@@ -183,7 +185,7 @@ class LiveServer:
                                "max": latency.max if latency.count else None},
                 "navigation_ms": ({f"p{q}": self.navigation_ms.quantile(q / 100) for q in (50, 90, 99)} | {"max": self.navigation_ms.max}
                                   if self.navigation_ms.count else {}),
-                "reorder_lag_s": self.reorder.lag_s,
+                "reorder_lag_s": self.reorder.lag_s, "reorder_hold_s": self.reorder.hold_s,
                 "correlator": ({"device": self.fallback.device.name, "serving": self.fallback.serving, **self.fallback.counts,
                                 "last_failure": self.fallback.last_failure or None} if self.fallback is not None else None),
                 "methods": {name: stats.as_dict() for name, stats in self.served.items()}, "last_refusal": self.last_refusal or None,

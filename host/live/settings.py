@@ -15,7 +15,8 @@
     outputs = ["127.0.0.1:5001"]            # where each estimate goes (JSON line and $LOEST sentence)
     status_s = 5.0                          # seconds between status lines on stderr
     idle_stop_s = 0.0                       # stop after this many seconds without a datagram once one came (0: never)
-    reorder_lag_s = 0.5                     # seconds a ping is held to put pings back into time order (0: not held)
+    reorder_lag_s = 0.5                     # a ping waits for a ping this much later in ping time ... (0: not held)
+    reorder_hold_s = 0.05                   # ... or this long in wall-clock time, to put pings back into time order
     device_retry_s = 30.0                   # [navigation] backend fpga or rtl: seconds between tries of a device not answering
 
     [navigation]                            # NavParameters, as lost run --config's
@@ -64,6 +65,7 @@ class ServeSettings:
     status_s: PositiveFloat = 5.0
     idle_stop_s: NonNegativeFloat = 0.0
     reorder_lag_s: NonNegativeFloat = 0.5
+    reorder_hold_s: NonNegativeFloat = 0.05
     device_retry_s: PositiveFloat = 30.0
     navigation: dict = field(default_factory=dict)
 

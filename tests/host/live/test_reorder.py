@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from itertools import islice
 
@@ -66,3 +67,14 @@ def test_a_ping_held_its_lag_of_wall_time_goes_on_when_the_stream_pauses(arrival
     assert [p.time_s for p, _ in buffer.expire(11.7)] == [pings[1].time_s]
     with pytest.raises(ValueError, match="reorder lag"):
         PingReorder(-1.0)
+    with pytest.raises(ValueError, match="reorder hold"):
+        PingReorder(0.5, hold_s=math.nan)
+
+
+def test_the_wall_clock_hold_counts_from_the_buffer_not_from_the_decoding(arrivals):
+    pings, _ = arrivals
+    buffer = PingReorder(0.5, hold_s=0.05)
+    assert buffer.add(pings[0], received=1.0, now=10.0) == []  # decoded at 1 s, waited in a backlog until 10 s
+    assert buffer.wait_s(10.0) == pytest.approx(0.05) and buffer.expire(10.04) == []
+    assert [(p.time_s, received) for p, received in buffer.expire(10.05)] == [(pings[0].time_s, 1.0)]
+    assert buffer.wait_s(10.05) == math.inf

@@ -118,11 +118,12 @@ def test_the_served_values_are_the_batch_navigations_to_the_bit(tow, tmp_path, c
 
 def test_pings_reordered_on_the_way_are_put_back_in_time_order_and_served_as_the_batch_run(tow, batch_rows, serve_replay, tmp_path, capsys):
     """10 % of datagrams sent 8 later (a ping is 6 datagrams): pings complete out of order; the 1.5 s buffer restores the batch run."""
-    out, _ = serve_replay(tow, tmp_path, ["--reorder", "0.1", "--reorder-by", "8", "--seed", "4"], reorder_lag_s=1.5)
+    out, _ = serve_replay(tow, tmp_path, ["--reorder", "0.1", "--reorder-by", "8", "--seed", "4"], reorder_lag_s=1.5,
+                          reorder_hold_s=1.5)
     replayed = capsys.readouterr().out
     assert int(replayed.split(" reordered")[0].rsplit(" ", 1)[1]) > 10
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["reorder_lag_s"] == 1.5 and not any("late" in reason for reason in summary["server"])
+    assert summary["reorder_lag_s"] == summary["reorder_hold_s"] == 1.5 and not any("late" in reason for reason in summary["server"])
     log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
     _assert_log_is_the_batch_runs(log, batch_rows)
 
