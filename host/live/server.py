@@ -2,13 +2,19 @@
 
 :class:`UdpReceiver` runs on its own thread and puts each decoded value, with the monotonic time it was
 completed, on a queue (unbounded: a burst while a record is being navigated waits in memory, not in the
-socket's buffer where the kernel would drop it). The main thread takes pings off the queue into the
-:class:`~lost.host.live.navigator.LiveNavigator`; each record's estimates go to the :class:`UdpSender` and
-the :class:`RunLog` as soon as they are made. Fixes and headings from NMEA are counted (the navigation of a
-hull-mounted survey takes the ping's own position, as the batch path does).
+socket's buffer where the kernel would drop it). The main thread takes pings off the queue through the
+:class:`~lost.host.live.reorder.PingReorder` (back into time order) into the
+:class:`~lost.host.live.navigator.LiveNavigator`, and the vehicle's DVL velocities and depth readings into it as
+they come; each record's estimates go to the :class:`UdpSender` and the :class:`RunLog` as soon as they are made.
+Fixes and headings from NMEA are counted (the navigation of a hull-mounted survey takes the ping's own position, as
+the batch path does); USBL fixes are counted and logged. With a device correlator behind a
+:class:`~lost.host.live.fallback.FallbackBackend`, its switches to software and back are logged and said at once.
+
+Every per-run store is bounded (:mod:`lost.host.live.stats`): histograms of latencies and errors, counters by kind.
 
 Latency is measured from the completion of the ping that closed a record (the first ping of the next
-interval: a record is known to be whole only then) to its estimates sent.
+interval: a record is known to be whole only then) to its estimates sent (``latency_ms``, the reorder hold
+included), and from that ping's release by the reorder buffer (``navigation_ms``).
 
 It stops on :meth:`LiveServer.stop`, on Ctrl-C or SIGTERM (both a normal end here: the last record is
 closed, the summary written), or after ``idle_stop_s`` seconds without a value once one came.
