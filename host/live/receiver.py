@@ -8,10 +8,10 @@ length and the next a ``#`` and three capitals, NMEA when it starts with ``$``.
 
 - ``#MRZ`` is decoded by pykmall, as :mod:`lost.host.io.kmall` decodes a file's, its attitude interpolated from the
   ``#SKM`` samples received before it (the last :data:`ATTITUDE_SAMPLES`); partitions (``numOfDgms`` > 1) are joined
-  in ``dgmNum`` order whatever order they come in; a ping whose parts are not all in while :data:`PENDING_PINGS`
-  later pings begin, or at :meth:`~LiveDecoder.finish`, is dropped and counted;
-- a datagram or a part seen before (the same bytes, among the last few thousand) is counted and skipped; two
-  partitioned MRZ of one time (two heads) cannot be told apart by their later parts: counted and dropped;
+  by the file reader's rule (:class:`lost.host.io.kmall_parts.MrzJoiner`: in ``dgmNum`` order whatever order they
+  come in; a ping whose parts are not all in while :data:`PENDING_PINGS` later pings begin, or at
+  :meth:`~LiveDecoder.finish`, dropped and counted; two partitioned MRZ of one time, two heads, dropped and counted);
+- a datagram or a part seen before (the same bytes, among the last few thousand) is counted and skipped;
 - a datagram whose length fields disagree with its size, or that pykmall cannot decode, is counted and skipped;
 - a ping whose #MRZ never came whole shows as a gap in the MRZ ping counter, counted at the end;
 - a ping decoded without attitude after #SKM samples were received (its own sample late or lost) is counted;
@@ -32,7 +32,8 @@ from collections import Counter, OrderedDict, deque
 
 import numpy as np
 
-from ..io.kmall import mrz_ping, read_mrz
+from ..io.kmall import decode_mrz, mrz_ping
+from ..io.kmall_parts import PENDING_PINGS, MrzJoiner
 from ..io.survey import Ping
 from .inputs import JsonInputDecoder, Pd6Decoder
 from .nmea import NmeaDecoder, PositionFix
@@ -40,13 +41,11 @@ from .nmea import NmeaDecoder, PositionFix
 __all__ = ["LiveDecoder", "UdpReceiver", "ATTITUDE_SAMPLES", "PENDING_PINGS"]
 
 ATTITUDE_SAMPLES = 4096
-PENDING_PINGS = 4
 _RECENT_KEYS = 4096
 # The .kmall datagram kinds counted by name; any other is counted as "other" (a bounded set of counters whatever arrives).
 _KMALL_KINDS = frozenset({"#IIP", "#IOP", "#IBE", "#IBR", "#IBS", "#MRZ", "#MWC", "#SPO", "#SKM", "#SVP", "#SVT", "#SCL", "#SDE", "#SHI",
                           "#SHA", "#CPO", "#CHE", "#FCF"})
 _HEADER = struct.Struct("<I4sBBHII")
-_PARTITION = struct.Struct("<HH")
 
 
 class LiveDecoder:
@@ -58,7 +57,7 @@ class LiveDecoder:
         self._pd6 = Pd6Decoder(self.counts)
         self._json = JsonInputDecoder(self.counts)
         self._attitude: deque[tuple[float, float, float, float]] = deque(maxlen=ATTITUDE_SAMPLES)
-        self._parts: OrderedDict[tuple, dict[int, bytes]] = OrderedDict()
+        self._joiner = MrzJoiner(self.counts)
         self._seen: OrderedDict[int, None] = OrderedDict()
         # The MRZ ping counters, unwrapped past 65,535: first, highest, how many distinct, the recent ones (bounded memory).
         self._counter_span: list[int] | None = None
@@ -81,9 +80,7 @@ class LiveDecoder:
 
     def finish(self) -> list[Ping | PositionFix]:
         """The end of the stream: the fix held for its VTG; pings still missing parts are counted as lost, so are gaps in the ping counter."""
-        if self._parts:
-            self.counts["MRZ with parts lost (ping dropped)"] += len(self._parts)
-        self._parts.clear()
+        self._joiner.finish()
         if self._counter_span:
             missing = self._counter_span[1] - self._counter_span[0] + 1 - self._counters_received
             if missing > 0:
@@ -91,7 +88,7 @@ class LiveDecoder:
         return list(self._nmea.flush())
 
     def _kmall(self, payload: bytes) -> list[Ping]:
-        size, kind, _version, system, _sounder, sec, nanosec = _HEADER.unpack_from(payload)
+        size, kind, *_ = _HEADER.unpack_from(payload)
         name = kind.decode("ascii") if kind.decode("ascii") in _KMALL_KINDS else "(other kind)"
         if size != len(payload) or int.from_bytes(payload[-4:], "little") != size:
             self.counts[f"kmall {name} datagram whose length fields disagree with its size (skipped)"] += 1
@@ -105,32 +102,8 @@ class LiveDecoder:
             return []
         if name != "#MRZ":
             return []
-        if len(payload) < _HEADER.size + _PARTITION.size + 4 + 4:
-            self.counts["kmall #MRZ datagram too short for its parts (skipped)"] += 1
-            return []
-        count, number = _PARTITION.unpack_from(payload, _HEADER.size)
-        # The parts after the first carry no common part: a partitioned ping is known by its time and part count.
-        ping_key = (system, sec, nanosec, count)
-        if not 1 <= number <= count:
-            self.counts["kmall #MRZ with an impossible partition number (skipped)"] += 1
-            return []
-        if count == 1:
-            return self._decoded(payload)
-        self.counts["kmall #MRZ parts"] += 1
-        parts = self._parts.setdefault(ping_key, {})
-        if number in parts:
-            del self._parts[ping_key]
-            self.counts["MRZ parts of two pings of one time (both dropped)"] += 1
-            return []
-        parts[number] = payload
-        if len(parts) < count:
-            while len(self._parts) > PENDING_PINGS:
-                self._parts.popitem(last=False)
-                self.counts["MRZ with parts lost (ping dropped)"] += 1
-            return []
-        del self._parts[ping_key]
-        self.counts["MRZ joined from parts"] += 1
-        return self._decoded(_joined([parts[k] for k in range(1, count + 1)]))
+        whole = self._joiner.add(payload)  # the file reader's rule for partitions (lost.host.io.kmall_parts)
+        return [] if whole is None else self._decoded(whole)
 
     def _already_seen(self, key: int) -> bool:
         if key in self._seen:
@@ -153,10 +126,8 @@ class LiveDecoder:
         self._attitude.extend(rows)
 
     def _decoded(self, datagram: bytes) -> list[Ping]:
-        reader = _reader(datagram)
         try:
-            with contextlib.redirect_stdout(io.StringIO()):
-                dg = read_mrz(reader)
+            dg = decode_mrz(datagram)
             ping = mrz_ping(dg, self._attitude_arrays())
         except (struct.error, KeyError, ValueError, IndexError, TypeError, UnicodeDecodeError) as error:
             self.counts[f"kmall #MRZ that does not decode ({type(error).__name__}; skipped)"] += 1
@@ -192,17 +163,6 @@ def _reader(datagram: bytes):
     reader.FID = io.BytesIO(datagram)
     reader.file_size = len(datagram)
     return reader
-
-
-def _joined(parts: list[bytes]) -> bytes:
-    """One MRZ of its parts: the first part's header, partition 1 of 1, the parts' slices, the closing length."""
-    head = _HEADER.size + _PARTITION.size
-    body = b"".join(part[head:-4] for part in parts)
-    size = head + len(body) + 4
-    first = bytearray(parts[0][:head])
-    first[0:4] = size.to_bytes(4, "little")
-    first[_HEADER.size:head] = _PARTITION.pack(1, 1)
-    return bytes(first) + body + size.to_bytes(4, "little")
 
 
 class UdpReceiver:
