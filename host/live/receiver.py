@@ -63,6 +63,7 @@ class LiveDecoder:
         self._counter_span: list[int] | None = None
         self._counters_received = 0
         self._recent_counters: OrderedDict[int, None] = OrderedDict()
+        self._sequence: OrderedDict[tuple[float, int], int] = OrderedDict()  # (time, head) -> counter, read by the reorder buffer
 
     def feed(self, payload: bytes) -> list:
         """What this datagram completes (often nothing); never raises on bad bytes."""
@@ -133,12 +134,19 @@ class LiveDecoder:
             self.counts[f"kmall #MRZ that does not decode ({type(error).__name__}; skipped)"] += 1
             return []
         self.counts["pings"] += 1
-        self._count_ping(int(dg["cmnPart"]["pingCnt"]))
+        counter = self._count_ping(int(dg["cmnPart"]["pingCnt"]))
+        self._sequence[(ping.time_s, ping.head)] = counter
+        if len(self._sequence) > _RECENT_KEYS:
+            self._sequence.popitem(last=False)
         if self._attitude and not np.isfinite(ping.roll_deg):
             self.counts["ping without attitude at its time (its #SKM late or lost)"] += 1
         return [ping]
 
-    def _count_ping(self, counter: int) -> None:
+    def sequence(self, ping: Ping) -> int | None:
+        """The MRZ ping counter of a ping this decoder made (unwrapped past 65,535), among its last 4,096; None if not."""
+        return self._sequence.get((ping.time_s, ping.head))
+
+    def _count_ping(self, counter: int) -> int:
         if self._counter_span is None:
             self._counter_span = [counter, counter]
         else:
@@ -149,6 +157,7 @@ class LiveDecoder:
             self._recent_counters[counter] = None
             if len(self._recent_counters) > _RECENT_KEYS:
                 self._recent_counters.popitem(last=False)
+        return counter
 
     def _attitude_arrays(self) -> dict[str, np.ndarray]:
         table = np.array(self._attitude, dtype=np.float64).reshape(-1, 4)

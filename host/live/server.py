@@ -111,7 +111,7 @@ class LiveServer:
     def take(self, received: float, value) -> None:
         """One decoded value, completed at monotonic time ``received``: a ping into the navigation, a fix counted."""
         if isinstance(value, Ping):
-            self._navigate(self.reorder.add(value, received, time.monotonic()))
+            self._navigate(self.reorder.add(value, received, time.monotonic(), self.receiver.decoder.sequence(value)))
         elif isinstance(value, DvlVelocity | DepthReading):
             self.navigator.add_sensor(value)
         elif isinstance(value, UsblFix):
