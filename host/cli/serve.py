@@ -1,4 +1,5 @@
-"""``lost serve --config LIVE.toml``: terrain navigation on the live datagrams (.kmall, NMEA, DVL, depth, USBL), estimates out over UDP.
+"""``lost serve --config LIVE.toml``: terrain navigation on the live datagrams (.kmall, NMEA, DVL, depth, USBL) over UDP and serial lines,
+estimates out over UDP.
 
 ::
 
@@ -57,10 +58,11 @@ def _cmd_serve(args: argparse.Namespace) -> int:
                                   patch_centre=settings.patch_centre)
         navigator = LiveNavigator(grid, params, settings.estimators, recorder)
         where = [address(listen, "[serve] listen") for listen in settings.listens]
-        receiver = UdpReceiver(*where[0], more=tuple(where[1:]))
+        receiver = UdpReceiver(*where[0], more=tuple(where[1:]), serial=settings.serial)
         sender = UdpSender([address(o, "[serve] outputs") for o in settings.outputs])
         log = RunLog(folder / "log.jsonl")
-        print(f"lost serve: listening on {', '.join(f'{h}:{p}' for h, p in receiver.addresses)}, estimators {', '.join(settings.estimators)}, "
+        ports = "".join(f", serial {p.port} ({p.kind}, {p.baud} baud)" for p in settings.serial)
+        print(f"lost serve: listening on {', '.join(f'{h}:{p}' for h, p in receiver.addresses)}{ports}, estimators {', '.join(settings.estimators)}, "
               f"records of {settings.record_s:g} s, out to {', '.join(settings.outputs) or 'nowhere (log only)'}; log {log.path}", flush=True)
         try:
             with with_fallback(params.backend, retry_s=settings.device_retry_s) if device else contextlib.nullcontext() as fallback:
@@ -80,7 +82,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
 
 def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost serve``."""
-    serve = commands.add_parser("serve", parents=parents, help="navigate on live .kmall, NMEA, DVL, depth and USBL datagrams (UDP), estimates out over UDP")
+    serve = commands.add_parser("serve", parents=parents, help="navigate on live .kmall, NMEA, DVL, depth and USBL inputs (UDP, serial), estimates out over UDP")
     serve.add_argument("--config", type=Path, required=True, metavar="LIVE.toml", help="the settings: a [serve] table and [navigation]")
     serve.add_argument("--out", type=Path, default=None, metavar="DIR", help="the run folder (default runs/serve)")
     serve.add_argument("--replace", action="store_true", help="replace an earlier run in --out")

@@ -37,6 +37,7 @@ from ..io.kmall_parts import PENDING_PINGS, MrzJoiner
 from ..io.survey import Ping
 from .inputs import JsonInputDecoder, Pd6Decoder
 from .nmea import NmeaDecoder, PositionFix
+from .serial import SerialReader, SerialSettings
 
 __all__ = ["LiveDecoder", "UdpReceiver", "ATTITUDE_SAMPLES", "PENDING_PINGS"]
 
@@ -177,14 +178,19 @@ def _reader(datagram: bytes):
 class UdpReceiver:
     """UDP sockets on ``(host, port)`` and on each of ``more`` (port 0: any free one, see :attr:`addresses`) feeding one
     :class:`LiveDecoder`: every port takes every kind, told by its content (.kmall, NMEA, PD6, JSON lines).
+    Each of ``serial`` (:class:`~lost.host.live.serial.SerialSettings`) is read on a thread of its own into the same
+    decoder, a line at a time (:mod:`lost.host.live.serial`); the decoder is fed by one input at a time.
 
     :meth:`run` receives until :meth:`stop`; each completed value goes to ``on_value``. Each socket asks for a
     receive buffer of ``buffer_bytes`` (the system may give less: bursts beyond it are lost by the kernel,
     uncounted here, and show as missing pings).
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, more: tuple[tuple[str, int], ...] = (), buffer_bytes: int = 4 << 20) -> None:
+    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, more: tuple[tuple[str, int], ...] = (), buffer_bytes: int = 4 << 20,
+                 serial: tuple[SerialSettings, ...] = ()) -> None:
         self.decoder = LiveDecoder()
+        self.serial = serial
+        self._feeding = threading.Lock()  # the decoder's state is one: a UDP datagram and a serial line are decoded in turn
         self.socks: list[socket.socket] = []
         try:
             for where in ((host, port), *more):
@@ -197,12 +203,17 @@ class UdpReceiver:
         self.addresses: list[tuple[str, int]] = [sock.getsockname() for sock in self.socks]
         self.address: tuple[str, int] = self.addresses[0]
         self._stop = threading.Event()
+        self.serial_readers: list[SerialReader] = []
 
     def run(self, on_value) -> None:
         """Receive and decode until :meth:`stop`; then the decoder's :meth:`~LiveDecoder.finish`, and the sockets closed."""
         selector = selectors.DefaultSelector()
         for sock in self.socks:
             selector.register(sock, selectors.EVENT_READ)
+        readers = [SerialReader(settings, lambda line: self._feed(line, on_value), self.decoder.counts) for settings in self.serial]
+        self.serial_readers = readers
+        for reader in readers:
+            reader.start()
         try:
             while True:
                 ready = selector.select(timeout=0.05)
@@ -213,14 +224,23 @@ class UdpReceiver:
                         payload = key.fileobj.recv(65_535)
                     except BlockingIOError:
                         continue
-                    for value in self.decoder.feed(payload):
-                        on_value(value)
-            for value in self.decoder.finish():
-                on_value(value)
+                    self._feed(payload, on_value)
+            for reader in readers:
+                reader.stop()
+            with self._feeding:
+                for value in self.decoder.finish():
+                    on_value(value)
         finally:
+            for reader in readers:
+                reader.stop()
             selector.close()
             for sock in self.socks:
                 sock.close()
+
+    def _feed(self, payload: bytes, on_value) -> None:
+        with self._feeding:
+            for value in self.decoder.feed(payload):
+                on_value(value)
 
     def stop(self) -> None:
         """Stop once the datagrams already received are read."""

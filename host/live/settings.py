@@ -20,6 +20,12 @@
     device_retry_s = 30.0                   # [navigation] backend fpga or rtl: seconds between tries of a device not answering
 
     [navigation]                            # NavParameters, as lost run --config's
+
+    [[serial]]                              # a sensor on a serial port (any number of these tables; lost.host.live.serial)
+    port = "/dev/ttyUSB0"                   # a device path or a pyserial URL (socket://HOST:PORT, rfc2217://..., loop://)
+    kind = "pd6"                            # the lines it carries: "nmea", "pd6" or "json"
+    baud = 9600                             # its baud rate (default 9600)
+    retry_s = 2.0                           # a port gone or not opening is tried again after this many seconds
 """
 
 from __future__ import annotations
@@ -34,10 +40,11 @@ from pydantic import Field
 from ..config import ConfigError, NonNegativeFloat, PositiveFloat, build, read_toml
 from ..io.survey_records import DEFAULT_RECORD_S, SURVEY_PATCH_CENTRES
 from ..nav import ESTIMATORS
+from .serial import SerialSettings
 
 __all__ = ["ServeSettings", "read_serve_settings", "address"]
 
-_TABLES = ("serve", "navigation")
+_TABLES = ("serve", "navigation", "serial")
 
 
 def address(text: str, what: str) -> tuple[str, int]:
@@ -68,6 +75,7 @@ class ServeSettings:
     reorder_hold_s: NonNegativeFloat = 0.05
     device_retry_s: PositiveFloat = 30.0
     navigation: dict = field(default_factory=dict)
+    serial: tuple[SerialSettings, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.listen or len(set(self.listens)) != len(self.listens):
@@ -112,6 +120,12 @@ def read_serve_settings(path: Path) -> ServeSettings:
     navigation = data.get("navigation", {})
     if not isinstance(navigation, dict):
         raise ConfigError(f"{path}: [navigation] must be a table")
+    serial = data.get("serial", [])
+    if not isinstance(serial, list) or not all(isinstance(table, dict) for table in serial):
+        raise ConfigError(f"{path}: serial ports are [[serial]] tables (port, kind, baud, retry_s), got {serial!r}")
+    ports = tuple(build(SerialSettings, table, f"serial.{k}") for k, table in enumerate(serial))
+    if len({p.port for p in ports}) != len(ports):
+        raise ConfigError(f"{path}: a serial port is named twice in [[serial]]: {[p.port for p in ports]}")
     bathy = Path(settings.bathy)
     bathy = bathy if bathy.is_absolute() else path.parent / bathy
-    return ServeSettings(**{**settings.__dict__, "bathy": str(bathy), "navigation": navigation})
+    return ServeSettings(**{**settings.__dict__, "bathy": str(bathy), "navigation": navigation, "serial": ports})

@@ -116,3 +116,59 @@ def test_a_bad_json_line_is_counted_by_its_kind_never_raised():
     assert counts["JSON dvl line with a missing, unknown or bad field (skipped)"] == 2
     assert counts["JSON depth line with a missing, unknown or bad field (skipped)"] == 2
     assert counts["JSON line of no known kind (skipped)"] == 2 and counts["JSON line that does not parse (skipped)"] == 1
+
+
+@pytest.mark.parametrize(("serial", "named"), [
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "ais"', "[[serial]] kind must be one of ['nmea', 'pd6', 'json']"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"', "serial.0.kind"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nbaud = 0', "[[serial]] baud must be a serial line's rate"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nbaud = "9600"', "serial.0.baud"),
+    ('[[serial]]\nport = "tcp://10.0.0.5:4001"\nkind = "nmea"', "pyserial knows no URL scheme 'tcp'"),
+    ('[[serial]]\nport = ""\nkind = "nmea"', "[[serial]] port must be a device path or a pyserial URL"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nparity = "N"', "unknown field(s) ['parity']"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nretry_s = 0.0', "serial.0.retry_s (seconds)"),
+    ('[[serial]]\nport = "/dev/ttyS0"\nkind = "pd6"\n[[serial]]\nport = "/dev/ttyS0"\nkind = "nmea"', "a serial port is named twice"),
+    ('[serial]\nport = "/dev/ttyS0"\nkind = "pd6"', "serial ports are [[serial]] tables"),
+])
+def test_a_refused_serial_port_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, serial, named):
+    code, err = _serve(tmp_path, f'[serve]\nlisten = "127.0.0.1:0"\nbathy = "map.npz"\n{serial}\n', capsys)
+    assert code == 1 and named in err and err.count("\n") == 1
+
+
+def test_serial_noise_an_overlong_line_and_a_port_that_never_opens_are_counted_never_a_stop():
+    """Bytes without line ends (a wrong baud rate) and a port that is not there: counted; the reader goes on."""
+    import threading
+    import time
+
+    from lost.host.live.serial import MAX_LINE_BYTES, SerialReader, SerialSettings
+
+    class Port:
+        def __init__(self, chunks):
+            self.chunks, self.in_waiting = list(chunks), 0
+
+        def read(self, size):
+            return self.chunks.pop(0) if self.chunks else time.sleep(0.01) or b""
+
+        def close(self):
+            pass
+
+    counts, lines = Counter(), []
+    chunks = [b"\xff\xfe" * MAX_LINE_BYTES, b"\x00" * 10, b"still the same line\r\n:TS,bad\r\n", b"\x80\x81\r\n", b":BE,+1,+2,+0,A\r\n"]
+    tries = iter([OSError("no such device"), OSError("no such device"), Port(chunks)])
+
+    def opener(settings):
+        port = next(tries, None) or Port([])
+        if isinstance(port, OSError):
+            raise port
+        return port
+
+    reader = SerialReader(SerialSettings("/dev/ttyUSB9", "pd6", retry_s=0.01), lines.append, counts, opener=opener)
+    thread = threading.Thread(target=reader.run)
+    thread.start()
+    time.sleep(0.5)
+    reader.stop()
+    thread.join(5)
+    assert lines == [b":TS,bad\r\n", b":BE,+1,+2,+0,A\r\n"]
+    assert counts["serial /dev/ttyUSB9: port did not open (tried again; its lines lost meanwhile)"] == 2
+    assert counts[f"serial /dev/ttyUSB9: line longer than {MAX_LINE_BYTES} bytes (skipped)"] == 1
+    assert counts["serial /dev/ttyUSB9: line not of the port's kind pd6 (skipped)"] == 1

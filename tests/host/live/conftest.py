@@ -35,17 +35,21 @@ def _wait_until_bound(port: int, timeout_s: float = 30.0) -> None:
     raise AssertionError(f"lost serve did not bind port {port} in {timeout_s} s")
 
 
-def _settings(path, map_path, port, output_port, **extra) -> None:
+def _settings(path, map_path, port, output_port, serial=(), **extra) -> None:
     table = {"listen": f"127.0.0.1:{port}", "bathy": str(map_path), "estimators": ["lost", "pmf", "pf"], "outputs": [f"127.0.0.1:{output_port}"],
              "idle_stop_s": 1.5, "status_s": 0.5, **SETTINGS, **extra}
     lines = ["[serve]"] + [f"{key} = {json.dumps(value)}" for key, value in table.items()]
+    for port_table in serial:
+        lines += ["[[serial]]"] + [f"{key} = {json.dumps(value)}" for key, value in port_table.items()]
     path.write_text("\n".join(lines) + "\n")
 
 
-def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = (), two_ports: bool = False, **extra):
+def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = (), two_ports: bool = False, serial=(), before_replay=None,
+                  **extra):
     """Serve on a free port while `lost replay` sends the tow; the run folder and the datagrams that came out.
 
-    ``two_ports``: the server listens on a second port too, and ``junk`` goes there.
+    ``two_ports``: the server listens on a second port too, and ``junk`` goes there. ``serial``: ``[[serial]]`` tables;
+    ``before_replay``: called once the server listens, before the replay starts.
     """
     path, map_path = tow
     port, listener = _free_port(), socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -55,7 +59,7 @@ def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = ()
     listener.bind(("127.0.0.1", 0))
     listener.settimeout(0.2)
     config, out = tmp_path / "live.toml", tmp_path / "serve"
-    _settings(config, map_path, port, listener.getsockname()[1], **extra)
+    _settings(config, map_path, port, listener.getsockname()[1], serial=serial, **extra)
     codes: list[int] = []
     server = threading.Thread(target=lambda: codes.append(main(["serve", "--config", str(config), "--out", str(out)])))
     server.start()
@@ -77,6 +81,8 @@ def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = ()
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
             for payload in junk:
                 sender.sendto(payload, ("127.0.0.1", junk_port))
+        if before_replay is not None:
+            before_replay()
         assert main(["replay", str(path), "--to", f"127.0.0.1:{port}", "--speed", "0", *replay_options]) == 0
         server.join(60)
     finally:
