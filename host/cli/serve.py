@@ -82,7 +82,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
 
 def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost serve``."""
-    serve = commands.add_parser("serve", parents=parents, help="navigate on live .kmall, NMEA, DVL, depth and USBL inputs (UDP, serial), estimates out over UDP")
+    serve = commands.add_parser("serve", parents=parents, help="navigate on live .kmall, NMEA, DVL, depth, USBL inputs (UDP, serial), estimates out over UDP")
     serve.add_argument("--config", type=Path, required=True, metavar="LIVE.toml", help="the settings: a [serve] table and [navigation]")
     serve.add_argument("--out", type=Path, default=None, metavar="DIR", help="the run folder (default runs/serve)")
     serve.add_argument("--replace", action="store_true", help="replace an earlier run in --out")
