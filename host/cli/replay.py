@@ -64,7 +64,7 @@ def _datagram_bytes(text: str) -> int:
     return value
 
 
-def _pings(sources: list[str], dvl: str | None):
+def _pings(sources: list[str], dvl: str | None, usbl: str | None = None):
     """The pings of the source, what it skipped (a Counter filled while iterating), what it is, the vehicle's datagrams (or None)."""
     paths = [Path(s) for s in sources]
     absent = [str(p) for p in paths if not p.exists() and (p.suffix not in ("", ".toml") or len(p.parts) > 1)]
@@ -75,6 +75,8 @@ def _pings(sources: list[str], dvl: str | None):
 
         if dvl not in (None, "none"):
             raise UsageError(f"--dvl {dvl}: a survey file has no DVL to send (the vehicle's DVL and depth come with a simulated scenario)")
+        if usbl not in (None, "none"):
+            raise UsageError(f"--usbl {usbl}: a survey file has no USBL fixes to send (they come with a simulated scenario with a USBL)")
         survey = open_survey(paths)
         return iter(survey), survey.skipped, f"{survey.format} survey {', '.join(p.name for p in paths)}", None
     if len(sources) != 1:
@@ -87,18 +89,22 @@ def _pings(sources: list[str], dvl: str | None):
     scenario = load_scenario(path)
     _, crs, pings = simulated_pings(scenario)
     dvl = dvl or "pd6"
-    if dvl == "none":
+    with_usbl = usbl != "none" and scenario.sensors["usbl"].enabled
+    if usbl == "json" and not with_usbl:
+        raise UsageError(f"--usbl json: scenario {scenario.name!r} has no USBL ([sensors.usbl] enabled = false)")
+    if dvl == "none" and not with_usbl:
         return pings, Counter(), f"scenario {scenario.name!r} (simulated pings)", None
     _, records = simulate(scenario)  # the same tow again (its seed): the simulator's DVL, depth and USBL readings
-    return (pings, Counter(), f"scenario {scenario.name!r} (simulated pings, the vehicle's DVL and depth as {dvl.upper()})",
-            vehicle_datagrams(records, crs, dvl_format=dvl, epoch_s=EPOCH_S))
+    sent = ([f"the vehicle's DVL and depth as {dvl.upper()}"] if dvl != "none" else []) + (["its USBL fixes as JSON"] if with_usbl else [])
+    return (pings, Counter(), f"scenario {scenario.name!r} (simulated pings, {' and '.join(sent)})",
+            vehicle_datagrams(records, crs, dvl_format=dvl, epoch_s=EPOCH_S, usbl=with_usbl))
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
     from ..live.stream import Faults, live_datagrams, send_datagrams, with_faults
 
     faults = Faults(loss=args.loss, reorder=args.reorder, duplicate=args.duplicate, seed=args.seed, reorder_by=args.reorder_by)
-    pings, skipped, what, vehicle = _pings(args.source, args.dvl)
+    pings, skipped, what, vehicle = _pings(args.source, args.dvl, args.usbl)
     counted = Counter()
 
     def counting(stream):
@@ -140,6 +146,8 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     replay.add_argument("--seed", type=int, default=0, help="seed of the faults' generator (default 0)")
     replay.add_argument("--dvl", choices=("pd6", "json", "none"), default=None,
                         help="a scenario's DVL and depth as Teledyne PD6 (the default) or JSON lines, or not sent (none); survey files have none")
+    replay.add_argument("--usbl", choices=("json", "none"), default=None,
+                        help="a scenario's USBL fixes as JSON lines (the default when it has a USBL) or not sent (none)")
     replay.add_argument("--max-datagram-bytes", type=_datagram_bytes, default=UDP_PART_BYTES, metavar="B",
                         help=f"an MRZ larger than this is sent in partitions (default {UDP_PART_BYTES})")
     replay.set_defaults(handler=_cmd_replay)

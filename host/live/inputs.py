@@ -19,7 +19,12 @@ JSON lines (one object a line, UTF-8), kind by the ``kind`` key, every field req
 
     {"kind": "dvl", "time_utc_s": 1767225623.0, "east_mps": 0.12, "north_mps": 1.48}
     {"kind": "depth", "time_utc_s": 1767225623.0, "depth_m": 712.3}
-    {"kind": "usbl", "time_utc_s": 1767225623.0, "lat_deg": 0.0123, "lon_deg": 0.0071, "depth_m": 712.3}
+    {"kind": "usbl", "time_utc_s": 1767225623.0, "lat_deg": 0.0123, "lon_deg": 0.0071, "depth_m": 712.3,
+     "sxx_m2": 64.0, "syy_m2": 49.0, "sxy_m2": 3.5}
+
+A USBL fix carries its covariance (east variance, north variance, their covariance, m²: the USBL's own error
+ellipse), which the navigation weighs it by; variances not positive or ``sxy_m2² >= sxx_m2 * syy_m2`` make no
+covariance, and the line is refused.
 
 Nothing raises on bad input: a line that cannot be used is counted by kind (:attr:`counts`) and skipped.
 """
@@ -56,12 +61,16 @@ class DepthReading:
 
 @dataclass(frozen=True)
 class UsblFix:
-    """A USBL position of the vehicle: POSIX time, WGS 84 latitude and longitude, depth (m)."""
+    """A USBL position of the vehicle: POSIX time, WGS 84 latitude and longitude, depth (m), and its covariance
+    (east variance, north variance, their covariance; m²)."""
 
     time_s: float
     lat_deg: float
     lon_deg: float
     depth_m: float
+    sxx_m2: float
+    syy_m2: float
+    sxy_m2: float
 
 
 class Pd6Decoder:
@@ -112,7 +121,7 @@ class Pd6Decoder:
 
 
 _JSON_KINDS = {"dvl": (DvlVelocity, ("east_mps", "north_mps")), "depth": (DepthReading, ("depth_m",)),
-               "usbl": (UsblFix, ("lat_deg", "lon_deg", "depth_m"))}
+               "usbl": (UsblFix, ("lat_deg", "lon_deg", "depth_m", "sxx_m2", "syy_m2", "sxy_m2"))}
 
 
 class JsonInputDecoder:
@@ -137,8 +146,15 @@ class JsonInputDecoder:
         if set(value) != wanted or not all(type(v) in (int, float) and math.isfinite(v) for v in numbers):
             self.counts[f"JSON {kind} line with a missing, unknown or bad field (skipped)"] += 1
             return []
+        if kind == "usbl" and not _is_covariance(value["sxx_m2"], value["syy_m2"], value["sxy_m2"]):
+            self.counts["JSON usbl line whose covariance is no covariance (skipped)"] += 1
+            return []
         self.counts[f"JSON {kind} lines"] += 1
         return [cls(*(float(v) for v in numbers))]
+
+
+def _is_covariance(sxx: float, syy: float, sxy: float) -> bool:
+    return sxx > 0 and syy > 0 and sxy * sxy < sxx * syy
 
 
 def pd6_sentences(time_s: float, east_mps: float, north_mps: float, depth_m: float) -> list[str]:

@@ -7,7 +7,7 @@ socket's buffer where the kernel would drop it). The main thread takes pings off
 :class:`~lost.host.live.navigator.LiveNavigator`, and the vehicle's DVL velocities and depth readings into it as
 they come; each record's estimates go to the :class:`UdpSender` and the :class:`RunLog` as soon as they are made.
 Fixes and headings from NMEA are counted (the navigation of a hull-mounted survey takes the ping's own position, as
-the batch path does); USBL fixes are counted and logged. With a device correlator behind a
+the batch path does); USBL fixes are logged as they come and given to the navigator (the fix of their record). With a device correlator behind a
 :class:`~lost.host.live.fallback.FallbackBackend`, its switches to software and back are logged and said at once.
 
 Every per-run store is bounded (:mod:`lost.host.live.stats`): histograms of latencies and errors, counters by kind.
@@ -115,8 +115,10 @@ class LiveServer:
         elif isinstance(value, DvlVelocity | DepthReading):
             self.navigator.add_sensor(value)
         elif isinstance(value, UsblFix):
-            self.counts["USBL fixes (logged, not used)"] += 1
-            self.log.line({"usbl": {"time_utc_s": value.time_s, "lat_deg": value.lat_deg, "lon_deg": value.lon_deg, "depth_m": value.depth_m}})
+            self.counts["USBL fixes received"] += 1
+            self.log.line({"usbl": {"time_utc_s": value.time_s, "lat_deg": value.lat_deg, "lon_deg": value.lon_deg, "depth_m": value.depth_m,
+                                    "sxx_m2": value.sxx_m2, "syy_m2": value.syy_m2, "sxy_m2": value.sxy_m2}})
+            self.navigator.add_sensor(value)
         elif isinstance(value, PositionFix):
             self.counts["NMEA position fixes (not used)"] += 1
         elif isinstance(value, HeadingFix):
@@ -165,7 +167,7 @@ class LiveServer:
         counts = _copy(self.receiver.decoder.counts)
         drops = {reason: n for reason, n in counts.items() if any(w in reason for w in ("skipped", "lost", "dropped", "missing", "without"))}
         drops.update({reason: n for reason, n in {**self.navigator.counts, **self.counts, **self.sender.counts}.items()
-                      if any(w in reason for w in ("skipped", "refused", "silent", "without", "not sent", "late"))})
+                      if any(w in reason for w in ("skipped", "refused", "silent", "without", "not sent", "late", "dropped"))})
         return drops
 
     def status_line(self) -> str:

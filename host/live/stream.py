@@ -6,8 +6,8 @@ CR LF; then the sonar's ``.kmall`` datagrams as a K-Controller broadcasts them (
 text, #SKM when the ping has attitude, #MRZ; :func:`lost.host.io.kmall_write.ping_datagrams`), one datagram per
 UDP datagram, an MRZ larger than ``max_datagram_bytes`` split into partitions. The pings of two heads at one
 time share one fix: its sentences, #SPO and #SKM are sent once, with the first. The vehicle's own datagrams of a
-simulated tow (:func:`vehicle_datagrams`: its DVL and depth as a PD6 ensemble or JSON lines, its USBL fixes as JSON
-lines) go before the first ping of their time.
+simulated tow (:func:`vehicle_datagrams`: its DVL and depth as a PD6 ensemble or JSON lines, its USBL fixes with their
+covariance as JSON lines) go before the first ping of their time.
 
 Faults (:class:`Faults`, one seeded NumPy generator, drawn per datagram in this order): lost (not sent), duplicated
 (sent twice), reordered (held back and sent after the next one, or the next ``reorder_by``). Each is counted.
@@ -105,35 +105,38 @@ def live_datagrams(pings: Iterable[Ping], *, max_datagram_bytes: int = UDP_PART_
         waiting = next(pending, None)
 
 
-def vehicle_datagrams(records, crs: str, *, dvl_format: str = "pd6", epoch_s: float = 0.0) -> Iterator[LiveDatagram]:
+def vehicle_datagrams(records, crs: str, *, dvl_format: str = "pd6", epoch_s: float = 0.0, usbl: bool = True) -> Iterator[LiveDatagram]:
     """The vehicle's own datagrams of a simulated tow's records (:class:`~lost.host.records.NavRecords`), one per record.
 
     The DVL's velocity (the records' ``vel_x_mps``/``vel_y_mps``: the simulator's own DVL, its noise, bias and dropouts)
     and the depth sensor's (``vehicle_depth_m``) as a PD6 ensemble (``:TS`` and ``:BE`` lines, ``dvl_format="pd6"``)
-    or as JSON lines (``"json"``); the USBL's fixes (``usbl_x_m``/``usbl_y_m`` where finite, placed by ``crs``) as JSON
-    lines in the same datagram. Times are ``epoch_s`` plus the records' ``t_s``.
+    or as JSON lines (``"json"``), or not at all (``"none"``); with ``usbl``, the USBL's fixes (``usbl_x_m``/``usbl_y_m``
+    where finite, placed by ``crs``, with their covariance ``usbl_sxx``/``usbl_syy``/``usbl_sxy``) as JSON lines, a
+    datagram each. Times are ``epoch_s`` plus the records' ``t_s``.
     """
     from ..io.crs import _transformer
     from .inputs import DepthReading, DvlVelocity, UsblFix, json_input_line, pd6_sentences
 
-    if dvl_format not in ("pd6", "json"):
-        raise ValueError(f"dvl_format must be 'pd6' or 'json', got {dvl_format!r}")
+    if dvl_format not in ("pd6", "json", "none"):
+        raise ValueError(f"dvl_format must be 'pd6', 'json' or 'none', got {dvl_format!r}")
     to_lonlat = _transformer(crs, "EPSG:4326")
-    usbl_x = records.usbl_x_m if records.usbl_x_m is not None else np.full(len(records), np.nan)
-    usbl_y = records.usbl_y_m if records.usbl_y_m is not None else np.full(len(records), np.nan)
+    usbl_x, usbl_y = records.usbl_x_m, records.usbl_y_m  # NaN without a USBL (NavRecords fills the optional series)
     for k in range(len(records)):
         t = epoch_s + float(records.t_s[k])
         east, north, depth = float(records.vel_x_mps[k]), float(records.vel_y_mps[k]), float(records.vehicle_depth_m[k])
         if dvl_format == "pd6":
             lines = pd6_sentences(t, east, north, depth)
+        elif dvl_format == "none":
+            lines = []
         else:
             lines = [json_input_line(DvlVelocity(t, east, north))] if math.isfinite(east) and math.isfinite(north) else []
             lines += [json_input_line(DepthReading(t, depth))] if math.isfinite(depth) else []
         if lines:
             yield LiveDatagram(t, dvl_format, ("\r\n".join(lines) + "\r\n").encode("ascii"))
-        if math.isfinite(usbl_x[k]) and math.isfinite(usbl_y[k]):
+        if usbl and math.isfinite(usbl_x[k]) and math.isfinite(usbl_y[k]):
             lon, lat = to_lonlat.transform(usbl_x[k], usbl_y[k])
-            line = json_input_line(UsblFix(t, float(lat), float(lon), depth if math.isfinite(depth) else 0.0))
+            covariance = (float(records.usbl_sxx[k]), float(records.usbl_syy[k]), float(records.usbl_sxy[k]))
+            line = json_input_line(UsblFix(t, float(lat), float(lon), depth if math.isfinite(depth) else 0.0, *covariance))
             yield LiveDatagram(t, "json", (line + "\n").encode("ascii"))
 
 

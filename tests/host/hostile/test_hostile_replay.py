@@ -152,3 +152,13 @@ def test_a_dvl_asked_of_a_survey_file_is_a_usage_error(tmp_path, pings, capsys):
     path = write_kmall_pings(pings[:2], tmp_path / "two.kmall")
     assert main(["replay", str(path), "--to", "127.0.0.1:9", "--dvl", "pd6"]) == 2
     assert "a survey file has no DVL to send" in capsys.readouterr().err
+
+
+def test_usbl_fixes_asked_of_a_survey_file_or_of_a_scenario_without_a_usbl_are_usage_errors(tmp_path, pings, capsys):
+    from lost.host.io.kmall_write import write_kmall_pings
+
+    path = write_kmall_pings(pings, tmp_path / "tow.kmall")
+    assert main(["replay", str(path), "--to", "127.0.0.1:9", "--usbl", "json"]) == 2
+    assert "--usbl json: a survey file has no USBL fixes to send" in capsys.readouterr().err
+    assert main(["replay", "short", "--to", "127.0.0.1:9", "--usbl", "json"]) == 2
+    assert "--usbl json: scenario 'short' has no USBL" in capsys.readouterr().err

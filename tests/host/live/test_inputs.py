@@ -32,7 +32,8 @@ def test_a_pd6_ensemble_reads_back_to_its_precision():
 
 
 def test_json_lines_read_back_exactly():
-    values = [DvlVelocity(EPOCH_S + 0.5, 0.125, -1.5), DepthReading(EPOCH_S + 1.0, 712.25), UsblFix(EPOCH_S + 2.0, 0.0123456789, -0.98765, 700.0)]
+    values = [DvlVelocity(EPOCH_S + 0.5, 0.125, -1.5), DepthReading(EPOCH_S + 1.0, 712.25),
+              UsblFix(EPOCH_S + 2.0, 0.0123456789, -0.98765, 700.0, 6.25, 4.0, -0.5)]
     decoder = LiveDecoder()
     assert decoder.feed("\n".join(json_input_line(v) for v in values).encode()) == values
 
