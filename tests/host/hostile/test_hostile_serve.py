@@ -172,3 +172,23 @@ def test_serial_noise_an_overlong_line_and_a_port_that_never_opens_are_counted_n
     assert counts["serial /dev/ttyUSB9: port did not open (tried again; its lines lost meanwhile)"] == 2
     assert counts[f"serial /dev/ttyUSB9: line longer than {MAX_LINE_BYTES} bytes (skipped)"] == 1
     assert counts["serial /dev/ttyUSB9: line not of the port's kind pd6 (skipped)"] == 1
+
+
+def test_a_usbl_fix_without_a_covariance_is_refused_and_counted():
+    import json
+    from dataclasses import replace
+
+    from lost.host.io.simulated import EPOCH_S
+    from lost.host.live.inputs import UsblFix, json_input_line
+
+    counts = Counter()
+    decoder = JsonInputDecoder(counts)
+    good = UsblFix(EPOCH_S, 0.01, 0.02, 700.0, 4.0, 9.0, 1.0)
+    assert decoder.feed(json_input_line(good)) == [good]
+    for sxx, syy, sxy in ((0.0, 9.0, 0.0), (-4.0, 9.0, 0.0), (4.0, 9.0, 6.0)):
+        assert decoder.feed(json_input_line(replace(good, sxx_m2=sxx, syy_m2=syy, sxy_m2=sxy))) == []
+    line = json.loads(json_input_line(good))
+    del line["sxy_m2"]
+    assert decoder.feed(json.dumps(line)) == []
+    assert counts["JSON usbl line whose covariance is no covariance (skipped)"] == 3
+    assert counts["JSON usbl line with a missing, unknown or bad field (skipped)"] == 1

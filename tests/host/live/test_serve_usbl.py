@@ -12,7 +12,6 @@ import pytest
 
 from lost.host.io import write_npz
 from lost.host.io.simulated import EPOCH_S, simulated_pings
-from lost.host.live.inputs import UsblFix
 from lost.host.live.usbl import PlacedFix, UsblPlacer
 from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
 
@@ -125,18 +124,3 @@ def test_fixes_of_an_interval_are_carried_to_the_records_time_and_combined_late_
     assert counts["USBL fixes used"] == 2 and counts["records with a USBL fix"] == 1
     assert placer.place(EPOCH_S + 10.0, (0.0, 0.0))[2] == 1
 
-
-def test_a_usbl_fix_without_a_covariance_is_refused_and_counted():
-    from lost.host.live.inputs import JsonInputDecoder, json_input_line
-
-    counts = Counter()
-    decoder = JsonInputDecoder(counts)
-    good = UsblFix(EPOCH_S, 0.01, 0.02, 700.0, 4.0, 9.0, 1.0)
-    assert decoder.feed(json_input_line(good)) == [good]
-    for sxx, syy, sxy in ((0.0, 9.0, 0.0), (-4.0, 9.0, 0.0), (4.0, 9.0, 6.0)):
-        assert decoder.feed(json_input_line(replace(good, sxx_m2=sxx, syy_m2=syy, sxy_m2=sxy))) == []
-    line = json.loads(json_input_line(good))
-    del line["sxy_m2"]
-    assert decoder.feed(json.dumps(line)) == []
-    assert counts["JSON usbl line whose covariance is no covariance (skipped)"] == 3
-    assert counts["JSON usbl line with a missing, unknown or bad field (skipped)"] == 1
