@@ -49,13 +49,16 @@ def one_seed(name: str, seed: int, cache: Path | None = None) -> dict:
     if path is not None and path.is_file():
         data = np.load(path)
         start = int(data["start"])
-        return {"t_s": data["t_s"], "error": data["error"], "start": None if start < 0 else start, "truth": data["truth"]}
+        run = {"t_s": data["t_s"], "error": data["error"], "start": None if start < 0 else start, "truth": data["truth"]}
+        return {**run, **{key: data[key] for key in ("sigma", "usable") if key in data}}
     scenario = _scenario(name, seed)
     grid, records = simulate(scenario)
     result = navigate(records, grid, NavParameters(**scenario.navigation), estimators=("pmf",))
     error = horizontal_error(result.tracks["pmf"].position, result.truth)
     start = convergence_index(result.t_s, error, ConvergenceRule())
-    run = {"t_s": np.asarray(result.t_s), "error": np.asarray(error), "start": start, "truth": np.asarray(result.truth)}
+    track = result.tracks["pmf"]
+    run = {"t_s": np.asarray(result.t_s), "error": np.asarray(error), "start": start, "truth": np.asarray(result.truth),
+           "sigma": np.sqrt(np.trace(np.asarray(track.covariance), axis1=-2, axis2=-1)), "usable": np.asarray(track.usable)}
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path.with_suffix(".partial.npz"), **{**run, "start": -1 if start is None else start})
