@@ -12,7 +12,8 @@ the RMS of the predicted errors. Prints per scenario the share of segments withi
 also of those after the seeds' median convergence, the median ratio, and steep features against smooth shelves (the
 third of the segments on the map with the smallest median bound against the third with the largest: median predicted
 and Monte Carlo RMS, and their shelf/steep ratios); writes build/bench/plan_check.json. ``--cache`` keeps each seed's
-run (``NAME-SEED.npz``) and reads it back the next time, so the prediction can be scored again without the filters.
+run (``NAME-SEED.npz``: the error, the filter's own sigma and usable flag) and reads it back the next time, so the
+prediction can be scored again without the filters. ``prepare`` and ``score`` are also ``benchmarks/plan_fit.py``'s.
 """
 
 from __future__ import annotations
@@ -27,8 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from lost.host.campaign import scenario_with
+from lost.host.grid import Grid
 from lost.host.nav import NavParameters, navigate
-from lost.host.plan import RouteModel, SonarModel, accuracy_grid, lookalike_grid, map_sigma, predict_along
+from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, lookalike_grid, map_sigma, predict_along
 from lost.host.report import ConvergenceRule, convergence_index, horizontal_error
 from lost.host.scenario import builtin_scenario_path, load_scenario, scenario_grid, simulate
 
@@ -72,16 +74,16 @@ class Floor:
 
     name: str
     runs: list[dict]
-    grid: object
+    grid: Grid
     sonar: SonarModel
     sigma: np.ndarray
     radius_m: float
-    accuracy: object
+    accuracy: Grid
     model: RouteModel
     sonar_times: np.ndarray
     sonar_xy: np.ndarray
 
-    def lookalike(self, evidence_scale: float | None = None):
+    def lookalike(self, evidence_scale: float | None = None) -> Lookalike:
         return lookalike_grid(self.grid, self.sonar, self.sigma, radius_m=self.radius_m,
                               **({} if evidence_scale is None else {"evidence_scale": evidence_scale}))
 
@@ -104,7 +106,7 @@ def prepare(name: str, seeds: int, workers: int, cache: Path | None = None) -> F
     return Floor(name, runs, grid, sonar, sigma, params.lookalike_radius_m, accuracy_grid(grid, sonar, sigma), model, sonar_times, sonar_xy)
 
 
-def score(floor: Floor, lookalike, model: RouteModel, segment_s: float = 120.0) -> dict:
+def score(floor: Floor, lookalike: Lookalike, model: RouteModel, segment_s: float = 120.0) -> dict:
     """The prediction along the true track against the Monte Carlo, per segment of ``segment_s``, and the scores."""
     runs, t = floor.runs, np.asarray(floor.runs[0]["t_s"])
     route = predict_along(floor.accuracy, floor.sonar_times, floor.sonar_xy, model, lookalike)
