@@ -253,12 +253,27 @@ def _run_survey(args: argparse.Namespace) -> int:
         extra["survey"] = {"files": [str(f) for f in files], "format": survey.format, "first_ping_utc_s": recorder.epoch_s,
                            "record_s": interval, "window_s": recorder.window_s, "dr_bias_mps": list(recorder.bias),
                            "start_offset_m": list(recorder.start_offset), "skipped": skipped, "notes": dict(survey.notes)}
+        extra["survey"]["log"] = _save_survey_log(records, folder, recorder.epoch_s)
         print(f"{names}: {len(records)} records of {interval:g} s, patches of the last {recorder.window_s:g} s of pings"
               + "".join(f"\n  skipped: {n} {reason}" for reason, n in skipped.items()))
         summary = _navigate(records, grid, params, name=files[0].stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), extra=extra)
     _print_summary(summary, out)
     return 0
+
+
+def _save_survey_log(records, folder: Path, epoch_utc_s: float) -> dict:
+    """The survey's records as a navigation log in the run folder (``records.csv``, ``records_sonar.csv``), which
+    ``lost run --log records.csv --sonar records_sonar.csv`` on the same map and ``--patch-shape`` navigates alike."""
+    from ..io.navlog import write_navlog
+
+    sonar = SURVEY_LOG[1] if any(patch is not None for patch in records.sonar) else None
+    write_navlog(records, folder / SURVEY_LOG[0], sonar=None if sonar is None else folder / sonar, epoch_utc_s=epoch_utc_s)
+    return {"log": SURVEY_LOG[0], "sonar": sonar}
+
+
+#: The navigation log a survey run writes of its records: the log, its sonar side file.
+SURVEY_LOG = ("records.csv", "records_sonar.csv")
 
 
 def _east_north(text: str) -> tuple[float, float]:

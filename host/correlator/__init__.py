@@ -133,7 +133,8 @@ def correlation(
     backend : str or Backend
         A name of :data:`BACKENDS` or a backend object.
     holes : (H, W) bool array, optional
-        Map nodes without a measured depth: a placement whose window covers one is not valid.
+        Map nodes without a measured depth: a placement where a valid node of the patch falls on one is
+        not valid (a hole under a node the mask leaves out does not count: see :func:`valid_placements`).
     area : (i0, j0, rows, cols), optional
         The placements to search; may reach past the map's edges (those placements are not valid).
         Default: every placement of the map.
@@ -153,7 +154,7 @@ def correlation(
     if radius < 0:
         raise ValueError(f"exclusion_radius must be non-negative, got {exclusion_radius}")
     i0, j0, rows, cols = _check_area(area, (H - h + 1, W - w + 1))
-    valid = valid_placements((H, W), (h, w), (i0, j0, rows, cols), holes)
+    valid = valid_placements((H, W), (h, w), (i0, j0, rows, cols), holes, mask)
     # The in-map part of the area is what a backend computes.
     a0, a1 = max(i0, 0), min(i0 + rows, H - h + 1)
     b0, b1 = max(j0, 0), min(j0 + cols, W - w + 1)

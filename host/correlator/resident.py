@@ -49,7 +49,7 @@ class ResidentCorrelator:
     words : (H, W) int16 array
         The map image (validated once here).
     holes : (H, W) bool array, optional
-        Map nodes without a depth (placements touching one are not valid).
+        Map nodes without a depth (placements where a valid node of the patch falls on one are not valid).
     backend : str or Backend
     mean_compensation : bool
 
@@ -73,6 +73,7 @@ class ResidentCorrelator:
         self._patch: tuple[np.ndarray, np.ndarray] | None = None
         self._area: Area | None = None
         self._surface: np.ndarray | None = None
+        self._hole_free: np.ndarray | None = None  # over the held area: no valid patch node on a hole
         self._first: Area | None = None  # this patch's first request (in-map part)
         self._asked: Area | None = None  # the union of this patch's requests (in-map parts)
         self._previous: tuple[Area, Area] | None = None  # the previous patch's first request and union of requests
@@ -101,11 +102,12 @@ class ResidentCorrelator:
         if on_map[2] > 0 and on_map[3] > 0:
             self._cover(on_map)
         surface = np.zeros((rows, cols), dtype=np.int64)
+        valid = np.zeros((rows, cols), dtype=bool)
         if on_map[2] > 0 and on_map[3] > 0:
             a0, b0, n_rows, n_cols = on_map
             s0, t0 = a0 - self._area[0], b0 - self._area[1]
             surface[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = self._surface[s0 : s0 + n_rows, t0 : t0 + n_cols]
-        valid = valid_placements((H, W), (h, w), (i0, j0, rows, cols), self._holes)
+            valid[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = self._hole_free[s0 : s0 + n_rows, t0 : t0 + n_cols]
         radius = max(h, w) // 2 if exclusion_radius is None else int(exclusion_radius)
         fit = choose_fit(surface, valid, radius)
         best, runner_up = placed(fit, (i0, j0))
@@ -123,7 +125,7 @@ class ResidentCorrelator:
         if self._first is not None and self._asked is not None:
             self._previous = (self._first, self._asked)
         self._patch_key, self._patch = key, (words, checked)
-        self._area = self._surface = self._first = self._asked = None
+        self._area = self._surface = self._hole_free = self._first = self._asked = None
         self.stats["patches"] += 1
 
     def _cover(self, area: Area) -> None:
@@ -147,5 +149,7 @@ class ResidentCorrelator:
         bottom, right = min(wanted[0] + wanted[2], H - h + 1), min(wanted[1] + wanted[3], W - w + 1)
         clipped = (top, left, bottom - top, right - left)
         outcome = self._backend.run(self._words, words, mask, self._mean_compensation, clipped, max(h, w) // 2, map_key=self._key)
+        # The hole rule over the held area once per surface: each request is then a slice, as the surface is.
         self._area, self._surface = clipped, outcome.surface
+        self._hole_free = valid_placements((H, W), (h, w), clipped, self._holes, mask)
         self.stats["correlations"] += 1

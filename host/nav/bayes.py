@@ -187,9 +187,11 @@ class BayesFilter:
             self.counts["patch_too_sparse"] += 1
             return
         if not result.informative.any():
-            self._no_information("patch_off_map")
+            self._no_information("patch_on_holes" if result.on_holes else "patch_off_map")
             return
         on_map = float(mass[result.informative].sum())
+        # Holes count as the edge does: where the truth's soundings fall on holes its placement is unknown, and the
+        # valid ones beside it would pull the density (a 30 m wide density beside a hole band went 62 m off, usable).
         if self._trust.at_edge(on_map, self._moments()[1]):
             self._no_information("patch_at_map_edge")
             return

@@ -19,7 +19,7 @@ is multiplied by a weight w in (0, 1]: the share of the patch that is new since 
 ``w = min(1, distance travelled / patch length)``, times ``likelihood_weight`` (default 1; lower for
 map errors correlated over several nodes).
 
-No information. A placement that leaves the map or touches a hole carries no information about where
+No information. A placement that leaves the map or puts a sounding on a hole carries no information about where
 the vehicle is: the terrain there is unknown. Such candidates get the median log-likelihood of the
 placements around (those the candidates span): flat, as likely as a typical wrong placement, so that
 a map's edge neither attracts the estimate nor repels it, and a placement that really fits still
@@ -109,9 +109,9 @@ class PatchLikelihood:
     ----------
     log_likelihood : array, the shape of the candidates
         Tempered log-likelihood (weight included), with the no-information value where the patch
-        would leave the map or touch a hole.
+        would leave the map or put a valid node on a hole.
     informative : bool array, same shape
-        Where the patch lay wholly on valid map nodes.
+        Where every valid node of the patch lay on a map depth (inside the map, on no hole).
     misfit : float
         The smallest mean absolute residual over the informative candidates, in units of the
         residual expected at the true position (about 1 when the patch fits somewhere; NaN if none is
@@ -119,6 +119,8 @@ class PatchLikelihood:
     weight : float
         The tempering weight used.
     valid_nodes : int
+    inside : bool array, same shape, or None
+        Where the patch lies inside the map's bounds, holes or not (None: as ``informative``).
     """
 
     log_likelihood: np.ndarray
@@ -126,6 +128,17 @@ class PatchLikelihood:
     misfit: float
     weight: float
     valid_nodes: int
+    inside: np.ndarray | None = None
+
+    @property
+    def on_map(self) -> np.ndarray:
+        """Where the patch lies inside the map's bounds (a candidate refused for holes is on the map)."""
+        return self.informative if self.inside is None else self.inside
+
+    @property
+    def on_holes(self) -> bool:
+        """No candidate is informative, and some lie on the map: the patch's soundings fall on holes there."""
+        return not self.informative.any() and bool(self.on_map.any())
 
 
 class TerrainLikelihood:
@@ -213,6 +226,7 @@ class TerrainLikelihood:
         if i0 > i1 or j0 > j1:
             shape = np.shape(x)
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
+        inside = (pi >= 0) & (pi <= last_i) & (pj >= 0) & (pj <= last_j)
         residual, valid = self._residuals(words, mask, i0, i1, j0, j1)
         sigma = self._placement_sigma((h, w), i0, i1, j0, j1)
         per_node = residual  # mean |r| (metres, Laplace) or mean r**2 (Gaussian) at each placement
@@ -225,8 +239,8 @@ class TerrainLikelihood:
         if self._node_var is not None:
             ell = ell - n * np.log(sigma)  # the normalization, which varies between placements
         if not valid.any():
-            shape = np.shape(x)
-            return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
+            shape = np.shape(x)  # every placement spanned is on the map (clipped to it): the holes refused them
+            return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n, inside)
         misfit = float(np.min((per_node / expected)[valid]))
         if self.form == "gaussian" and math.isfinite(misfit):
             misfit = math.sqrt(misfit)  # in residual units, like the Laplace form's
@@ -241,7 +255,7 @@ class TerrainLikelihood:
         neutral = float(np.median(ell[valid]))
         value, informative = _between_placements(ell, valid, neutral, np.ravel(pi - i0), np.ravel(pj - j0), spline=size <= 1)
         log_likelihood = np.where(informative, value, neutral).reshape(np.shape(x))
-        return PatchLikelihood(log_likelihood, informative.reshape(np.shape(x)), misfit, weight, n)
+        return PatchLikelihood(log_likelihood, informative.reshape(np.shape(x)), misfit, weight, n, inside)
 
     def margin(self, centre_m: np.ndarray, patch: SonarPatch, *, radius_m: float, exclusion_m: float) -> float:
         """How much better the patch fits near ``centre_m`` than anywhere else within ``radius_m``.
@@ -344,7 +358,7 @@ class TerrainLikelihood:
             result = prep.correlation(words, mask, (i0, j0, i1 - i0 + 1, j1 - j0 + 1), backend=self._backend)
             return result.surface.astype(np.float64) * prep.lsb_m / float(n) ** 2, result.valid
         h, w = words.shape
-        valid = ~prep.placements_touching_holes((h, w), (i0, j0, i1 - i0 + 1, j1 - j0 + 1))
+        valid = ~prep.placements_touching_holes((h, w), (i0, j0, i1 - i0 + 1, j1 - j0 + 1), mask)
         sub = prep.words[i0 : i1 + h, j0 : j1 + w]
         m = sub.astype(np.float64) * prep.lsb_m
         s = np.where(mask, words.astype(np.float64) * prep.lsb_m, 0.0)

@@ -3,9 +3,11 @@
 Hole policy (NaN nodes in the map)
 ----------------------------------
 The correlator needs a word at every node, so each hole is filled with the depth of its nearest
-valid node before quantization; the filled value never decides anything, because every placement
-whose h x w window touches a hole is excluded from the estimate afterwards
-(:meth:`PreparedMap.placements_touching_holes`). The point-matching MLE simply skips hole nodes.
+valid node before quantization; the filled value never decides anything: a placement where a valid
+node of the patch falls on a hole is excluded from the estimate afterwards
+(:meth:`PreparedMap.placements_touching_holes`, the correlator's :func:`~lost.host.correlator.valid_placements`),
+and where only nodes the patch's mask leaves out lie on holes the fill word is not in V at all. The
+point-matching MLE simply skips hole nodes.
 """
 
 from __future__ import annotations
@@ -106,10 +108,12 @@ class PreparedMap:
     def offset_m(self) -> float:
         return self._offset_m
 
-    def placements_touching_holes(self, patch_shape: tuple[int, int], area: Area | None = None) -> np.ndarray:
-        """Bool array over ``area`` of the correlator's placements (default: all): True where the window covers a hole.
+    def placements_touching_holes(self, patch_shape: tuple[int, int], area: Area | None = None,
+                                  mask: np.ndarray | None = None) -> np.ndarray:
+        """Bool array over ``area`` of the correlator's placements (default: all): True where a valid patch node is on a hole.
 
-        The correlator's own policy (:func:`~lost.host.correlator.valid_placements`), edges aside.
+        ``mask`` is the patch's valid mask (None: every node of the window counts). The correlator's own
+        policy (:func:`~lost.host.correlator.valid_placements`), edges aside.
         """
         h, w = (int(s) for s in patch_shape)
         rows, cols = self._holes.shape
@@ -117,7 +121,7 @@ class PreparedMap:
             raise ValueError(f"a {h} x {w} patch does not fit in the {rows} x {cols} map")
         area = (0, 0, rows - h + 1, cols - w + 1) if area is None else area
         on_map = valid_placements((rows, cols), (h, w), area)
-        return on_map & ~valid_placements((rows, cols), (h, w), area, self._holes_or_none)
+        return on_map & ~valid_placements((rows, cols), (h, w), area, self._holes_or_none, mask)
 
     def correlation(self, words: np.ndarray, mask: np.ndarray, area: tuple[int, int, int, int], *, backend: str) -> Correlation:
         """The patch's correlation over ``area`` = (i0, j0, rows, cols) of the map's placements, the map's holes applied.

@@ -118,3 +118,49 @@ def test_choose_fit_block_by_block_is_the_models_best_fit_on_the_masked_surface(
     assert (got.i, got.j, got.value) == (want.i, want.j, want.value)
     ru = want.runner_up if want.runner_up is not None and valid[want.runner_up.i, want.runner_up.j] else None
     assert got.runner_up == ru
+
+
+def test_valid_placements_count_only_the_holes_under_the_patchs_valid_nodes(monkeypatch):
+    """Against a node-by-node check, over areas reaching off the map and FFT blocks of a few rows."""
+    from lost.host.correlator import result as result_module
+
+    monkeypatch.setattr(result_module, "_HOLE_BLOCK_ROWS", 3)
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        H, W = (int(v) for v in rng.integers(5, 30, 2))
+        h, w = (int(v) for v in rng.integers(1, min(H, W) + 1, 2))
+        holes = rng.random((H, W)) < rng.choice([0.05, 0.3, 0.8])
+        mask = rng.random((h, w)) < rng.choice([0.0, 0.3, 0.9, 1.0])
+        i0, j0 = int(rng.integers(-10, H + 5)), int(rng.integers(-10, W + 5))
+        rows, cols = (int(v) for v in rng.integers(1, 25, 2))
+        want = np.array([[0 <= i <= H - h and 0 <= j <= W - w and not (holes[i : i + h, j : j + w] & mask).any()
+                          for j in range(j0, j0 + cols)] for i in range(i0, i0 + rows)])
+        assert np.array_equal(valid_placements((H, W), (h, w), (i0, j0, rows, cols), holes, mask), want)
+
+
+def test_valid_placements_refuses_a_mask_of_another_shape():
+    with pytest.raises(ValueError, match="mask must be a boolean array of the patch's shape"):
+        valid_placements((10, 10), (3, 3), (0, 0, 8, 8), np.zeros((10, 10), bool), np.ones((3, 2), bool))
+
+
+@pytest.mark.parametrize("backend", ["software", "model"])
+def test_a_hole_band_under_the_patchs_empty_part_leaves_the_true_placement_valid_and_bit_exact(backend):
+    """A swath with no soundings on its west third over a map whose holes run under that third: the fill never counts."""
+    terrain, _ = _case(shape=(40, 50))
+    patch = terrain[11:19, 17:26].copy()
+    mask = np.ones(patch.shape, bool)
+    mask[:, :3] = False  # no sounding on the patch's three west columns
+    holes = np.zeros(terrain.shape, bool)
+    holes[:, 17:20] = True  # a band of holes under them at the true placement
+    filled = [terrain.copy(), terrain.copy()]
+    filled[0][holes], filled[1][holes] = 1999, -1999  # two different fills of the holes
+    results = [correlation(t, patch, mask=mask, holes=holes, backend=backend) for t in filled]
+    for result, t in zip(results, filled, strict=True):
+        assert result.valid[11, 17] and result.best == model.Placement(11, 17, 0)
+        np.testing.assert_array_equal(np.where(result.valid, result.surface, 0),
+                                      np.where(result.valid, model.correlate(t, patch, mask=mask), 0))
+    # Where the band lies under a valid node the placement is refused; elsewhere the two fills give the same V.
+    assert not results[0].valid[11, 15] and np.array_equal(results[0].valid, results[1].valid)
+    np.testing.assert_array_equal(results[0].surface[results[0].valid], results[1].surface[results[1].valid])
+    # The whole window's rule (no mask) would have refused the true placement.
+    assert not correlation(terrain, patch, holes=holes, backend=backend).valid[11, 17]
