@@ -95,6 +95,7 @@ bench-live: setup
 	$(BIN)/python benchmarks/live_faults.py --seeds 1 2 3 4 5 6 7 8 9 10
 	$(BIN)/python benchmarks/live_latency.py --speed 1 --seeds 1 2 3 --pings 150 --out build/bench/live_latency_1x
 	$(BIN)/python benchmarks/live_latency.py --speed 20 --seeds 1 2 3 4 5 --pings 150 --out build/bench/live_latency_20x
+	$(BIN)/python benchmarks/live_usbl.py --seeds 1 2 3 4 5
 
 # lost serve's resident memory over the two_hour tow served as fast as possible in one process (build/bench/live_memory.json, about a minute).
 bench-live-memory: setup
