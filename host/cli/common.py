@@ -102,7 +102,11 @@ def merge_settings(layers: Iterable[tuple[str, Mapping[str, Any]]], known: Itera
         try:
             check(table, where)
         except ConfigError as error:
-            raise (UsageError(str(error)) if where.startswith("--") else error) from None
+            if not where.startswith("--"):
+                raise
+            # The schema writes a field's path as where.field and a range error as [where]: on the command line the
+            # user wrote "--set k=...", so the message says "--set k: ..." and "--set: ...".
+            raise UsageError(str(error).replace(f"[{where}]: ", f"{where}: ").replace(f"{where}.", f"{where} ")) from None
         merged.update(table)
     return merged
 
@@ -116,6 +120,22 @@ def positive_metres(text: str) -> float:
     if not (0 < value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive number of metres, got {text!r}")
     return value
+
+
+def node_count(text: str) -> int:
+    """An option's value as a whole, non-negative number of nodes."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number of nodes, 0 or more, got {text!r}")
+    return value
+
+
+#: ``--backend``'s help, the same for every command that correlates.
+BACKEND_HELP = ("correlator backend: software (the fast exact kernel), model (the golden model), rtl (the device co-simulated "
+                "on Verilator), fpga (the board, with --port)")
 
 
 def output_options(sub: argparse.ArgumentParser, default: str) -> None:

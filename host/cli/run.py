@@ -29,6 +29,7 @@ from ..nav import ESTIMATORS, NavParameters, navigate
 from ..records import NavRecords
 from ..runfolder import run_folder, write_summary
 from .common import (
+    BACKEND_HELP,
     configure_hardware,
     hardware_options,
     map_uncertainty,
@@ -307,7 +308,7 @@ def run_demo(args: argparse.Namespace) -> int:
 
 def navigation_options(sub: argparse.ArgumentParser) -> None:
     output_options(sub, "runs/NAME")
-    sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
+    sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help=f"{BACKEND_HELP} (default software)")
     hardware_options(sub)
     sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
     sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",

@@ -28,16 +28,31 @@ def _argparse_exit(argv, capsys):
     (["run", "x.toml", "--patch-shape", "10.5x10"], "expected ROWSxCOLS with two positive integers"),
     (["run", "x.toml", "--set", "novalue"], "expected NAME=VALUE, got 'novalue'"),
     (["frobnicate"], "invalid choice: 'frobnicate'"),
-], ids=["negative_node", "nan_node", "bad_positive", "fractional_shape", "set_without_value", "unknown_command"])
+    (["correlate", "m.npz", "p.npy", "--exclusion-radius", "-3"], "argument --exclusion-radius: expected a whole number of nodes, 0 or more, got '-3'"),
+    (["correlate", "m.npz", "p.npy", "--exclusion-radius", "2.5"], "argument --exclusion-radius: expected a whole number of nodes"),
+    (["correlate", "m.npz", "p.npy", "--lsb-m", "0"], "argument --lsb-m: expected a positive number of metres, got '0'"),
+], ids=["negative_node", "nan_node", "bad_positive", "fractional_shape", "set_without_value", "unknown_command", "negative_exclusion",
+        "fractional_exclusion", "zero_lsb"])
 def test_bad_options_exit_2_through_argparse(argv, message, capsys):
     code, err = _argparse_exit(argv, capsys)
     assert code == EXIT_USAGE and message in err
 
 
+def test_every_option_of_correlate_and_run_says_what_it_is(capsys):
+    """`--help` names each option's meaning, the backends among them, not only its choices."""
+    helps = {}
+    for command in ("correlate", "run"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        helps[command] = " ".join(capsys.readouterr().out.split())
+        assert "rtl (the device co-simulated on Verilator)" in helps[command]
+    assert "--exclusion-radius NODES" in helps["correlate"] and "--lsb-m METRES" in helps["correlate"]
+
+
 @pytest.mark.parametrize("extra, message", [
-    (["--set", "k=true"], "--set.k: Input should be a valid number, got True"),
-    (["--set", "use_slant_range=yes"], "--set.use_slant_range: Input should be a valid boolean, got 'yes' (str)"),
-    (["--set", "u=-1"], "[--set]: The adaptive constant u must lie in (0, 1)"),
+    (["--set", "k=true"], "--set k: Input should be a valid number, got True"),
+    (["--set", "use_slant_range=yes"], "--set use_slant_range: Input should be a valid boolean, got 'yes' (str)"),
+    (["--set", "u=-1"], "--set: The adaptive constant u must lie in (0, 1)"),
     (["--set", "kay=3"], "--set names no navigation parameter: kay"),
     (["--node-m", "20"], "--node-m apply to a recorded tow"),
     (["--bathy", "map.nc"], "give either a scenario or --log and --bathy, not both"),
