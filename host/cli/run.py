@@ -135,7 +135,8 @@ def _scenario_path(text: str) -> Path:
     from ..scenario import builtin_scenario_path
 
     path = Path(text)
-    return path if path.suffix == ".toml" or path.exists() else builtin_scenario_path(text)
+    # A folder of that name (an earlier run's --out, say) is not a scenario file: the shipped scenario is meant.
+    return path if path.suffix == ".toml" or path.is_file() else builtin_scenario_path(text)
 
 
 def _svp(path: Path | None):

@@ -208,7 +208,7 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
         message names the file and the key.
     """
     path = Path(path)
-    if not path.exists() and path.suffix == "":
+    if not path.is_file() and path.suffix == "":  # a folder of that name (an earlier run's --out) is not the scenario
         path = shipped_path("lost.host.usbl", path.name, what="usbl scenario, nor a scenario file,")
     table = read_toml(path, "usbl scenario file")
     parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": ReplyFaultSpec, "ocean": OceanSpec}

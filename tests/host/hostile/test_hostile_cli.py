@@ -169,3 +169,16 @@ def test_every_bad_grid_is_one_line_from_the_command_line(recorded, tmp_path, ru
     path, message = _bad_grids(tmp_path)[case]
     code, _, err = run_cli("run", "--log", recorded["nav"], "--bathy", path, "--out", tmp_path / "o")
     assert code == EXIT_ERROR and message in err and "nothing was written to" in err
+
+
+def test_a_folder_named_as_a_shipped_scenario_does_not_hide_it(tmp_path, monkeypatch, run_cli):
+    """`lost run short --out short` leaves a folder `short`; the next `lost run short` there still means the shipped one
+    (the scenario is read, then the unknown --set is refused: exit 2, not 'Is a directory')."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "short").mkdir()
+    code, _, err = run_cli("run", "short", "--set", "kay=3", "--out", tmp_path / "o")
+    assert code == EXIT_USAGE and "--set names no navigation parameter: kay" in err
+    (tmp_path / "usbl_turns").mkdir()
+    from lost.host.usbl.scenario import load_usbl_scenario
+
+    assert load_usbl_scenario("usbl_turns").name == "usbl_turns"
