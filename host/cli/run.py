@@ -307,8 +307,8 @@ def run_demo(args: argparse.Namespace) -> int:
     return _run_scenario(builtin_scenario_path("demo"), args, args.out)
 
 
-def navigation_options(sub: argparse.ArgumentParser) -> None:
-    output_options(sub, "runs/NAME")
+def navigation_options(sub: argparse.ArgumentParser, out_default: str = "runs/NAME") -> None:
+    output_options(sub, out_default)
     sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help=f"{BACKEND_HELP} (default software)")
     hardware_options(sub)
     sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")

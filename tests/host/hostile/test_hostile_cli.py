@@ -41,12 +41,13 @@ def test_bad_options_exit_2_through_argparse(argv, message, capsys):
 def test_every_option_of_correlate_and_run_says_what_it_is(capsys):
     """`--help` names each option's meaning, the backends among them, not only its choices."""
     helps = {}
-    for command in ("correlate", "run"):
+    for command in ("correlate", "run", "demo"):
         with pytest.raises(SystemExit):
             main([command, "--help"])
         helps[command] = " ".join(capsys.readouterr().out.split())
         assert "rtl (the device co-simulated on Verilator)" in helps[command]
     assert "--exclusion-radius NODES" in helps["correlate"] and "--lsb-m METRES" in helps["correlate"]
+    assert "(default runs/demo, replaced at each run)" in helps["demo"] and "(default runs/NAME)" in helps["run"]
 
 
 @pytest.mark.parametrize("extra, message", [
