@@ -199,8 +199,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if grid_options:
             raise UsageError(f"{', '.join(grid_options)} apply to a recorded tow (--log, --bathy); a scenario sets its map in [terrain]")
         return _run_scenario(_scenario_path(args.scenario), args, args.out)
-    if not (args.log and args.bathy):
-        raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
+    if args.log and not args.bathy:
+        raise UsageError("--log needs the map it is navigated on: --bathy grid.nc")
+    if args.bathy and not args.log:
+        raise UsageError("--bathy is the map of a recorded tow: give its navigation log (--log nav.csv) or survey files (--survey FILE...)")
+    if not args.log:
+        raise UsageError("lost run needs a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and "
+                         "--bathy grid.nc, or --survey FILE... and --bathy grid.nc")
     try:
         from ..io import read_grid
         from ..io.navlog import check_against_map, read_navlog

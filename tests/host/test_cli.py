@@ -73,9 +73,14 @@ def test_set_overrides_the_scenarios_navigation_parameters(tmp_path, capsys):
     assert "--set names no navigation parameter: kay" in capsys.readouterr().err
 
 
-def test_run_needs_a_scenario_or_log_and_bathy(capsys):
-    assert main(["run", "--log", "nav.csv"]) == 2
-    assert "needs a scenario file, or both --log" in capsys.readouterr().err
+@pytest.mark.parametrize("argv, message", [
+    (["--log", "nav.csv"], "--log needs the map it is navigated on: --bathy grid.nc"),
+    (["--bathy", "grid.nc"], "give its navigation log (--log nav.csv) or survey files (--survey FILE...)"),
+    ([], "needs a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and --bathy grid.nc, or --survey"),
+], ids=["log_alone", "bathy_alone", "nothing"])
+def test_run_needs_a_scenario_or_log_and_bathy(capsys, argv, message):
+    assert main(["run", *argv]) == 2
+    assert message in capsys.readouterr().err
 
 
 def test_a_scenario_with_an_unknown_navigation_field_is_refused(tmp_path, capsys):
