@@ -204,7 +204,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.bathy and not args.log:
         raise UsageError("--bathy is the map of a recorded tow: give its navigation log (--log nav.csv) or survey files (--survey FILE...)")
     if not args.log:
-        raise UsageError("lost run needs a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and "
+        raise UsageError("give a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and "
                          "--bathy grid.nc, or --survey FILE... and --bathy grid.nc")
     try:
         from ..io import read_grid

@@ -4,6 +4,7 @@
 
     lost usbl LOG.csv --svp CAST.csv [--imu IMU.csv] [--config USBL.toml] [--out DIR]
     lost usbl SCENARIO.toml [--out DIR]        (or a shipped scenario's name: lost usbl usbl_turns)
+    lost usbl --list                           the shipped scenarios
 
 writes ``track.csv``, ``summary.json``, ``track.png``, ``error.png`` (with truth) and ``profile.png`` into
 ``--out``; a scenario run also writes the simulated recording it processed (``inputs/log.csv``, ``imu.csv``,
@@ -22,7 +23,7 @@ from ..errors import UsageError
 from ..runfolder import run_folder
 from ..usbl.pipeline import UsblConfig, process, read_imu, read_log
 from ..usbl.report import summarize, write_outputs
-from ..usbl.scenario import load_processing_config, load_usbl_scenario, processing_config_toml
+from ..usbl.scenario import builtin_usbl_scenarios, load_processing_config, load_usbl_scenario, processing_config_toml
 from ..usbl.simulate import simulate_tow
 from ..usbl.sound import read_cast
 from .common import output_options, warnings_collected
@@ -33,7 +34,8 @@ __all__ = ["register", "run_usbl"]
 def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost usbl``."""
     usbl = commands.add_parser("usbl", parents=parents, help="INS+USBL positioning of a recorded log or a simulated scenario")
-    usbl.add_argument("source", help="USBL log CSV, or a scenario TOML file, or a shipped scenario's name (usbl_turns)")
+    usbl.add_argument("source", nargs="?", help="USBL log CSV, or a scenario TOML file, or a shipped scenario's name (lost usbl --list)")
+    usbl.add_argument("--list", action="store_true", help="list the shipped scenarios with their descriptions, and stop")
     usbl.add_argument("--svp", type=Path, help="CTD or SVP cast CSV (required with a log)")
     usbl.add_argument("--imu", type=Path, help="IMU CSV (default: imu.csv beside the log)")
     usbl.add_argument("--config", type=Path, help="processing settings TOML: [usbl], [imu], gate_probability, align_window_s, earth_rotation")
@@ -47,6 +49,12 @@ def _is_log(source: str) -> bool:
 
 def run_usbl(args: argparse.Namespace) -> int:
     """The handler of ``lost usbl``."""
+    if args.list:
+        for name in builtin_usbl_scenarios():
+            print(f"{name:<18} {load_usbl_scenario(name).description}")
+        return 0
+    if args.source is None:
+        raise UsageError("give a log (LOG.csv --svp CAST.csv) or a scenario (a TOML file, or a shipped one's name: lost usbl --list)")
     start = time.perf_counter()
     if _is_log(args.source):
         if args.svp is None:

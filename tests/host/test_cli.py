@@ -76,7 +76,7 @@ def test_set_overrides_the_scenarios_navigation_parameters(tmp_path, capsys):
 @pytest.mark.parametrize("argv, message", [
     (["--log", "nav.csv"], "--log needs the map it is navigated on: --bathy grid.nc"),
     (["--bathy", "grid.nc"], "give its navigation log (--log nav.csv) or survey files (--survey FILE...)"),
-    ([], "needs a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and --bathy grid.nc, or --survey"),
+    ([], "give a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and --bathy grid.nc, or --survey"),
 ], ids=["log_alone", "bathy_alone", "nothing"])
 def test_run_needs_a_scenario_or_log_and_bathy(capsys, argv, message):
     assert main(["run", *argv]) == 2

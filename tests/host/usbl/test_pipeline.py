@@ -224,3 +224,11 @@ def test_the_processing_settings_round_trip_through_their_toml(tmp_path, name):
     path = tmp_path / "usbl.toml"
     path.write_text(processing_config_toml(config))
     assert UsblConfig(**load_processing_config(path)) == config
+
+
+def test_lost_usbl_lists_its_shipped_scenarios_and_asks_for_a_source(capsys):
+    assert main(["usbl", "--list"]) == 0
+    listed = dict(line.split(maxsplit=1) for line in capsys.readouterr().out.splitlines())
+    assert set(listed) == {"usbl_turns", "usbl_stale_cast"} and "4 h old cast" in listed["usbl_stale_cast"]
+    assert main(["usbl"]) == 2
+    assert "give a log (LOG.csv --svp CAST.csv) or a scenario" in capsys.readouterr().err
