@@ -6,6 +6,9 @@ and steps each record the recorder closes through a :class:`~lost.host.nav.loop.
 :class:`~lost.host.nav.bank.EstimatorBank` the batch run builds. Its answers are therefore the batch run's,
 record for record, when the same pings arrive.
 
+The vehicle's DVL velocities and depth readings (:meth:`LiveNavigator.add_sensor`) amend each record before it is
+stepped (:mod:`lost.host.live.sensors`): without them the records are the batch run's, unchanged.
+
 Counted (:attr:`LiveNavigator.counts`): records, records stepped without a patch (dead reckoning through them),
 record intervals that passed without a ping (the sonar silent), pings without a position.
 """
@@ -25,6 +28,8 @@ from ..nav.bank import EstimatorBank
 from ..nav.loop import StreamLoop
 from ..nav.mapprep import PreparedMap
 from ..nav.parameters import NavParameters
+from .inputs import DepthReading, DvlVelocity
+from .sensors import VehicleSensors
 
 __all__ = ["LiveNavigator", "LiveEstimate"]
 
@@ -45,6 +50,9 @@ class LiveEstimate:
     held: bool
     truth_east_m: float
     truth_north_m: float
+    velocity_source: str = "positions"  # what the record's dead reckoning moved on: "dvl" or the pings' differenced "positions"
+    velocity_mps: tuple[float, float] = (math.nan, math.nan)  # that velocity, east and north (NaN at the first record)
+    vehicle_depth_m: float = math.nan
 
     def as_dict(self) -> dict:
         def finite(value: float) -> float | None:
@@ -54,7 +62,9 @@ class LiveEstimate:
         return {"record": self.record, "time_utc_s": self.time_utc_s, "t_s": self.t_s, "estimator": self.estimator,
                 "east_m": finite(self.east_m), "north_m": finite(self.north_m),
                 "sxx_m2": finite(sxx), "syy_m2": finite(syy), "sxy_m2": finite(sxy), "usable": self.usable, "stage": self.stage,
-                "held": self.held, "truth_east_m": finite(self.truth_east_m), "truth_north_m": finite(self.truth_north_m)}
+                "held": self.held, "truth_east_m": finite(self.truth_east_m), "truth_north_m": finite(self.truth_north_m),
+                "velocity_source": self.velocity_source, "vel_east_mps": finite(self.velocity_mps[0]),
+                "vel_north_mps": finite(self.velocity_mps[1]), "vehicle_depth_m": finite(self.vehicle_depth_m)}
 
 
 class LiveNavigator:
@@ -71,8 +81,13 @@ class LiveNavigator:
         self._bank = EstimatorBank(estimators, PreparedMap(grid=grid, lsb_m=params.lsb_m), params, self.counts).estimators
         self._loop = StreamLoop(params, self._bank, self.counts)
         self._names = estimators
+        self.sensors = VehicleSensors(self.counts)
         self._before: SurveyRecord | None = None
         self._records = 0
+
+    def add_sensor(self, value: DvlVelocity | DepthReading) -> None:
+        """Take a DVL velocity or a depth reading: used by the record of its time (:mod:`lost.host.live.sensors`)."""
+        self.sensors.add(value)
 
     def add(self, ping: Ping) -> list[LiveEstimate]:
         """Take one received ping; the estimates of the records it closed (often none)."""
@@ -95,6 +110,7 @@ class LiveNavigator:
         return project_ping(ping, self._transformer)  # as a Survey does: a received ping lands where the file's does
 
     def _step(self, record: SurveyRecord) -> list[LiveEstimate]:
+        record, velocity_source = self.sensors.amend(record, self.recorder.epoch_s or 0.0)
         if record.sonar is None:
             self.counts["records without a patch (dead reckoning)"] += 1
         rows = [record] if self._before is None else [self._before, record]
@@ -111,7 +127,8 @@ class LiveNavigator:
                                     east_m=float(track.position[row, 0]), north_m=float(track.position[row, 1]),
                                     covariance_m2=(float(c[0, 0]), float(c[1, 1]), float(c[0, 1])), usable=bool(track.usable[row]),
                                     stage=str(track.stage[row]), held=bool(track.held[row]),
-                                    truth_east_m=record.truth_x_m, truth_north_m=record.truth_y_m))
+                                    truth_east_m=record.truth_x_m, truth_north_m=record.truth_y_m, velocity_source=velocity_source,
+                                    velocity_mps=(record.vel_x_mps, record.vel_y_mps), vehicle_depth_m=record.vehicle_depth_m))
         return out
 
     def estimator_counts(self) -> dict[str, dict]:

@@ -4,6 +4,7 @@ CRS, a port in use and a missing map are named errors; bytes that are no datagra
 from __future__ import annotations
 
 import socket
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ import pytest
 from lost.host.cli import main
 from lost.host.grid import Grid
 from lost.host.io import write_npz
+from lost.host.live.inputs import DvlVelocity, JsonInputDecoder
 from lost.host.live.receiver import LiveDecoder
 
 
@@ -38,6 +40,10 @@ def _serve(tmp_path, text: str, capsys) -> tuple[int, str]:
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\noutputs = ["here"]', "[serve] outputs must be HOST:PORT"),
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\npatch_centre = "middle"', "[serve] patch_centre must be one of"),
     ('listen = "127.0.0.1:0"', "bathy"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nreorder_lag_s = -0.5', "serve.reorder_lag_s"),
+    ('listen = ["127.0.0.1:4001", "127.0.0.1:4001"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
+    ('listen = []\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
+    ('listen = ["127.0.0.1:4001", "here"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
 ])
 def test_a_refused_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, table, named):
     code, err = _serve(tmp_path, f"[serve]\n{table}\n", capsys)
@@ -73,3 +79,40 @@ def test_bytes_that_are_no_datagram_are_counted_never_raised(payload):
     decoder = LiveDecoder()
     assert decoder.feed(payload) == []
     assert sum(decoder.counts.values()) >= 1
+
+
+@pytest.mark.parametrize(("options", "named"), [(["--backend", "fpga"], "--backend fpga needs --port"),
+                                                (["--port", "/dev/ttyUSB9"], "--port is for --backend fpga")])
+def test_a_device_without_its_port_or_a_port_without_the_device_is_a_usage_error(tmp_path, map_path, capsys, options, named):
+    config = tmp_path / "live.toml"
+    config.write_text('[serve]\nlisten = "127.0.0.1:0"\nbathy = "map.npz"\n')
+    assert main(["serve", "--config", str(config), "--out", str(tmp_path / "out"), *options]) == 2
+    assert named in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("lines", "reason"), [
+    ([":BE,+00100,+00200,+00000,A"], "PD6 :BE before any :TS (no time; skipped)"),
+    ([":TS,26010100000000,35.0,+10.0, 100.0,1500.0,  0", ":BE,+00100,+00200,+00000,V"], "PD6 :BE marked bad (status V or -32768; skipped)"),
+    ([":TS,26010100000000,35.0,+10.0, 100.0,1500.0,  0", ":BE,-32768,-32768,-32768,A"], "PD6 :BE marked bad (status V or -32768; skipped)"),
+    ([":TS,2601010000,35.0,+10.0, 100.0,1500.0,  0"], "PD6 :TS line that does not parse (skipped)"),
+    ([":TS,26013200000000,35.0,+10.0, 100.0,1500.0,  0"], "PD6 :TS line that does not parse (skipped)"),
+    ([":TS,26010100000000,35.0,+10.0, 100.0,1500.0,  0", ":BE,+001.0,+00200,+00000,A"], "PD6 :BE line that does not parse (skipped)"),
+    ([":XX,1,2,3"], "PD6 line of no PD6 kind (skipped)"),
+])
+def test_a_pd6_line_that_cannot_be_used_is_counted_never_raised(lines, reason):
+    decoder = LiveDecoder()
+    values = decoder.feed(("\r\n".join(lines) + "\r\n").encode())
+    assert not any(isinstance(v, DvlVelocity) for v in values)
+    assert decoder.counts[reason] == 1
+
+
+def test_a_bad_json_line_is_counted_by_its_kind_never_raised():
+    bad = ['{"kind": "dvl", "time_utc_s": 1.0, "east_mps": 0.1}', '{"kind": "dvl", "time_utc_s": 1.0, "east_mps": 0.1, "north_mps": "0"}',
+           '{"kind": "depth", "time_utc_s": 1.0, "depth_m": 5.0, "extra": 1}', '{"kind": "depth", "time_utc_s": 1.0, "depth_m": NaN}',
+           '{"kind": "gyro"}', "[1, 2]", "{not json"]
+    counts = Counter()
+    json_lines = JsonInputDecoder(counts)
+    assert [v for line in bad for v in json_lines.feed(line)] == []
+    assert counts["JSON dvl line with a missing, unknown or bad field (skipped)"] == 2
+    assert counts["JSON depth line with a missing, unknown or bad field (skipped)"] == 2
+    assert counts["JSON line of no known kind (skipped)"] == 2 and counts["JSON line that does not parse (skipped)"] == 1
