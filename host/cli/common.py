@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import sys
 import tomllib
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
@@ -174,8 +175,13 @@ def configure_hardware(args: argparse.Namespace) -> None:
         if not port:
             raise UsageError("--backend fpga needs --port (the board's serial port, e.g. /dev/ttyUSB0)")
         configure_backend("fpga", port=port, baud=args.baud)
-    elif backend == "rtl" and variant:
-        configure_backend("rtl", variant=variant)
+    elif backend == "rtl":
+        # Said first, since the command is otherwise silent for minutes while Verilator compiles the device; on stderr,
+        # so that --json keeps stdout one JSON object.
+        print("--backend rtl: the device's Verilog runs on Verilator; its first build of a variant and size takes minutes "
+              "(cached in ~/.cache/lost/cosim), and the simulation runs clock by clock", file=sys.stderr, flush=True)
+        if variant:
+            configure_backend("rtl", variant=variant)
 
 
 def map_uncertainty(grid: Grid, params: NavParameters) -> tuple[Grid, dict]:

@@ -214,3 +214,12 @@ def test_correlate_never_places_the_patch_on_a_hole(tmp_path, capsys):
     assert result["excluded_placements"] == 100  # the 10 x 10 placements whose window covers node (25, 40)
     best = result["best"]
     assert not (16 <= best["i"] <= 25 and 31 <= best["j"] <= 40)
+
+
+def test_the_rtl_backend_says_first_that_its_first_build_takes_minutes(capsys):
+    """Before any work (here a refused --set, so nothing is built), on stderr so that stdout stays the command's report."""
+    assert main(["run", "short", "--backend", "rtl", "--set", "kay=3"]) == 2
+    captured = capsys.readouterr()
+    first, last = captured.err.strip().splitlines()
+    assert first.startswith("--backend rtl: the device's Verilog runs on Verilator; its first build") and "kay" in last
+    assert "Verilator" not in captured.out
