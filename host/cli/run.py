@@ -84,7 +84,8 @@ def _print_summary(summary: dict, out: Path) -> None:
         for method, stats in summary["methods"].items():
             cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
             print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
-    print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    if "lost" in summary["methods"]:  # the patent pipeline's own counts: without it they would count every record
+        print(f"LOST: off-map records {summary['off_map_records']}, records without an MLE {summary['dead_reckoning_records']}")
     _print_map_uncertainty(summary)
     _print_usbl(summary)
     for warning in summary.get("warnings", ()):

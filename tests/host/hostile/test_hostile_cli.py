@@ -183,3 +183,10 @@ def test_a_folder_named_as_a_shipped_scenario_does_not_hide_it(tmp_path, monkeyp
     from lost.host.usbl.scenario import load_usbl_scenario
 
     assert load_usbl_scenario("usbl_turns").name == "usbl_turns"
+
+
+def test_the_patent_pipelines_counts_are_printed_only_when_it_ran(tiny, tmp_path, run_cli):
+    code, out, _ = run_cli("run", tiny, "--estimator", "pmf", "--out", tmp_path / "pmf")
+    assert code == 0 and "records without an MLE" not in out
+    code, out, _ = run_cli("run", tiny, "--out", tmp_path / "all")
+    assert code == 0 and "LOST: off-map records " in out and ", records without an MLE " in out
