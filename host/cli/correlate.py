@@ -60,7 +60,9 @@ def _cmd_correlate(args: argparse.Namespace) -> int:
     if ru is None:
         print(f"runner-up  none farther than {result.exclusion_radius} nodes")
     else:
-        print(f"runner-up  {where(ru.i, ru.j)}   V = {ru.value}   ratio {ru.value / max(best.value, 1):.2f}")
+        # The ratio says how distinct the best fit is; against an exact fit (V = 0) any runner-up is infinitely worse.
+        ratio = f"{ru.value / best.value:.2f}" if best.value else "- (the best fit is exact, V = 0)"
+        print(f"runner-up  {where(ru.i, ru.j)}   V = {ru.value}   ratio {ratio}")
     return 0
 
 

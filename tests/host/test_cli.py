@@ -223,3 +223,19 @@ def test_the_rtl_backend_says_first_that_its_first_build_takes_minutes(capsys):
     first, last = captured.err.strip().splitlines()
     assert first.startswith("--backend rtl: the device's Verilog runs on Verilator; its first build") and "kay" in last
     assert "Verilator" not in captured.out
+
+
+def test_correlate_gives_no_ratio_against_an_exact_fit(tmp_path, capsys):
+    from lost.host.grid import Grid
+    from lost.host.io.grids import write_npz
+
+    rng = np.random.default_rng(3)
+    depths = 1000.0 + np.cumsum(np.cumsum(rng.normal(size=(30, 30)), 0), 1) * 0.5
+    write_npz(Grid(depths, 0.0, 0.0, 10.0), tmp_path / "map.npz")
+    np.save(tmp_path / "exact.npy", depths[5:13, 9:17])
+    np.save(tmp_path / "noisy.npy", depths[5:13, 9:17] + rng.normal(0.0, 0.2, size=(8, 8)))
+    assert main(["correlate", str(tmp_path / "map.npz"), str(tmp_path / "exact.npy")]) == 0
+    assert "ratio - (the best fit is exact, V = 0)" in capsys.readouterr().out
+    assert main(["correlate", str(tmp_path / "map.npz"), str(tmp_path / "noisy.npy")]) == 0
+    ratio = float(capsys.readouterr().out.split("ratio ")[1].split()[0])
+    assert ratio > 1.0
