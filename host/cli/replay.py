@@ -85,7 +85,7 @@ def _pings(sources: list[str], dvl: str | None, usbl: str | None = None):
     from ..live.stream import vehicle_datagrams
     from ..scenario import builtin_scenario_path, load_scenario, simulate
 
-    path = paths[0] if paths[0].suffix == ".toml" or paths[0].exists() else builtin_scenario_path(sources[0])
+    path = paths[0] if paths[0].suffix == ".toml" or paths[0].is_file() else builtin_scenario_path(sources[0])
     scenario = load_scenario(path)
     _, crs, pings = simulated_pings(scenario)
     dvl = dvl or "pd6"

@@ -39,7 +39,7 @@ def _parameters(base: dict, overrides: dict, where: str) -> TrackerParameters:
     from ..config import build
 
     def check(table, layer):
-        return build(TrackerParameters, {**base, **table}, "tracker")
+        return build(TrackerParameters, {**base, **table}, layer)
 
     merged = merge_settings([(where, overrides)], TrackerParameters.__dataclass_fields__, "tracker parameter", check)
     return build(TrackerParameters, {**base, **merged}, "tracker")
@@ -59,7 +59,7 @@ def _load(source: str, args: argparse.Namespace):
 
             truth = read_truth(args.truth, pings, sonar=sonar)
         return pings, sonar, _parameters({}, overrides, "--set"), truth, path.stem, report.summary(), None
-    scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.exists() else builtin_scenario_path(source))
+    scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.is_file() else builtin_scenario_path(source))
     sim = simulate(scenario)
     model = scenario.sonar
     params = _parameters(tracker_model(model), {**scenario.tracker, **overrides}, f"--set or [tracker] of {scenario.name}")

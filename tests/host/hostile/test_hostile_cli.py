@@ -190,3 +190,15 @@ def test_the_patent_pipelines_counts_are_printed_only_when_it_ran(tiny, tmp_path
     assert code == 0 and "records without an MLE" not in out
     code, out, _ = run_cli("run", tiny, "--out", tmp_path / "all")
     assert code == 0 and "LOST: off-map records " in out and ", records without an MLE " in out
+
+
+def test_track_and_replay_take_the_shipped_scenario_beside_a_folder_of_its_name(tmp_path, monkeypatch, run_cli):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "one_diver").mkdir()
+    code, _, err = run_cli("track", "one_diver", "--set", "kay=3", "--out", tmp_path / "o")
+    assert code == EXIT_USAGE and "names no tracker parameter: kay" in err
+    code, _, err = run_cli("track", "one_diver", "--set", "confirm_existence=abc", "--out", tmp_path / "o")
+    assert code == EXIT_USAGE and "confirm_existence: Input should be a valid number" in err and "tracker." not in err
+    (tmp_path / "short_exact_map").mkdir()
+    code, out, _ = run_cli("replay", "short_exact_map", "--to", "127.0.0.1:9", "--speed", "0")
+    assert code == 0 and "sent 600 pings" in out
