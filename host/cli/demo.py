@@ -12,5 +12,5 @@ __all__ = ["register"]
 def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost demo``."""
     demo = commands.add_parser("demo", parents=parents, help="run the built-in scenario into runs/demo")
-    navigation_options(demo)
+    navigation_options(demo, "runs/demo, replaced at each run")
     demo.set_defaults(handler=run_demo)

@@ -29,6 +29,7 @@ from ..nav import ESTIMATORS, NavParameters, navigate
 from ..records import NavRecords
 from ..runfolder import run_folder, write_summary
 from .common import (
+    BACKEND_HELP,
     configure_hardware,
     hardware_options,
     map_uncertainty,
@@ -83,7 +84,8 @@ def _print_summary(summary: dict, out: Path) -> None:
         for method, stats in summary["methods"].items():
             cells = ["-" if stats.get(k) is None else f"{stats[k]:.2f}" if isinstance(stats[k], float) else str(stats[k]) for k in columns]
             print(f"{method:16s} " + " ".join(f"{c:>15s}" for c in cells))
-    print(f"off-map records: {summary['off_map_records']}; records without an MLE: {summary['dead_reckoning_records']}")
+    if "lost" in summary["methods"]:  # the patent pipeline's own counts: without it they would count every record
+        print(f"LOST: off-map records {summary['off_map_records']}, records without an MLE {summary['dead_reckoning_records']}")
     _print_map_uncertainty(summary)
     _print_usbl(summary)
     for warning in summary.get("warnings", ()):
@@ -134,7 +136,8 @@ def _scenario_path(text: str) -> Path:
     from ..scenario import builtin_scenario_path
 
     path = Path(text)
-    return path if path.suffix == ".toml" or path.exists() else builtin_scenario_path(text)
+    # A folder of that name (an earlier run's --out, say) is not a scenario file: the shipped scenario is meant.
+    return path if path.suffix == ".toml" or path.is_file() else builtin_scenario_path(text)
 
 
 def _svp(path: Path | None):
@@ -197,8 +200,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if grid_options:
             raise UsageError(f"{', '.join(grid_options)} apply to a recorded tow (--log, --bathy); a scenario sets its map in [terrain]")
         return _run_scenario(_scenario_path(args.scenario), args, args.out)
-    if not (args.log and args.bathy):
-        raise UsageError("lost run needs a scenario file, or both --log nav.csv and --bathy grid")
+    if args.log and not args.bathy:
+        raise UsageError("--log needs the map it is navigated on: --bathy grid.nc")
+    if args.bathy and not args.log:
+        raise UsageError("--bathy is the map of a recorded tow: give its navigation log (--log nav.csv) or survey files (--survey FILE...)")
+    if not args.log:
+        raise UsageError("give a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and "
+                         "--bathy grid.nc, or --survey FILE... and --bathy grid.nc")
     try:
         from ..io import read_grid
         from ..io.navlog import check_against_map, read_navlog
@@ -253,12 +261,27 @@ def _run_survey(args: argparse.Namespace) -> int:
         extra["survey"] = {"files": [str(f) for f in files], "format": survey.format, "first_ping_utc_s": recorder.epoch_s,
                            "record_s": interval, "window_s": recorder.window_s, "dr_bias_mps": list(recorder.bias),
                            "start_offset_m": list(recorder.start_offset), "skipped": skipped, "notes": dict(survey.notes)}
+        extra["survey"]["log"] = _save_survey_log(records, folder, recorder.epoch_s)
         print(f"{names}: {len(records)} records of {interval:g} s, patches of the last {recorder.window_s:g} s of pings"
               + "".join(f"\n  skipped: {n} {reason}" for reason, n in skipped.items()))
         summary = _navigate(records, grid, params, name=files[0].stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), extra=extra)
     _print_summary(summary, out)
     return 0
+
+
+def _save_survey_log(records, folder: Path, epoch_utc_s: float) -> dict:
+    """The survey's records as a navigation log in the run folder (``records.csv``, ``records_sonar.csv``), which
+    ``lost run --log records.csv --sonar records_sonar.csv`` on the same map and ``--patch-shape`` navigates alike."""
+    from ..io.navlog import write_navlog
+
+    sonar = SURVEY_LOG[1] if any(patch is not None for patch in records.sonar) else None
+    write_navlog(records, folder / SURVEY_LOG[0], sonar=None if sonar is None else folder / sonar, epoch_utc_s=epoch_utc_s)
+    return {"log": SURVEY_LOG[0], "sonar": sonar}
+
+
+#: The navigation log a survey run writes of its records: the log, its sonar side file.
+SURVEY_LOG = ("records.csv", "records_sonar.csv")
 
 
 def _east_north(text: str) -> tuple[float, float]:
@@ -290,9 +313,9 @@ def run_demo(args: argparse.Namespace) -> int:
     return _run_scenario(builtin_scenario_path("demo"), args, args.out)
 
 
-def navigation_options(sub: argparse.ArgumentParser) -> None:
-    output_options(sub, "runs/NAME")
-    sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help="correlator backend (default software)")
+def navigation_options(sub: argparse.ArgumentParser, out_default: str = "runs/NAME") -> None:
+    output_options(sub, out_default)
+    sub.add_argument("--backend", choices=sorted(BACKENDS), default=None, help=f"{BACKEND_HELP} (default software)")
     hardware_options(sub)
     sub.add_argument("--matching", choices=("patch", "point"), default=None, help="MLE form (default patch)")
     sub.add_argument("--estimator", choices=(*ESTIMATORS, "all"), default="all",

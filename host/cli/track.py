@@ -28,7 +28,7 @@ from ..track.evaluate import score
 from ..track.geometry import Sonar
 from ..track.output import track_table, write_tracks_csv
 from ..track.run import run_tracker
-from ..track.simulate import builtin_scenario_path, load_scenario, simulate
+from ..track.simulate import builtin_scenario_path, load_scenario, simulate, tracker_model
 from ..track.tracker import TrackerParameters
 from .common import merge_settings, output_options, progress_bar, settings_option, warnings_collected
 
@@ -39,7 +39,7 @@ def _parameters(base: dict, overrides: dict, where: str) -> TrackerParameters:
     from ..config import build
 
     def check(table, layer):
-        return build(TrackerParameters, {**base, **table}, "tracker")
+        return build(TrackerParameters, {**base, **table}, layer)
 
     merged = merge_settings([(where, overrides)], TrackerParameters.__dataclass_fields__, "tracker parameter", check)
     return build(TrackerParameters, {**base, **merged}, "tracker")
@@ -59,12 +59,10 @@ def _load(source: str, args: argparse.Namespace):
 
             truth = read_truth(args.truth, pings, sonar=sonar)
         return pings, sonar, _parameters({}, overrides, "--set"), truth, path.stem, report.summary(), None
-    scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.exists() else builtin_scenario_path(source))
+    scenario = load_scenario(path if path.suffix.lower() == ".toml" or path.is_file() else builtin_scenario_path(source))
     sim = simulate(scenario)
     model = scenario.sonar
-    base = {"pd": max(model.pd, 1e-3), "clutter_per_ping": max(model.clutter_per_ping, 1e-3), "range_sigma_m": model.range_sigma_m,
-            "bearing_sigma_deg": model.bearing_sigma_deg}
-    params = _parameters(base, {**scenario.tracker, **overrides}, f"--set or [tracker] of {scenario.name}")
+    params = _parameters(tracker_model(model), {**scenario.tracker, **overrides}, f"--set or [tracker] of {scenario.name}")
     note = f"{scenario.name}: {len(sim.pings)} pings simulated, {sim.target_detections} target detections, {sim.false_alarms} false alarms"
     return sim.pings, model.sonar, params, sim.truth, scenario.name, note, sim
 

@@ -8,13 +8,15 @@ module                 what it says
 ``grids``              :func:`read_grid`: any bathymetry grid file to a :class:`Grid`; ``write_npz``
 ``netcdf``, ``raster``,  the grid formats (NetCDF; GeoTIFF, ESRI ASCII and GMT native; XYZ soundings)
 ``xyz``
-``navlog``             :func:`read_navlog`, :func:`write_navlog`: the CSV navigation log
+``navlog``             :func:`read_navlog`, :func:`write_navlog`: the CSV navigation log;
+                       ``navlog_report``: what reading one kept, skipped and why
 ``navlog_sonar``       the navigation log's sonar side file
 ``navlog_checks``      plausibility of a log and of its records against their map
 ``csvtable``           CSV cells as numbers and times, errors naming the file line
 ``sonar``              soundings gridded into one record's patch
 ``survey``             multibeam surveys as a stream of pings, read by ``kongsberg_all``, ``kmall``
-                       and ``gsf`` (``kongsberg_all`` writes ``.all`` too)
+                       and ``gsf`` (``kongsberg_all`` writes ``.all`` too, ``kmall_write`` ``.kmall``);
+                       ``kmall_parts``: an MRZ split into partitions joined (files and the live receiver)
 ``survey_grid``        a grid of soundings (``lost grid``); ``survey_summary``: ``lost survey``
 ``survey_records``     a survey's pings as the navigation's records (``lost run --survey``), streaming
 ``simulated``          a scenario's tow as pings, to export in a real format

@@ -5,8 +5,9 @@ info); its soundings, a fixed 120-byte record each, are read as one NumPy array 
 rather than one dict per sounding (five times faster).
 
 Two passes, one datagram in memory at a time: the first keeps the attitude samples of the SKM datagrams
-(roll, pitch, heave, with the sensor's own times); the second yields one ping per MRZ datagram. The MRZ
-carries its own position (the reference point's latitude and longitude at the ping), heading and sound
+(roll, pitch, heave, with the sensor's own times); the second yields one ping per MRZ datagram, an MRZ split
+into partitions joined first (:mod:`lost.host.io.kmall_parts`, the live receiver's rule). The MRZ carries its
+own position (the reference point's latitude and longitude at the ping), heading and sound
 speed at the transducer; the per-sounding x/y/z are re the reference point, and z minus the water
 level's height re the reference point is the depth below the water line. Only the main soundings are
 read (extra detections are not bottom); a sounding is valid when its detection type is normal (0) and
@@ -25,9 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .kmall_parts import DROPPED, HEADER, REASONS, MrzJoiner
 from .survey import Ping, interpolate_at
 
-__all__ = ["MRZ_SOUNDING", "mrz_ping", "read_kmall_pings", "read_mrz"]
+__all__ = ["MRZ_SOUNDING", "decode_mrz", "mrz_ping", "read_kmall_pings", "read_mrz"]
+
+_PARTITION_AT = HEADER.size
+_WHOLE = (1).to_bytes(2, "little") * 2  # numOfDgms 1, dgmNum 1: an MRZ of one part
 
 _MAX_ATTITUDE_GAP_S = 1.0
 # One MRZ sounding (EMdgmMRZ_sounding_def, 120 bytes): pykmall's own layout "1H8B1H6f2H18f4H", read for all
@@ -47,18 +52,25 @@ MRZ_SOUNDING = np.dtype([
 
 
 def read_kmall_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
-    """Pings of one ``.kmall`` file, in file order; damaged or cut-off datagrams counted in ``skipped``."""
+    """Pings of one ``.kmall`` file, in file order; damaged or cut-off datagrams, and split MRZ that cannot be joined
+    whole (:mod:`lost.host.io.kmall_parts`), counted in ``skipped``."""
     attitude = _attitude(path, Counter())
     if attitude["t"].size == 0:
         notes[f"{path.name}: no SKM attitude datagram (roll, pitch and heave unknown)"] += 1
-    for dg in _datagrams(path, "MRZ", skipped):
-        if dg["partition"]["numOfDgms"] != 1:
-            skipped[f"{path.name}: MRZ datagram split over partitions (not read)"] += 1
-            continue
+    joiner = MrzJoiner()
+    for dg in _datagrams(path, "MRZ", skipped, joiner):
         yield mrz_ping(dg, attitude)
+    joiner.finish()
+    for reason, count in joiner.counts.items():
+        if reason in DROPPED:
+            skipped[f"{path.name}: {reason}"] += count
+        elif reason == REASONS["joined"]:
+            notes[f"{path.name}: {reason}"] += count
 
 
-def _datagrams(path: Path, wanted: str, skipped: Counter) -> Iterator[dict]:
+def _datagrams(path: Path, wanted: str, skipped: Counter, joiner: MrzJoiner | None = None) -> Iterator[dict]:
+    """The ``wanted`` datagrams of a file decoded by pykmall; an MRZ in partitions goes through ``joiner`` and is
+    decoded when whole."""
     from KMALL.kmall import kmall
 
     reader = kmall(str(path))
@@ -84,13 +96,35 @@ def _datagrams(path: Path, wanted: str, skipped: Counter) -> Iterator[dict]:
             reader.FID.seek(at)
             if name[1:].decode() == wanted:
                 try:
-                    with contextlib.redirect_stdout(io.StringIO()):  # pykmall prints while it scans
-                        yield read_mrz(reader) if wanted == "MRZ" else getattr(reader, f"read_EMdgm{wanted}")()
+                    dg = _decoded(reader, wanted, size, joiner)
                 except (struct.error, KeyError, ValueError, IndexError) as error:
                     skipped[f"{path.name}: damaged datagram '{wanted}' ({type(error).__name__})"] += 1
+                else:
+                    if dg is not None:
+                        yield dg
             reader.FID.seek(at + size)
     finally:
         reader.closeFile()
+
+
+def _decoded(reader, wanted: str, size: int, joiner: MrzJoiner | None) -> dict | None:
+    """The datagram at the reader's position, decoded; a part of a split MRZ goes to ``joiner`` (``None`` until whole)."""
+    if wanted == "MRZ" and joiner is not None and size >= _PARTITION_AT + 4 and _read_at(reader.FID, reader.FID.tell() + _PARTITION_AT, 4) != _WHOLE:
+        whole = joiner.add(reader.FID.read(size))
+        return None if whole is None else decode_mrz(whole)
+    with contextlib.redirect_stdout(io.StringIO()):  # pykmall prints while it scans
+        return read_mrz(reader) if wanted == "MRZ" else getattr(reader, f"read_EMdgm{wanted}")()
+
+
+def decode_mrz(datagram: bytes) -> dict:
+    """One whole MRZ datagram's bytes decoded as :func:`read_mrz` decodes it from a file."""
+    from KMALL.kmall import kmall
+
+    reader = kmall(None)
+    reader.FID = io.BytesIO(datagram)
+    reader.file_size = len(datagram)
+    with contextlib.redirect_stdout(io.StringIO()):  # pykmall prints while it scans
+        return read_mrz(reader)
 
 
 def read_mrz(reader) -> dict:

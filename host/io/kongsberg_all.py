@@ -1,4 +1,4 @@
-"""Kongsberg ``.all`` files: XYZ88 depth datagrams as pings, with position and attitude interpolated at each ping.
+"""Kongsberg ``.all`` files: XYZ88 or older depth ('D') datagrams as pings, with position and attitude interpolated at each ping.
 
 A reader of its own on NumPy structured dtypes (the layout of Kongsberg's *EM Series datagram formats*,
 rev. W): the one Python package that reads ``.all`` (themachinethatgoesping 0.35, "in development") gives a
@@ -6,11 +6,22 @@ ping's beams through an interface without the XYZ88 detection flags, which decid
 counts a ping whose depth datagram is missing, and pulls in numba and Jupyter widgets.
 
 Two passes over the file: the first keeps only the active positioning system's positions ('P') and the
-attitude samples ('A'), small arrays (one sample per fix or per attitude reading); the second yields one
-:class:`~lost.host.io.survey.Ping` per XYZ88 ('X') datagram, reading one datagram at a time. Every
+attitude samples ('A'), small arrays (one sample per fix or per attitude reading), and counts the datagrams of
+each type; the second yields one :class:`~lost.host.io.survey.Ping` per XYZ88 ('X') datagram, reading one
+datagram at a time, or, in a file without XYZ88 (EM 120/300/1002/2000/3000-era sonars), one per depth ('D')
+datagram. Every
 datagram's frame is checked (start byte, end byte and, for the datagrams read, the checksum); a damaged
 or truncated one is counted in the skip counter, the reader resynchronises on the next good datagram,
 and the file's remainder is read. :func:`write_all_pings` writes pings back in the same three datagrams.
+
+The depth datagram 'D' (Kongsberg's *EM Series datagram formats*; read as MB-System's ``mbsys_simrad2`` reads
+it): per ping the heading (0.01 degree), the sound speed at the transducer (0.1 m/s), the transmit
+transducer's depth (cm, plus 655.36 m times the offset multiplier after the beams, a byte EM 3000-family
+sonars left undefined: not used for their models), the depth and horizontal resolutions (cm); per beam
+included (the valid ones, by beam number) the depth re the transducer (unsigned for EM 120 and EM 300,
+signed otherwise), the across- and along-track distances, in those resolutions. A beam of depth 0 holds no
+sounding (invalid). No real 'D' file was at hand to test this reader; it is tested on real XYZ88 pings
+re-expressed as 'D' datagrams with the format's scaling (``tests/host/io/test_all_depth_datagram.py``).
 """
 
 from __future__ import annotations
@@ -30,7 +41,7 @@ from .survey import Ping, interpolate_at
 __all__ = ["read_all_pings", "write_all_pings", "ALL_HEADER"]
 
 _STX, _ETX = 0x02, 0x03
-_POSITION, _ATTITUDE, _XYZ88 = ord("P"), ord("A"), ord("X")
+_POSITION, _ATTITUDE, _XYZ88, _DEPTH = ord("P"), ord("A"), ord("X"), ord("D")
 _MAX_DATAGRAM = 1 << 26  # no .all datagram is 64 MiB; a length beyond it is a damaged length field
 
 # The length field counts the bytes after itself; the header's fields follow it.
@@ -42,6 +53,12 @@ _XYZ88_BEAM = np.dtype([("depth", "<f4"), ("across", "<f4"), ("along", "<f4"), (
                         ("incidence", "i1"), ("detection", "u1"), ("cleaning", "i1"), ("reflectivity", "<i2")])
 _POSITION_BODY = np.dtype([("lat", "<i4"), ("lon", "<i4"), ("quality", "<u2"), ("speed", "<u2"), ("course", "<u2"),
                            ("heading", "<u2"), ("system", "u1"), ("input_bytes", "u1")])
+_DEPTH_HEAD = np.dtype([("heading", "<u2"), ("sound_speed", "<u2"), ("tx_depth_cm", "<u2"), ("max_beams", "u1"), ("beams", "u1"),
+                        ("z_res_cm", "u1"), ("xy_res_cm", "u1"), ("sample_rate", "<u2")])
+_DEPTH_BEAM = np.dtype([("depth", "<i2"), ("across", "<i2"), ("along", "<i2"), ("depression", "<i2"), ("azimuth", "<u2"),
+                        ("range", "<u2"), ("quality", "u1"), ("window", "u1"), ("reflectivity", "i1"), ("number", "u1")])
+_UNSIGNED_DEPTH_MODELS = frozenset({120, 300})  # their 'D' depths are unsigned
+_EM3000_MODELS = frozenset({3000, *range(3001, 3009), 3020})  # their transducer depth offset multiplier is undefined
 _ATTITUDE_SAMPLE = np.dtype([("t_ms", "<u2"), ("status", "<u2"), ("roll", "<i2"), ("pitch", "<i2"), ("heave", "<i2"), ("heading", "<u2")])
 _INVALID_DETECTION = 0x80  # detection info bit 7: the beam holds no valid sounding
 _ACTIVE_POSITION_SYSTEM = 0x80  # position system descriptor bit 7: the system the sonar uses
@@ -53,17 +70,21 @@ _MAX_ATTITUDE_GAP_S = 1.0
 def read_all_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
     """Pings of one ``.all`` file, in file order; damaged datagrams counted in ``skipped``, dead-reckoned positions in ``notes``."""
     # The first pass sees every frame too: only what it alone reads (position and attitude) is counted from it.
-    first_pass: Counter = Counter()
-    positions, attitude = _navigation(path, first_pass)
+    first_pass, kinds = Counter(), Counter()
+    positions, attitude = _navigation(path, first_pass, kinds)
     skipped.update({reason: n for reason, n in first_pass.items() if any(word in reason for word in ("'P'", "'A'", "position", "attitude"))})
+    depth_kind = _DEPTH if kinds[_DEPTH] and not kinds[_XYZ88] else _XYZ88
+    if depth_kind == _XYZ88 and kinds[_DEPTH]:
+        notes[f"{path.name}: depth datagrams 'D' beside the XYZ88 ones, not read (XYZ88 is the newer form of the same soundings)"] += kinds[_DEPTH]
+    decode = _xyz88_ping if depth_kind == _XYZ88 else _depth_ping
     pings = 0
-    for header, body in _datagrams(path, {_XYZ88}, skipped):
-        ping = _xyz88_ping(path, header, body, positions, attitude, skipped, notes)
+    for header, body in _datagrams(path, {depth_kind}, skipped):
+        ping = decode(path, header, body, positions, attitude, skipped, notes)
         if ping is not None:
             pings += 1
             yield ping
     if pings == 0:
-        skipped[f"{path.name}: no XYZ88 depth datagram in the file (older depth datagrams 'D' are not read)"] += 1
+        skipped[f"{path.name}: no depth datagram in the file (XYZ88 'X' or depth 'D')"] += 1
 
 
 def _time_s(header) -> float:
@@ -72,8 +93,9 @@ def _time_s(header) -> float:
     return day.timestamp() + int(header["time_ms"]) / 1000.0
 
 
-def _datagrams(path: Path, wanted: set[int], skipped: Counter) -> Iterator[tuple[np.void, bytes]]:
-    """(header, whole datagram) of each wanted datagram whose frame and checksum hold; others are skipped by seeking."""
+def _datagrams(path: Path, wanted: set[int], skipped: Counter, kinds: Counter | None = None) -> Iterator[tuple[np.void, bytes]]:
+    """(header, whole datagram) of each wanted datagram whose frame and checksum hold; others are skipped by seeking.
+    ``kinds`` counts every well-framed datagram by type."""
     size = path.stat().st_size
     with path.open("rb") as f:
         at = 0
@@ -93,6 +115,8 @@ def _datagrams(path: Path, wanted: set[int], skipped: Counter) -> Iterator[tuple
             if f.read(1)[0] != _ETX:
                 at = _resync(f, at + 1, size, path, skipped)
                 continue
+            if kinds is not None:
+                kinds[int(header["type"])] += 1
             if int(header["type"]) in wanted:
                 f.seek(at)
                 data = f.read(length + 4)
@@ -129,10 +153,10 @@ def _resync(f, start: int, size: int, path: Path, skipped: Counter) -> int:
     return size
 
 
-def _navigation(path: Path, skipped: Counter) -> tuple[dict, dict]:
+def _navigation(path: Path, skipped: Counter, kinds: Counter | None = None) -> tuple[dict, dict]:
     fixes: list[tuple[float, ...]] = []
     samples: list[np.ndarray] = []
-    for header, data in _datagrams(path, {_POSITION, _ATTITUDE}, skipped):
+    for header, data in _datagrams(path, {_POSITION, _ATTITUDE}, skipped, kinds):
         t0 = _time_s(header)
         if header["type"] == _POSITION:
             body = np.frombuffer(data, _POSITION_BODY, 1, ALL_HEADER.itemsize)[0]
@@ -167,6 +191,34 @@ def _xyz88_ping(path: Path, header, data: bytes, positions: dict, attitude: dict
         skipped[f"{path.name}: XYZ88 datagram holding fewer beams than it says"] += 1
         return None
     beams = np.frombuffer(data, _XYZ88_BEAM, n, start)
+    tx_depth = float(head["tx_depth"])
+    return _placed_ping(path, header, positions, attitude, notes, heading_deg=head["heading"] / 100.0, sound_speed_raw=int(head["sound_speed"]),
+                        along_m=beams["along"].astype(np.float64), across_m=beams["across"].astype(np.float64),
+                        depth_m=beams["depth"].astype(np.float64) + tx_depth, valid=(beams["detection"] & _INVALID_DETECTION) == 0,
+                        origin_depth_m=tx_depth)
+
+
+def _depth_ping(path: Path, header, data: bytes, positions: dict, attitude: dict, skipped: Counter, notes: Counter) -> Ping | None:
+    """A ping of an older depth datagram ('D'): the beams it includes, scaled by its resolutions (see the module)."""
+    head = np.frombuffer(data, _DEPTH_HEAD, 1, ALL_HEADER.itemsize)[0]
+    n = int(head["beams"])
+    start = ALL_HEADER.itemsize + _DEPTH_HEAD.itemsize
+    if start + n * _DEPTH_BEAM.itemsize + 1 > len(data) - 3 or n > int(head["max_beams"]):
+        skipped[f"{path.name}: depth datagram 'D' holding fewer beams than it says"] += 1
+        return None
+    beams = np.frombuffer(data, _DEPTH_BEAM, n, start)
+    model = int(header["model"])
+    raw_depth = beams["depth"].view("<u2") if model in _UNSIGNED_DEPTH_MODELS else beams["depth"]
+    multiplier = 0 if model in _EM3000_MODELS else int(np.frombuffer(data, "i1", 1, start + n * _DEPTH_BEAM.itemsize)[0])
+    tx_depth = int(head["tx_depth_cm"]) / 100.0 + 655.36 * multiplier
+    z_res, xy_res = int(head["z_res_cm"]) / 100.0, int(head["xy_res_cm"]) / 100.0
+    return _placed_ping(path, header, positions, attitude, notes, heading_deg=head["heading"] / 100.0, sound_speed_raw=int(head["sound_speed"]),
+                        along_m=beams["along"] * xy_res, across_m=beams["across"] * xy_res,
+                        depth_m=raw_depth.astype(np.float64) * z_res + tx_depth, valid=raw_depth != 0, origin_depth_m=tx_depth)
+
+
+def _placed_ping(path: Path, header, positions: dict, attitude: dict, notes: Counter, *, sound_speed_raw: int, **beams) -> Ping:
+    """The ping at the header's time: position and attitude interpolated from the file's fixes and samples."""
     t = np.array([_time_s(header)])
     lat = interpolate_at(t, positions["t"], positions["lat"], max_gap_s=_MAX_NAV_GAP_S)[0]
     lon = interpolate_at(t, positions["t"], positions["lon"], max_gap_s=_MAX_NAV_GAP_S)[0]
@@ -175,15 +227,8 @@ def _xyz88_ping(path: Path, header, data: bytes, positions: dict, attitude: dict
         if math.isfinite(lat):
             notes[f"{path.name}: pings before the first or after the last fix, placed by the nearest fix's speed and course"] += 1
     roll, pitch, heave = (interpolate_at(t, attitude["t"], attitude[k], max_gap_s=_MAX_ATTITUDE_GAP_S)[0] for k in ("roll", "pitch", "heave"))
-    tx_depth = float(head["tx_depth"])
-    return Ping(
-        time_s=float(t[0]), lat_deg=float(lat), lon_deg=float(lon), heading_deg=head["heading"] / 100.0,
-        roll_deg=float(roll), pitch_deg=float(pitch), heave_m=float(heave),
-        sound_speed_mps=head["sound_speed"] / 10.0 if head["sound_speed"] else math.nan,
-        along_m=beams["along"].astype(np.float64), across_m=beams["across"].astype(np.float64),
-        depth_m=beams["depth"].astype(np.float64) + tx_depth,
-        valid=(beams["detection"] & _INVALID_DETECTION) == 0, head=int(header["serial"]), origin_depth_m=tx_depth,
-    )
+    return Ping(time_s=float(t[0]), lat_deg=float(lat), lon_deg=float(lon), roll_deg=float(roll), pitch_deg=float(pitch), heave_m=float(heave),
+                sound_speed_mps=sound_speed_raw / 10.0 if sound_speed_raw else math.nan, head=int(header["serial"]), **beams)
 
 
 def _dead_reckoned(t: float, positions: dict) -> tuple[float, float]:

@@ -70,7 +70,8 @@ Writing
     :func:`write_navlog` writes records (a simulated tow, say) in this layout, positions as ``x_m``/``y_m``
     and sonar patches as one sounding per seen node keyed by ``record`` (with ``patch_east_m``/``patch_north_m``
     when a patch is not centred on the vehicle), so :func:`read_navlog` reads them back value for
-    value: an example survey to run the command line on.
+    value: an example survey to run the command line on. A ``cable_out_m`` of 0 in every record is a
+    sonar on the ship itself (a hull-mounted survey, ``lost run --survey``'s records): no lay-back, noted.
 
 Errors
     A missing file, a missing required column, a column named twice (compared without case), a file
@@ -92,13 +93,12 @@ Plausibility
 from __future__ import annotations
 
 import os
-from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..records import NavRecords, SonarPatch
+from ..records import NavRecords
 from .csvtable import _Lines, _numeric, _pick_pair, _read_table, _seconds
 from .navlog_checks import (
     _USBL_FIX,
@@ -112,6 +112,7 @@ from .navlog_checks import (
     _wrap,
     check_against_map,
 )
+from .navlog_report import LoadReport
 from .navlog_sonar import _read_sonar
 from .sonar import _check_shape
 
@@ -133,102 +134,6 @@ NAVLOG_COLUMNS = (
 #: Where a record's sonar patch is centred when the log has no patch_east_m/patch_north_m for it.
 PATCH_CENTRES = ("vehicle", "soundings")
 SONAR_COLUMNS = ("t_s", "time_utc", "record", "east_m", "north_m", "depth_m")
-
-
-@dataclass(frozen=True)
-class LoadReport:
-    """What reading a navigation log (and its sonar side file) kept, skipped and why.
-
-    Attributes
-    ----------
-    path : str
-        The navigation log.
-    rows : int
-        Data rows in the log.
-    records : int
-        Records kept (``rows`` less the skipped ones).
-    nan_counts : dict[str, int]
-        Missing readings (empty or NaN cells) per column read, kept rows only.
-    skipped_rows : tuple of (int, str)
-        ``(data row, reason)`` for each row left out; data rows count from 0 after the header.
-    unknown_columns : tuple of str
-        Columns not in the documented layout, not read.
-    warnings : tuple of str
-        Implausible readings found and kept (position jumps faster than any ship); the command line
-        puts them in the run's report.
-    notes : tuple of str
-        Decisions worth knowing: projections, north conversion, absent optional columns, ignored
-        duplicate forms.
-    sonar_path : str or None
-        The sonar side file, if one was read.
-    soundings : int
-        Rows of the sonar file.
-    soundings_used : int
-        Soundings gridded into a patch.
-    soundings_implausible : int
-        Soundings whose depth no sea floor has (more than ``SOUNDING_ABOVE_SURFACE_M`` above the
-        surface, deeper than ``lost.host.io.filecheck.DEEPEST_M``).
-    soundings_without_value : int
-        Soundings with an empty or NaN time/record, offset or depth.
-    soundings_unmatched : int
-        Soundings whose time or record index matches no row of the log.
-    soundings_of_skipped_records : int
-        Soundings belonging to a skipped row.
-    soundings_outside_patch : int
-        Soundings farther from the vehicle than the patch reaches.
-    records_with_sonar : int
-        Records that got a patch.
-    """
-
-    path: str
-    rows: int
-    records: int
-    nan_counts: dict[str, int]
-    skipped_rows: tuple[tuple[int, str], ...] = ()
-    unknown_columns: tuple[str, ...] = ()
-    notes: tuple[str, ...] = ()
-    warnings: tuple[str, ...] = ()
-    sonar_path: str | None = None
-    soundings: int = 0
-    soundings_used: int = 0
-    soundings_without_value: int = 0
-    soundings_implausible: int = 0
-    soundings_unmatched: int = 0
-    soundings_of_skipped_records: int = 0
-    soundings_outside_patch: int = 0
-    records_with_sonar: int = 0
-
-    def summary(self) -> str:
-        """A few lines of plain text for the command line."""
-        lines = [f"{self.path}: {self.rows} rows, {self.records} records kept"]
-        if self.skipped_rows:
-            reasons = Counter(reason for _, reason in self.skipped_rows)
-            for reason, count in reasons.items():
-                rows = [str(r) for r, why in self.skipped_rows if why == reason]
-                shown = ", ".join(rows[:5]) + (", ..." if len(rows) > 5 else "")
-                lines.append(f"  skipped {count} row(s), {reason}: data row(s) {shown}")
-        missing = {c: n for c, n in self.nan_counts.items() if n}
-        if missing:
-            lines.append("  missing readings (kept as NaN): " + ", ".join(f"{c} {n}" for c, n in missing.items()))
-        if self.unknown_columns:
-            lines.append("  unknown columns, not read: " + ", ".join(self.unknown_columns))
-        lines += [f"  note: {n}" for n in self.notes]
-        lines += [f"  warning: {w}" for w in self.warnings]
-        if self.sonar_path is not None:
-            lines.append(
-                f"{self.sonar_path}: {self.soundings} soundings, {self.soundings_used} gridded into "
-                f"{self.records_with_sonar} patch(es)"
-            )
-            for label, count in (
-                ("without a value (empty or NaN)", self.soundings_without_value),
-                ("with a depth no sea floor has", self.soundings_implausible),
-                ("matching no record", self.soundings_unmatched),
-                ("of skipped records", self.soundings_of_skipped_records),
-                ("beyond the patch", self.soundings_outside_patch),
-            ):
-                if count:
-                    lines.append(f"  not used: {count} {label}")
-        return "\n".join(lines)
 
 
 def read_navlog(
@@ -282,34 +187,19 @@ def read_navlog(
     lines = _Lines(path, len(table))
     values, epoch, zone_warnings = _read_values(table, layout, path, lines, notes)
     values, kept_rows, skipped = _drop_timeless(values, layout.time_column, path, lines)
-    # An empty patch centre or age is no missing reading: the record's patch (if any) is centred by patch_centre, aged 0.
-    nan_counts = {layout.columns[c]: int(np.isnan(values[c]).sum()) for c in layout.columns
-                  if c in layout.used and c not in (*sum(_PATCH_CENTRE_FORMS, ()), _PATCH_AGE)}
-    if "slant_range_m" not in layout.columns:
-        values["slant_range_m"] = np.full(kept_rows.size, np.nan)
-        notes.append("no slant_range_m column: slant range is NaN (not measured) for every record")
-
+    nan_counts = _missing_readings(values, layout, notes)
     impossible = _impossible_readings(values, kept_rows, lines, path)
+    _note_platform(values, notes)
     geographic = layout.position == ("lat", "lon")
-    usbl = _usbl_columns(values, layout.columns, kept_rows, lines, path, geographic, notes)
-    ship_x, ship_y, convergence = _ship_positions(values, geographic, crs, path, kept_rows, lines, notes)
-    vel_x, vel_y = _grid_velocity(values, layout.velocity, convergence)
-    truth_x, truth_y = _truth_positions(values, layout.truth, crs, path, kept_rows, lines, notes)
-    sonar_patches: tuple[SonarPatch | None, ...] = ()
-    sonar_stats: dict = {}
+    series, convergence = _motion(values, layout, crs, path, kept_rows, lines, notes)
+    sonar_patches, sonar_stats = (), {}
     if sonar is not None:
         sonar_patches, sonar_stats = _read_sonar(
             Path(sonar), record_times=values["t_s"], epoch=epoch, convergence_deg=convergence, kept_rows=kept_rows, rows=len(table),
             patch_shape=h_w, node_m=float(node_m), time_tolerance_s=time_tolerance_s, patch_centre=patch_centre,
             centre_east=values.get("patch_east_m"), centre_north=values.get("patch_north_m"), age_s=values.get(_PATCH_AGE),
         )
-
-    records = NavRecords(
-        t_s=values["t_s"], ship_x_m=ship_x, ship_y_m=ship_y, ship_heading_deg=_wrap(values["ship_heading_deg"] + convergence),
-        vehicle_depth_m=values["vehicle_depth_m"], altitude_m=values["altitude_m"], vel_x_mps=vel_x, vel_y_mps=vel_y,
-        slant_range_m=values["slant_range_m"], cable_out_m=values["cable_out_m"], sonar=sonar_patches,
-        truth_x_m=truth_x, truth_y_m=truth_y, **usbl,
-    )
+    records = NavRecords(**series, sonar=sonar_patches)
     warnings = zone_warnings + impossible + _check_motion(records, kept_rows, lines, path, layout.time_column, geographic)
     report = LoadReport(path=str(path), warnings=tuple(warnings), rows=len(table), records=len(records), nan_counts=nan_counts,
                         skipped_rows=skipped, unknown_columns=layout.unknown, notes=tuple(notes), **sonar_stats)
@@ -386,6 +276,41 @@ def _drop_timeless(values: dict, time_column: str, path: Path, lines: _Lines) ->
     return values, kept_rows, skipped
 
 
+def _missing_readings(values: dict, layout: _Layout, notes: list[str]) -> dict[str, int]:
+    """Missing readings per column read (an empty patch centre or age is none: the patch is centred by patch_centre,
+    aged 0); a log without ``slant_range_m`` gets NaN throughout, said in the notes."""
+    counts = {layout.columns[c]: int(np.isnan(values[c]).sum()) for c in layout.columns
+              if c in layout.used and c not in (*sum(_PATCH_CENTRE_FORMS, ()), _PATCH_AGE)}
+    if "slant_range_m" not in layout.columns:
+        values["slant_range_m"] = np.full(values["t_s"].size, np.nan)
+        notes.append("no slant_range_m column: slant range is NaN (not measured) for every record")
+    return counts
+
+
+def _note_platform(values: dict, notes: list[str]) -> None:
+    """A cable of 0 in every record is a sonar on the ship itself (a hull-mounted survey): said, not refused."""
+    cable = values["cable_out_m"]
+    if np.isfinite(cable).any() and np.all(cable[np.isfinite(cable)] == 0):
+        notes.append("cable_out_m is 0 in every record: the sonar is on the ship (a hull-mounted survey), no lay-back")
+
+
+def _motion(values: dict, layout: _Layout, crs: str | None, path: Path, kept_rows: np.ndarray, lines: _Lines,
+            notes: list[str]) -> tuple[dict, np.ndarray]:
+    """Every series of :class:`NavRecords` but the sonar, on the grid (positions projected, angles and velocities turned
+    to grid north), and the meridian convergence at each record (degrees, 0 for a log already on the grid)."""
+    geographic = layout.position == ("lat", "lon")
+    usbl = _usbl_columns(values, layout.columns, kept_rows, lines, path, geographic, notes)
+    ship_x, ship_y, convergence = _ship_positions(values, geographic, crs, path, kept_rows, lines, notes)
+    vel_x, vel_y = _grid_velocity(values, layout.velocity, convergence)
+    truth_x, truth_y = _truth_positions(values, layout.truth, crs, path, kept_rows, lines, notes)
+    series = dict(
+        t_s=values["t_s"], ship_x_m=ship_x, ship_y_m=ship_y, ship_heading_deg=_wrap(values["ship_heading_deg"] + convergence),
+        vehicle_depth_m=values["vehicle_depth_m"], altitude_m=values["altitude_m"], vel_x_mps=vel_x, vel_y_mps=vel_y,
+        slant_range_m=values["slant_range_m"], cable_out_m=values["cable_out_m"], truth_x_m=truth_x, truth_y_m=truth_y, **usbl,
+    )
+    return series, convergence
+
+
 def _ship_positions(values: dict, geographic: bool, crs: str | None, path: Path, kept_rows: np.ndarray, lines: _Lines,
                     notes: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The ship's grid position and the meridian convergence (degrees, 0 for a log already on the grid)."""
@@ -427,8 +352,13 @@ def _truth_positions(values: dict, truth: tuple[str, str] | None, crs: str | Non
     return truth_x, truth_y
 
 
-def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | os.PathLike | None = None) -> None:
+def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | os.PathLike | None = None,
+                 epoch_utc_s: float | None = None) -> None:
     """Write records in the documented layout (and their sonar patches as a side file).
+
+    Records of a hull-mounted survey (:mod:`lost.host.io.survey_records`) are written as they are: ``cable_out_m``
+    0 in every record (read back as a sonar on the ship, no lay-back), ``slant_range_m`` empty, the first
+    record's velocity empty when the survey had no earlier ping to difference.
 
     Parameters
     ----------
@@ -437,6 +367,9 @@ def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | o
         The navigation-log CSV to write.
     sonar : path-like, optional
         The sonar side file to write; required when the records carry sonar patches, refused otherwise.
+    epoch_utc_s : float, optional
+        The POSIX time (UTC) at which ``t_s`` is 0 (a survey's first ping): a ``time_utc`` column is written beside
+        ``t_s`` (to the microsecond, for the reader of the file; :func:`read_navlog` takes ``t_s``).
     """
     import pandas as pd
 
@@ -455,6 +388,8 @@ def write_navlog(records: NavRecords, path: str | os.PathLike, *, sonar: str | o
     if records.has_usbl:
         names |= {name: name for name in ("usbl_travel_time_s", *_USBL_FIX)}
     table = pd.DataFrame({column: getattr(records, attribute) for column, attribute in names.items()})
+    if epoch_utc_s is not None:
+        table.insert(1, "time_utc", pd.to_datetime(epoch_utc_s + records.t_s, unit="s", utc=True).strftime("%Y-%m-%dT%H:%M:%S.%fZ"))
     if any(patch is not None and patch.centre_offset_m != (0.0, 0.0) for patch in records.sonar):
         centres = np.array([patch.centre_offset_m if patch is not None else (np.nan, np.nan) for patch in records.sonar])
         table["patch_east_m"], table["patch_north_m"] = centres[:, 0], centres[:, 1]

@@ -153,12 +153,13 @@ def _impossible_readings(values: dict, rows: np.ndarray, lines, path: Path) -> l
     cable, depth = values["cable_out_m"], values["vehicle_depth_m"]
     both = np.isfinite(cable) & np.isfinite(depth)
     short = both & (cable < depth)
-    if both.any() and short.sum() == both.sum():
+    hull_mounted = both.any() and np.all(cable[both] == 0)  # no cable at all: the sonar is on the ship
+    if both.any() and short.sum() == both.sum() and not hull_mounted:
         raise ValueError(
             f"{path.name}: cable_out_m is shorter than vehicle_depth_m in every record (e.g. {cable[short][0]:g} m of cable at "
             f"{depth[short][0]:g} m depth): a cable in another unit, or the wrong column?"
         )
-    if short.any():
+    if short.any() and not hull_mounted:
         first = int(rows[np.flatnonzero(short)[0]])
         warnings.append(f"{int(short.sum())} record(s) with less cable out than the vehicle's depth, the first at {_where(first, lines)}: "
                         "their lay-back is taken as zero")

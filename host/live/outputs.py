@@ -9,9 +9,10 @@ time of day UTC of the record, the record number, the estimator's name, east and
 3 decimals), the covariance in m**2 (east variance, north variance, their covariance, 3 decimals), ``A`` usable or
 ``V`` not; empty fields for missing values; ``hh`` the XOR of the characters between ``$`` and ``*``, as NMEA's.
 
-:class:`RunLog` appends one JSON line per record (all its estimators' answers) with one ``write`` of the whole
-line, unbuffered (the line is in the kernel's page cache when ``write`` returns): a line in the file is whole or
-absent whatever stops the process; a power loss may lose the last lines not yet on disk (no fsync per line).
+:class:`RunLog` appends one JSON line per record (all its estimators' answers), and a line for each input or event
+logged as it comes (``{"usbl": {...}}``, ``{"correlator": {...}}``), each with one ``write`` of the whole line,
+unbuffered (the line is in the kernel's page cache when ``write`` returns): a line in the file is whole or absent
+whatever stops the process; a power loss may lose the last lines not yet on disk (no fsync per line).
 """
 
 from __future__ import annotations
@@ -87,10 +88,13 @@ class RunLog:
         if not estimates:
             return
         first = estimates[0]
-        line = {"record": first.record, "time_utc_s": first.time_utc_s, "t_s": first.t_s,
-                "estimates": {e.estimator: {k: v for k, v in e.as_dict().items() if k not in ("record", "time_utc_s", "t_s", "estimator")}
-                              for e in estimates}}
-        self._file.write((json.dumps(line, separators=(",", ":"), allow_nan=False) + "\n").encode("ascii"))
+        self.line({"record": first.record, "time_utc_s": first.time_utc_s, "t_s": first.t_s,
+                   "estimates": {e.estimator: {k: v for k, v in e.as_dict().items() if k not in ("record", "time_utc_s", "t_s", "estimator")}
+                                 for e in estimates}})
+
+    def line(self, value: dict) -> None:
+        """One line of the log (a record's, or an input logged as it came: ``{"usbl": {...}}``), whole, in one write."""
+        self._file.write((json.dumps(value, separators=(",", ":"), allow_nan=False) + "\n").encode("ascii"))
 
     def close(self) -> None:
         self._file.close()

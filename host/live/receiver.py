@@ -8,10 +8,10 @@ length and the next a ``#`` and three capitals, NMEA when it starts with ``$``.
 
 - ``#MRZ`` is decoded by pykmall, as :mod:`lost.host.io.kmall` decodes a file's, its attitude interpolated from the
   ``#SKM`` samples received before it (the last :data:`ATTITUDE_SAMPLES`); partitions (``numOfDgms`` > 1) are joined
-  in ``dgmNum`` order whatever order they come in; a ping whose parts are not all in while :data:`PENDING_PINGS`
-  later pings begin, or at :meth:`~LiveDecoder.finish`, is dropped and counted;
-- a datagram or a part seen before (the same bytes, among the last few thousand) is counted and skipped; two
-  partitioned MRZ of one time (two heads) cannot be told apart by their later parts: counted and dropped;
+  by the file reader's rule (:class:`lost.host.io.kmall_parts.MrzJoiner`: in ``dgmNum`` order whatever order they
+  come in; a ping whose parts are not all in while :data:`PENDING_PINGS` later pings begin, or at
+  :meth:`~LiveDecoder.finish`, dropped and counted; two partitioned MRZ of one time, two heads, dropped and counted);
+- a datagram or a part seen before (the same bytes, among the last few thousand) is counted and skipped;
 - a datagram whose length fields disagree with its size, or that pykmall cannot decode, is counted and skipped;
 - a ping whose #MRZ never came whole shows as a gap in the MRZ ping counter, counted at the end;
 - a ping decoded without attitude after #SKM samples were received (its own sample late or lost) is counted;
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import selectors
 import socket
 import struct
 import threading
@@ -31,17 +32,21 @@ from collections import Counter, OrderedDict, deque
 
 import numpy as np
 
-from ..io.kmall import mrz_ping, read_mrz
+from ..io.kmall import decode_mrz, mrz_ping
+from ..io.kmall_parts import PENDING_PINGS, MrzJoiner
 from ..io.survey import Ping
-from .nmea import HeadingFix, NmeaDecoder, PositionFix
+from .inputs import JsonInputDecoder, Pd6Decoder
+from .nmea import NmeaDecoder, PositionFix
+from .serial import SerialReader, SerialSettings
 
 __all__ = ["LiveDecoder", "UdpReceiver", "ATTITUDE_SAMPLES", "PENDING_PINGS"]
 
 ATTITUDE_SAMPLES = 4096
-PENDING_PINGS = 4
 _RECENT_KEYS = 4096
+# The .kmall datagram kinds counted by name; any other is counted as "other" (a bounded set of counters whatever arrives).
+_KMALL_KINDS = frozenset({"#IIP", "#IOP", "#IBE", "#IBR", "#IBS", "#MRZ", "#MWC", "#SPO", "#SKM", "#SVP", "#SVT", "#SCL", "#SDE", "#SHI",
+                          "#SHA", "#CPO", "#CHE", "#FCF"})
 _HEADER = struct.Struct("<I4sBBHII")
-_PARTITION = struct.Struct("<HH")
 
 
 class LiveDecoder:
@@ -50,32 +55,34 @@ class LiveDecoder:
     def __init__(self) -> None:
         self.counts: Counter[str] = Counter()
         self._nmea = NmeaDecoder(self.counts)
+        self._pd6 = Pd6Decoder(self.counts)
+        self._json = JsonInputDecoder(self.counts)
         self._attitude: deque[tuple[float, float, float, float]] = deque(maxlen=ATTITUDE_SAMPLES)
-        self._parts: OrderedDict[tuple, dict[int, bytes]] = OrderedDict()
+        self._joiner = MrzJoiner(self.counts)
         self._seen: OrderedDict[int, None] = OrderedDict()
         # The MRZ ping counters, unwrapped past 65,535: first, highest, how many distinct, the recent ones (bounded memory).
         self._counter_span: list[int] | None = None
         self._counters_received = 0
         self._recent_counters: OrderedDict[int, None] = OrderedDict()
+        self._sequence: OrderedDict[tuple[float, int], int] = OrderedDict()  # (time, head) -> counter, read by the reorder buffer
 
-    def feed(self, payload: bytes) -> list[Ping | PositionFix | HeadingFix]:
+    def feed(self, payload: bytes) -> list:
         """What this datagram completes (often nothing); never raises on bad bytes."""
-        if payload[:1] == b"$":
+        lines = {b"$": self._nmea, b":": self._pd6, b"{": self._json}.get(payload[:1])
+        if lines is not None:
             out: list = []
-            for line in payload.decode("ascii", errors="replace").splitlines():
+            for line in payload.decode("utf-8", errors="replace").splitlines():
                 if line.strip():
-                    out += self._nmea.feed(line)
+                    out += lines.feed(line)
             return out
         if len(payload) >= _HEADER.size + 4 and payload[4:5] == b"#" and payload[5:8].isalpha() and payload[5:8].isupper():
             return self._kmall(payload)
-        self.counts["datagram of neither .kmall nor NMEA (skipped)"] += 1
+        self.counts["datagram of neither .kmall, NMEA, PD6 nor JSON (skipped)"] += 1
         return []
 
     def finish(self) -> list[Ping | PositionFix]:
         """The end of the stream: the fix held for its VTG; pings still missing parts are counted as lost, so are gaps in the ping counter."""
-        if self._parts:
-            self.counts["MRZ with parts lost (ping dropped)"] += len(self._parts)
-        self._parts.clear()
+        self._joiner.finish()
         if self._counter_span:
             missing = self._counter_span[1] - self._counter_span[0] + 1 - self._counters_received
             if missing > 0:
@@ -83,8 +90,8 @@ class LiveDecoder:
         return list(self._nmea.flush())
 
     def _kmall(self, payload: bytes) -> list[Ping]:
-        size, kind, _version, system, _sounder, sec, nanosec = _HEADER.unpack_from(payload)
-        name = kind.decode("ascii")
+        size, kind, *_ = _HEADER.unpack_from(payload)
+        name = kind.decode("ascii") if kind.decode("ascii") in _KMALL_KINDS else "(other kind)"
         if size != len(payload) or int.from_bytes(payload[-4:], "little") != size:
             self.counts[f"kmall {name} datagram whose length fields disagree with its size (skipped)"] += 1
             return []
@@ -97,32 +104,8 @@ class LiveDecoder:
             return []
         if name != "#MRZ":
             return []
-        if len(payload) < _HEADER.size + _PARTITION.size + 4 + 4:
-            self.counts["kmall #MRZ datagram too short for its parts (skipped)"] += 1
-            return []
-        count, number = _PARTITION.unpack_from(payload, _HEADER.size)
-        # The parts after the first carry no common part: a partitioned ping is known by its time and part count.
-        ping_key = (system, sec, nanosec, count)
-        if not 1 <= number <= count:
-            self.counts["kmall #MRZ with an impossible partition number (skipped)"] += 1
-            return []
-        if count == 1:
-            return self._decoded(payload)
-        self.counts["kmall #MRZ parts"] += 1
-        parts = self._parts.setdefault(ping_key, {})
-        if number in parts:
-            del self._parts[ping_key]
-            self.counts["MRZ parts of two pings of one time (both dropped)"] += 1
-            return []
-        parts[number] = payload
-        if len(parts) < count:
-            while len(self._parts) > PENDING_PINGS:
-                self._parts.popitem(last=False)
-                self.counts["MRZ with parts lost (ping dropped)"] += 1
-            return []
-        del self._parts[ping_key]
-        self.counts["MRZ joined from parts"] += 1
-        return self._decoded(_joined([parts[k] for k in range(1, count + 1)]))
+        whole = self._joiner.add(payload)  # the file reader's rule for partitions (lost.host.io.kmall_parts)
+        return [] if whole is None else self._decoded(whole)
 
     def _already_seen(self, key: int) -> bool:
         if key in self._seen:
@@ -145,21 +128,26 @@ class LiveDecoder:
         self._attitude.extend(rows)
 
     def _decoded(self, datagram: bytes) -> list[Ping]:
-        reader = _reader(datagram)
         try:
-            with contextlib.redirect_stdout(io.StringIO()):
-                dg = read_mrz(reader)
+            dg = decode_mrz(datagram)
             ping = mrz_ping(dg, self._attitude_arrays())
         except (struct.error, KeyError, ValueError, IndexError, TypeError, UnicodeDecodeError) as error:
             self.counts[f"kmall #MRZ that does not decode ({type(error).__name__}; skipped)"] += 1
             return []
         self.counts["pings"] += 1
-        self._count_ping(int(dg["cmnPart"]["pingCnt"]))
+        counter = self._count_ping(int(dg["cmnPart"]["pingCnt"]))
+        self._sequence[(ping.time_s, ping.head)] = counter
+        if len(self._sequence) > _RECENT_KEYS:
+            self._sequence.popitem(last=False)
         if self._attitude and not np.isfinite(ping.roll_deg):
             self.counts["ping without attitude at its time (its #SKM late or lost)"] += 1
         return [ping]
 
-    def _count_ping(self, counter: int) -> None:
+    def sequence(self, ping: Ping) -> int | None:
+        """The MRZ ping counter of a ping this decoder made (unwrapped past 65,535), among its last 4,096; None if not."""
+        return self._sequence.get((ping.time_s, ping.head))
+
+    def _count_ping(self, counter: int) -> int:
         if self._counter_span is None:
             self._counter_span = [counter, counter]
         else:
@@ -170,6 +158,7 @@ class LiveDecoder:
             self._recent_counters[counter] = None
             if len(self._recent_counters) > _RECENT_KEYS:
                 self._recent_counters.popitem(last=False)
+        return counter
 
     def _attitude_arrays(self) -> dict[str, np.ndarray]:
         table = np.array(self._attitude, dtype=np.float64).reshape(-1, 4)
@@ -186,56 +175,87 @@ def _reader(datagram: bytes):
     return reader
 
 
-def _joined(parts: list[bytes]) -> bytes:
-    """One MRZ of its parts: the first part's header, partition 1 of 1, the parts' slices, the closing length."""
-    head = _HEADER.size + _PARTITION.size
-    body = b"".join(part[head:-4] for part in parts)
-    size = head + len(body) + 4
-    first = bytearray(parts[0][:head])
-    first[0:4] = size.to_bytes(4, "little")
-    first[_HEADER.size:head] = _PARTITION.pack(1, 1)
-    return bytes(first) + body + size.to_bytes(4, "little")
-
-
 class UdpReceiver:
-    """A UDP socket on ``(host, port)`` (port 0: any free one, see :attr:`address`) feeding a :class:`LiveDecoder`.
+    """UDP sockets on ``(host, port)`` and on each of ``more`` (port 0: any free one, see :attr:`addresses`) feeding one
+    :class:`LiveDecoder`: every port takes every kind, told by its content (.kmall, NMEA, PD6, JSON lines).
+    Each of ``serial`` (:class:`~lost.host.live.serial.SerialSettings`) is read on a thread of its own into the same
+    decoder, a line at a time (:mod:`lost.host.live.serial`); the decoder is fed by one input at a time.
 
-    :meth:`run` receives until :meth:`stop`; each completed value goes to ``on_value``. The socket asks for a
+    :meth:`run` receives until :meth:`stop`; each completed value goes to ``on_value``. Each socket asks for a
     receive buffer of ``buffer_bytes`` (the system may give less: bursts beyond it are lost by the kernel,
     uncounted here, and show as missing pings).
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, buffer_bytes: int = 4 << 20) -> None:
+    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, more: tuple[tuple[str, int], ...] = (), buffer_bytes: int = 4 << 20,
+                 serial: tuple[SerialSettings, ...] = ()) -> None:
         self.decoder = LiveDecoder()
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        with contextlib.suppress(OSError):
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, buffer_bytes)
+        self.serial = serial
+        self._feeding = threading.Lock()  # the decoder's state is one: a UDP datagram and a serial line are decoded in turn
+        self.socks: list[socket.socket] = []
         try:
-            self.sock.bind((host, port))
-        except OSError as error:
-            self.sock.close()
-            raise OSError(error.errno, f"cannot listen on {host}:{port} for UDP datagrams: {error.strerror or error}") from None
-        self.sock.settimeout(0.05)
-        self.address: tuple[str, int] = self.sock.getsockname()
+            for where in ((host, port), *more):
+                self.socks.append(_bound(where, buffer_bytes))
+        except OSError:
+            for sock in self.socks:
+                sock.close()
+            raise
+        self.sock = self.socks[0]
+        self.addresses: list[tuple[str, int]] = [sock.getsockname() for sock in self.socks]
+        self.address: tuple[str, int] = self.addresses[0]
         self._stop = threading.Event()
+        self.serial_readers: list[SerialReader] = []
 
     def run(self, on_value) -> None:
-        """Receive and decode until :meth:`stop`; then the decoder's :meth:`~LiveDecoder.finish`, and the socket closed."""
+        """Receive and decode until :meth:`stop`; then the decoder's :meth:`~LiveDecoder.finish`, and the sockets closed."""
+        selector = selectors.DefaultSelector()
+        for sock in self.socks:
+            selector.register(sock, selectors.EVENT_READ)
+        readers = [SerialReader(settings, lambda line: self._feed(line, on_value), self.decoder.counts) for settings in self.serial]
+        self.serial_readers = readers
+        for reader in readers:
+            reader.start()
         try:
             while True:
-                try:
-                    payload = self.sock.recv(65_535)
-                except TimeoutError:
-                    if self._stop.is_set():
-                        break
-                    continue
-                for value in self.decoder.feed(payload):
+                ready = selector.select(timeout=0.05)
+                if not ready and self._stop.is_set():
+                    break
+                for key, _ in ready:
+                    try:
+                        payload = key.fileobj.recv(65_535)
+                    except BlockingIOError:
+                        continue
+                    self._feed(payload, on_value)
+            for reader in readers:
+                reader.stop()
+            with self._feeding:
+                for value in self.decoder.finish():
                     on_value(value)
-            for value in self.decoder.finish():
-                on_value(value)
         finally:
-            self.sock.close()
+            for reader in readers:
+                reader.stop()
+            selector.close()
+            for sock in self.socks:
+                sock.close()
+
+    def _feed(self, payload: bytes, on_value) -> None:
+        with self._feeding:
+            for value in self.decoder.feed(payload):
+                on_value(value)
 
     def stop(self) -> None:
         """Stop once the datagrams already received are read."""
         self._stop.set()
+
+
+def _bound(where: tuple[str, int], buffer_bytes: int) -> socket.socket:
+    host, port = where
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    with contextlib.suppress(OSError):
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, buffer_bytes)
+    try:
+        sock.bind((host, port))
+    except OSError as error:
+        sock.close()
+        raise OSError(error.errno, f"cannot listen on {host}:{port} for UDP datagrams: {error.strerror or error}") from None
+    sock.setblocking(False)
+    return sock

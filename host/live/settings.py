@@ -3,7 +3,7 @@
 ::
 
     [serve]
-    listen = "0.0.0.0:4001"                 # HOST:PORT the .kmall and NMEA datagrams arrive on
+    listen = "0.0.0.0:4001"                 # HOST:PORT the datagrams arrive on, or several: ["0.0.0.0:4001", "0.0.0.0:4002"]
     bathy = "maps/area.nc"                  # the map, as lost run --bathy (relative to the settings file)
     estimators = ["lost", "pmf", "pf"]      # the bank's names (default: all)
     record_s = 5.0                          # seconds of pings per record, as lost run --survey --record-s
@@ -15,8 +15,17 @@
     outputs = ["127.0.0.1:5001"]            # where each estimate goes (JSON line and $LOEST sentence)
     status_s = 5.0                          # seconds between status lines on stderr
     idle_stop_s = 0.0                       # stop after this many seconds without a datagram once one came (0: never)
+    reorder_lag_s = 0.5                     # a ping waits for a ping this much later in ping time ... (0: not held)
+    reorder_hold_s = 0.05                   # ... or this long in wall-clock time, to put pings back into time order
+    device_retry_s = 30.0                   # [navigation] backend fpga or rtl: seconds between tries of a device not answering
 
     [navigation]                            # NavParameters, as lost run --config's
+
+    [[serial]]                              # a sensor on a serial port (any number of these tables; lost.host.live.serial)
+    port = "/dev/ttyUSB0"                   # a device path or a pyserial URL (socket://HOST:PORT, rfc2217://..., loop://)
+    kind = "pd6"                            # the lines it carries: "nmea", "pd6" or "json"
+    baud = 9600                             # its baud rate (default 9600)
+    retry_s = 2.0                           # a port gone or not opening is tried again after this many seconds
 """
 
 from __future__ import annotations
@@ -31,10 +40,11 @@ from pydantic import Field
 from ..config import ConfigError, NonNegativeFloat, PositiveFloat, build, read_toml
 from ..io.survey_records import DEFAULT_RECORD_S, SURVEY_PATCH_CENTRES
 from ..nav import ESTIMATORS
+from .serial import SerialSettings
 
 __all__ = ["ServeSettings", "read_serve_settings", "address"]
 
-_TABLES = ("serve", "navigation")
+_TABLES = ("serve", "navigation", "serial")
 
 
 def address(text: str, what: str) -> tuple[str, int]:
@@ -49,7 +59,7 @@ def address(text: str, what: str) -> tuple[str, int]:
 class ServeSettings:
     """``[serve]`` (see the module); ``navigation`` is the ``[navigation]`` table, validated by the navigation's own layer."""
 
-    listen: str
+    listen: str | tuple[str, ...]
     bathy: str
     estimators: tuple[str, ...] = ESTIMATORS
     record_s: PositiveFloat = DEFAULT_RECORD_S
@@ -61,10 +71,17 @@ class ServeSettings:
     outputs: tuple[str, ...] = ()
     status_s: PositiveFloat = 5.0
     idle_stop_s: NonNegativeFloat = 0.0
+    reorder_lag_s: NonNegativeFloat = 0.5
+    reorder_hold_s: NonNegativeFloat = 0.05
+    device_retry_s: PositiveFloat = 30.0
     navigation: dict = field(default_factory=dict)
+    serial: tuple[SerialSettings, ...] = ()
 
     def __post_init__(self) -> None:
-        address(self.listen, "[serve] listen")
+        if not self.listen or len(set(self.listens)) != len(self.listens):
+            raise ConfigError(f"[serve] listen must be HOST:PORT or a list of them, each once, got {self.listen!r}")
+        for listen in self.listens:
+            address(listen, "[serve] listen")
         for output in self.outputs:
             address(output, "[serve] outputs")
         unknown = sorted(set(self.estimators) - set(ESTIMATORS))
@@ -74,6 +91,12 @@ class ServeSettings:
             raise ConfigError(f"[serve] patch_centre must be one of {list(SURVEY_PATCH_CENTRES)}, got {self.patch_centre!r}")
         if not all(math.isfinite(v) for v in (*self.dr_bias_mps, *self.start_offset_m)):
             raise ConfigError("[serve] dr_bias_mps and start_offset_m must be finite")
+
+
+    @property
+    def listens(self) -> tuple[str, ...]:
+        """The addresses listened on: every one takes every input kind, told by its content."""
+        return (self.listen,) if isinstance(self.listen, str) else tuple(self.listen)
 
 
 def read_serve_settings(path: Path) -> ServeSettings:
@@ -97,6 +120,12 @@ def read_serve_settings(path: Path) -> ServeSettings:
     navigation = data.get("navigation", {})
     if not isinstance(navigation, dict):
         raise ConfigError(f"{path}: [navigation] must be a table")
+    serial = data.get("serial", [])
+    if not isinstance(serial, list) or not all(isinstance(table, dict) for table in serial):
+        raise ConfigError(f"{path}: serial ports are [[serial]] tables (port, kind, baud, retry_s), got {serial!r}")
+    ports = tuple(build(SerialSettings, table, f"serial.{k}") for k, table in enumerate(serial))
+    if len({p.port for p in ports}) != len(ports):
+        raise ConfigError(f"{path}: a serial port is named twice in [[serial]]: {[p.port for p in ports]}")
     bathy = Path(settings.bathy)
     bathy = bathy if bathy.is_absolute() else path.parent / bathy
-    return ServeSettings(**{**settings.__dict__, "bathy": str(bathy), "navigation": navigation})
+    return ServeSettings(**{**settings.__dict__, "bathy": str(bathy), "navigation": navigation, "serial": ports})

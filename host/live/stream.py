@@ -5,10 +5,12 @@ course and speed differenced from the ping before, none for the first), one sent
 CR LF; then the sonar's ``.kmall`` datagrams as a K-Controller broadcasts them (#SPO with the GGA as its sensor
 text, #SKM when the ping has attitude, #MRZ; :func:`lost.host.io.kmall_write.ping_datagrams`), one datagram per
 UDP datagram, an MRZ larger than ``max_datagram_bytes`` split into partitions. The pings of two heads at one
-time share one fix: its sentences, #SPO and #SKM are sent once, with the first.
+time share one fix: its sentences, #SPO and #SKM are sent once, with the first. The vehicle's own datagrams of a
+simulated tow (:func:`vehicle_datagrams`: its DVL and depth as a PD6 ensemble or JSON lines, its USBL fixes with their
+covariance as JSON lines) go before the first ping of their time.
 
 Faults (:class:`Faults`, one seeded NumPy generator, drawn per datagram in this order): lost (not sent), duplicated
-(sent twice), reordered (held back and sent after the next one). Each is counted.
+(sent twice), reordered (held back and sent after the next one, or the next ``reorder_by``). Each is counted.
 """
 
 from __future__ import annotations
@@ -27,11 +29,11 @@ from ..io.kmall_write import UDP_PART_BYTES, HeadIndex, ping_datagrams, split_da
 from ..io.survey import Ping
 from .nmea import fix_sentences
 
-__all__ = ["LiveDatagram", "Faults", "live_datagrams", "with_faults", "send_datagrams"]
+__all__ = ["LiveDatagram", "Faults", "live_datagrams", "vehicle_datagrams", "with_faults", "send_datagrams"]
 
 @dataclass(frozen=True)
 class LiveDatagram:
-    """One UDP datagram to send: its time (POSIX s), what it is (``"kmall"`` or ``"nmea"``), its bytes."""
+    """One UDP datagram to send: its time (POSIX s), what it is (``"kmall"``, ``"nmea"``, ``"pd6"``, ``"json"``), its bytes."""
 
     time_s: float
     kind: str
@@ -46,8 +48,11 @@ class Faults:
     reorder: float = 0.0
     duplicate: float = 0.0
     seed: int = 0
+    reorder_by: int = 1  # a reordered datagram goes after this many of the ones that follow it
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.reorder_by, int) and self.reorder_by >= 1):
+            raise ValueError(f"reorder_by must be a whole number of datagrams >= 1, got {self.reorder_by!r}")
         for name in ("loss", "reorder", "duplicate"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
@@ -65,11 +70,21 @@ def _course_speed(before: Ping | None, ping: Ping) -> tuple[float, float]:
     return math.degrees(math.atan2(east, north)) % 360.0, math.hypot(east, north) / (ping.time_s - before.time_s)
 
 
-def live_datagrams(pings: Iterable[Ping], *, max_datagram_bytes: int = UDP_PART_BYTES) -> Iterator[LiveDatagram]:
-    """The live datagrams of ``pings`` (see the module), in sending order."""
+def live_datagrams(pings: Iterable[Ping], *, max_datagram_bytes: int = UDP_PART_BYTES,
+                   vehicle: Iterable[LiveDatagram] | None = None) -> Iterator[LiveDatagram]:
+    """The live datagrams of ``pings`` (see the module), in sending order.
+
+    ``vehicle``: the vehicle's own datagrams (DVL, depth, USBL; :func:`vehicle_datagrams`), in time order; each is
+    sent before the first ping of its time or later.
+    """
     heads = HeadIndex()
     before = latest = None  # the last ping of an earlier time; the last ping
+    pending = iter(vehicle or ())
+    waiting = next(pending, None)
     for count, ping in enumerate(pings):
+        while waiting is not None and waiting.time_s <= ping.time_s:
+            yield waiting
+            waiting = next(pending, None)
         # A second head's ping of the same time: its MRZ only (the sensors' fix and attitude are sent once).
         same_time = latest is not None and ping.time_s == latest.time_s
         if not same_time:
@@ -85,6 +100,44 @@ def live_datagrams(pings: Iterable[Ping], *, max_datagram_bytes: int = UDP_PART_
             for part in split_datagram(datagram, max_datagram_bytes):
                 yield LiveDatagram(ping.time_s, "kmall", part)
         latest = ping
+    while waiting is not None:
+        yield waiting
+        waiting = next(pending, None)
+
+
+def vehicle_datagrams(records, crs: str, *, dvl_format: str = "pd6", epoch_s: float = 0.0, usbl: bool = True) -> Iterator[LiveDatagram]:
+    """The vehicle's own datagrams of a simulated tow's records (:class:`~lost.host.records.NavRecords`), one per record.
+
+    The DVL's velocity (the records' ``vel_x_mps``/``vel_y_mps``: the simulator's own DVL, its noise, bias and dropouts)
+    and the depth sensor's (``vehicle_depth_m``) as a PD6 ensemble (``:TS`` and ``:BE`` lines, ``dvl_format="pd6"``)
+    or as JSON lines (``"json"``), or not at all (``"none"``); with ``usbl``, the USBL's fixes (``usbl_x_m``/``usbl_y_m``
+    where finite, placed by ``crs``, with their covariance ``usbl_sxx``/``usbl_syy``/``usbl_sxy``) as JSON lines, a
+    datagram each. Times are ``epoch_s`` plus the records' ``t_s``.
+    """
+    from ..io.crs import _transformer
+    from .inputs import DepthReading, DvlVelocity, UsblFix, json_input_line, pd6_sentences
+
+    if dvl_format not in ("pd6", "json", "none"):
+        raise ValueError(f"dvl_format must be 'pd6', 'json' or 'none', got {dvl_format!r}")
+    to_lonlat = _transformer(crs, "EPSG:4326")
+    usbl_x, usbl_y = records.usbl_x_m, records.usbl_y_m  # NaN without a USBL (NavRecords fills the optional series)
+    for k in range(len(records)):
+        t = epoch_s + float(records.t_s[k])
+        east, north, depth = float(records.vel_x_mps[k]), float(records.vel_y_mps[k]), float(records.vehicle_depth_m[k])
+        if dvl_format == "pd6":
+            lines = pd6_sentences(t, east, north, depth)
+        elif dvl_format == "none":
+            lines = []
+        else:
+            lines = [json_input_line(DvlVelocity(t, east, north))] if math.isfinite(east) and math.isfinite(north) else []
+            lines += [json_input_line(DepthReading(t, depth))] if math.isfinite(depth) else []
+        if lines:
+            yield LiveDatagram(t, dvl_format, ("\r\n".join(lines) + "\r\n").encode("ascii"))
+        if usbl and math.isfinite(usbl_x[k]) and math.isfinite(usbl_y[k]):
+            lon, lat = to_lonlat.transform(usbl_x[k], usbl_y[k])
+            covariance = (float(records.usbl_sxx[k]), float(records.usbl_syy[k]), float(records.usbl_sxy[k]))
+            line = json_input_line(UsblFix(t, float(lat), float(lon), depth if math.isfinite(depth) else 0.0, *covariance))
+            yield LiveDatagram(t, "json", (line + "\n").encode("ascii"))
 
 
 def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Counter) -> Iterator[LiveDatagram]:
@@ -94,6 +147,7 @@ def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Count
     """
     rng = np.random.default_rng(faults.seed)
     held: list[LiveDatagram] = []
+    due = 0  # datagrams still to pass the held one
     for datagram in datagrams:
         counts["datagrams"] += 1
         lost, doubled, reordered = rng.random(3) < (faults.loss, faults.duplicate, faults.reorder)
@@ -106,11 +160,13 @@ def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Count
         counts[f"duplicated {datagram.kind}"] += int(doubled)
         if reordered and not held:
             counts["reordered"] += 1
-            held = copies
+            held, due = copies, faults.reorder_by
             continue
         yield from copies
-        yield from held
-        held = []
+        due -= 1
+        if due <= 0:
+            yield from held
+            held = []
     yield from held
 
 

@@ -47,8 +47,9 @@ class RouteModel:
     """The motion, dead reckoning and filter assumptions of a route prediction (module docstring).
 
     ``patch_length_m`` is a patch's extent along the track (the share of it new at each update is the filters'
-    tempering); ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the shipped floors
-    (``benchmarks/plan_check.py``, ``docs/campaign.md``), as the look-alikes' ``evidence_scale`` is.
+    tempering); ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the four shipped floors
+    with the look-alikes' ``evidence_scale`` (``benchmarks/plan_fit.py``, which also scores each floor held out of the
+    fit; ``docs/campaign.md``).
     """
 
     speed_mps: float = 1.5
@@ -60,7 +61,7 @@ class RouteModel:
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
     patch_length_m: float = 100.0
-    acquisitions_per_patch: float = 30.0
+    acquisitions_per_patch: float = 10.0
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:

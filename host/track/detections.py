@@ -20,8 +20,8 @@ The detection log
     ``range_m``          yes       detection range, metres
     ``bearing_deg``      yes       detection bearing from the sonar's axis, degrees, positive to
                                    starboard (clockwise)
-    ``strength_db``      no        detection strength (any consistent unit; kept, not used by
-                                   the filters)
+    ``strength_db``      no        detection strength, dB above the detection threshold (the
+                                   tracker's amplitude model weighs it; NaN where not given)
     ===================  ========  ===========================================================
 
     A ping with no detection is one row whose ``range_m`` and ``bearing_deg`` are both empty: a

@@ -92,12 +92,17 @@ def clutter_floor(*, pd: float, clutter_per_ping: float, sonar: Sonar, bias_rang
 
 
 def gaussian_bias(range_m: np.ndarray, bearing_deg: np.ndarray, det_range_m: np.ndarray, det_bearing_deg: np.ndarray,
-                  *, bias_range_m: float, bias_bearing_deg: float, floor: float = 0.0) -> np.ndarray:
-    """Each particle's weight: ``floor`` plus a Gaussian of its range/bearing distance to every detection, summed."""
+                  *, bias_range_m: float, bias_bearing_deg: float, floor: float = 0.0,
+                  detection_weights: np.ndarray | None = None) -> np.ndarray:
+    """Each particle's weight: ``floor`` plus a Gaussian of its range/bearing distance to every detection, summed.
+
+    ``detection_weights`` scale each detection's Gaussian (a tracker's amplitude likelihood ratios); the paper's are all 1.
+    """
     weights = np.full(range_m.shape, floor, dtype=float)
-    for r, b in zip(det_range_m, det_bearing_deg):
+    scales = np.ones(len(det_range_m)) if detection_weights is None else np.asarray(detection_weights, float)
+    for r, b, scale in zip(det_range_m, det_bearing_deg, scales):
         d2 = ((range_m - r) / bias_range_m) ** 2 + ((bearing_deg - b) / bias_bearing_deg) ** 2
-        weights += np.exp(-0.5 * d2)
+        weights += scale * np.exp(-0.5 * d2)
     return weights
 
 
@@ -155,16 +160,19 @@ class DiverParticleFilter:
             b[outside] = self._rng.uniform(-self._sonar.half_fov_deg, self._sonar.half_fov_deg, n)
         return r, b
 
-    def step(self, ping: Ping, *, range_m: np.ndarray | None = None, bearing_deg: np.ndarray | None = None) -> ParticleEstimate:
+    def step(self, ping: Ping, *, range_m: np.ndarray | None = None, bearing_deg: np.ndarray | None = None,
+             detection_weights: np.ndarray | None = None) -> ParticleEstimate:
         """One ping: move, diffuse, weight toward the detections, resample; the particle mean and covariance.
 
-        ``range_m``/``bearing_deg`` replace the ping's detections (a tracker passes the ones no track claimed).
+        ``range_m``/``bearing_deg`` replace the ping's detections (a tracker passes the ones no track claimed);
+        ``detection_weights`` scale each one's pull (:func:`gaussian_bias`).
         """
         p = self._parameters
         det_r = ping.range_m if range_m is None else range_m
         det_b = ping.bearing_deg if bearing_deg is None else bearing_deg
         r, b = self.predict(ping)
-        weights = gaussian_bias(r, b, det_r, det_b, bias_range_m=p.bias_range_m, bias_bearing_deg=p.bias_bearing_deg, floor=p.floor)
+        weights = gaussian_bias(r, b, det_r, det_b, bias_range_m=p.bias_range_m, bias_bearing_deg=p.bias_bearing_deg, floor=p.floor,
+                                detection_weights=detection_weights)
         total = weights.sum()
         resampled = bool(total > 0 and np.isfinite(total) and det_r.size)
         if resampled:

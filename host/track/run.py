@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .amplitude import check_strength_scale
 from .detections import Ping
 from .estimates import Estimate
 from .geometry import Sonar
@@ -51,7 +52,14 @@ def confirmed_estimates(reports: Sequence[Sequence[TrackReport]]) -> list[list[E
 
 def run_tracker(pings: Sequence[Ping], *, sonar: Sonar, parameters: TrackerParameters, seed: int = 0,
                 cloud_points: int = 600, progress: Callable[[Iterable], Iterable] | None = None) -> TrackerRun:
-    """Run the multi-target tracker over ``pings`` (seeded); keep ``cloud_points`` particles a ping for plots."""
+    """Run the multi-target tracker over ``pings`` (seeded); keep ``cloud_points`` particles a ping for plots.
+
+    Raises
+    ------
+    StrengthScaleError
+        The detections' strengths cannot be on the scale of ``parameters``' amplitude model (:func:`.amplitude.check_strength_scale`).
+    """
+    check_strength_scale(pings, parameters)
     tracker = MultiTargetTracker(sonar=sonar, parameters=parameters, rng=np.random.default_rng(seed))
     reports, clouds = [], []
     for ping in (progress or iter)(pings):

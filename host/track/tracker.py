@@ -11,10 +11,13 @@ Each ping, in order:
    (``permutation_pruning``: of the joint events that differ only by which of them took which detection,
    the likeliest), so two tracks on contacts closer than their gates are not pulled together. The
    probability that a detection is some track's is its *claim*; a detection claimed with at least
-   ``claim_probability`` is spared to the search cloud.
+   ``claim_probability`` is spared to the search cloud. Where the detector reports strengths, each
+   detection's spatial density is scaled by its amplitude likelihood ratio (:mod:`.amplitude`).
 2. The search cloud, the paper's filter (:class:`~.particle.DiverParticleFilter`) with the Poisson-clutter
    floor, steps on the *unclaimed* detections, so it hunts for contacts no track holds yet; a share of it
-   (``reseed_fraction``) is drawn afresh over the sector each ping so that no corner goes unwatched.
+   (``reseed_fraction``) is drawn afresh over the sector each ping so that no corner goes unwatched. Each
+   detection's pull on it is scaled by its amplitude ratio (``cloud_amplitude``), so a strong return
+   gathers the cloud at its first ping.
 3. The cloud is clustered by expectation-maximization (:mod:`.cluster`), started at the unclaimed
    detections. A cluster holding at least ``birth_share`` of the cloud and no wider than ``birth_spread_m``
    is a contact the cloud has followed over consecutive pings (one ping's clutter holds a few per cent; a
@@ -48,6 +51,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .amplitude import amplitude_ratio
 from .association import associate
 from .cluster import fit_mixture
 from .detections import Ping
@@ -66,7 +70,11 @@ class TrackerParameters:
 
     The sonar model (``pd``, ``clutter_per_ping``, ``range_sigma_m``, ``bearing_sigma_deg``) should be the
     detector's; the defaults are the simulator's. ``accel_sigma`` (m/s^1.5) covers a diver's changes of
-    course; ``initial_speed_sigma_mps`` a newborn track's unknown velocity.
+    course; ``initial_speed_sigma_mps`` a newborn track's unknown velocity. The strength model
+    (``amplitude``, ``target_strength_db``, ``clutter_strength_db``, their sigmas, ``max_amplitude_ratio``;
+    :mod:`.amplitude`) is in dB above the detection threshold; the defaults are the moments of the
+    simulator's strengths at pd 0.9 and its default clutter (:func:`.simulate.strength_moments`), whose
+    distributions are not Gaussian.
     """
 
     particles: int = 10_000
@@ -89,6 +97,13 @@ class TrackerParameters:
     delete_confirmed_existence: float = 0.01
     merge_chi2: float = 0.5
     permutation_pruning: bool = True
+    amplitude: bool = True
+    target_strength_db: float = 8.6
+    target_strength_sigma_db: float = 3.9
+    clutter_strength_db: float = 2.3
+    clutter_strength_sigma_db: float = 2.1
+    max_amplitude_ratio: float = 100.0
+    cloud_amplitude: bool = True
     max_position_sigma_m: float = 60.0
     reach_radius_m: float = 10.0
     class_speed_sigma_mps: float = 0.15
@@ -106,6 +121,9 @@ class TrackerParameters:
                 f"{self.confirm_existence!r}, {self.delete_confirmed_existence!r}.")
         if not (0 < self.claim_probability <= 1) or self.track_lifetime_s <= 0:
             raise ValueError(f"claim_probability must be in (0, 1] and track_lifetime_s positive, got {self.claim_probability!r}, {self.track_lifetime_s!r}.")
+        if min(self.target_strength_sigma_db, self.clutter_strength_sigma_db) <= 0 or not self.max_amplitude_ratio >= 1:
+            raise ValueError("The strength model needs positive sigmas and max_amplitude_ratio >= 1, got "
+                             f"{self.target_strength_sigma_db!r}, {self.clutter_strength_sigma_db!r}, {self.max_amplitude_ratio!r}.")
         if not (0 <= self.reseed_fraction < 1) or self.particles < 10:
             raise ValueError(f"reseed_fraction must be in [0, 1) and particles at least 10, got {self.reseed_fraction!r}, {self.particles!r}.")
 
@@ -207,7 +225,7 @@ class MultiTargetTracker:
         r, b = world_to_polar(ping.platform_xy, ping.heading_deg, x[None, :2])
         return bool(self._sonar.inside(r, b)[0])
 
-    def _update_tracks(self, ping: Ping, dt: float) -> np.ndarray:
+    def _update_tracks(self, ping: Ping, dt: float, ratio: np.ndarray) -> np.ndarray:
         """Predict every track and update them jointly (JIPDA); each detection's claim by the tracks."""
         z = np.column_stack((ping.range_m, np.radians(ping.bearing_deg)))
         p = self._p
@@ -220,8 +238,10 @@ class MultiTargetTracker:
             innovations_.append(innovations(track.state, z, self._R, ping.platform_xy, ping.heading_deg))
         if not self.tracks:
             return np.zeros(ping.detections)
+        # A strong return is likelier a contact's than clutter's: its ratio scales its spatial density (IPDA-AI).
+        density = np.array([inn.density for inn in innovations_]).reshape(len(self.tracks), ping.detections)
         joint = associate(
-            np.array([inn.density for inn in innovations_]).reshape(len(self.tracks), ping.detections),
+            density * ratio[None, :],
             np.array([inn.gated for inn in innovations_]).reshape(len(self.tracks), ping.detections),
             np.array([t.existence for t in self.tracks]),
             np.array([p.pd if self._in_sector(t.state.x, ping) else 0.0 for t in self.tracks]),
@@ -303,8 +323,10 @@ class MultiTargetTracker:
         dt = 0.0 if self._last is None else ping.t_s - self._last.t_s
         if self._last is not None and dt <= 0:
             raise ValueError(f"Ping {ping.index} at t = {ping.t_s!r} s does not come after ping {self._last.index} at {self._last.t_s!r} s.")
-        claimed = self._update_tracks(ping, dt) >= self._p.claim_probability
-        self.cloud.step(ping, range_m=ping.range_m[~claimed], bearing_deg=ping.bearing_deg[~claimed])
+        ratio = amplitude_ratio(ping.strength_db, self._p)
+        claimed = self._update_tracks(ping, dt, ratio) >= self._p.claim_probability
+        pull = ratio[~claimed] if self._p.cloud_amplitude else None
+        self.cloud.step(ping, range_m=ping.range_m[~claimed], bearing_deg=ping.bearing_deg[~claimed], detection_weights=pull)
         self._births(ping, ~claimed)
         self._manage(ping)
         self._reseed(ping)

@@ -266,6 +266,27 @@ def _no_ray(profile: SoundSpeedProfile, top: float, target: float, travel_time_s
             f"a ray trapped above {z_max:.1f} m (surface-reflected paths are not modelled), and {below}")
 
 
+def _chosen_ray(profile: SoundSpeedProfile, found: list[tuple[float, float, float | None, int]], top: float, target: float,
+                travel_time_s: float, initial_angle_rad: float | None, tolerance_m: float, max_iterations: int) -> RaySolution:
+    """Of the rays found (Snell constant, offset, turning depth, traces), the one closest to the measured angle."""
+    c_top = float(profile.speed_at(top))
+    launch = lambda p: float(np.arcsin(min(1.0, p * c_top)))  # noqa: E731
+    if initial_angle_rad is not None:
+        p, horizontal, turn, calls = min(found, key=lambda ray: abs(launch(ray[0]) - initial_angle_rad))
+    else:
+        p, horizontal, turn, calls = found[0]
+    c_end = float(profile.speed_at(target))
+    residual = abs(_direct_many(profile, [p], top, target)[1][0] + (_dives(profile, np.array([p]), target)[1][0] if turn is not None else 0.0)
+                   - travel_time_s)
+    if residual * c_end > tolerance_m:
+        raise ValueError(f"the ray search did not converge to {tolerance_m} m in {max_iterations} traces "
+                         f"(travel time {travel_time_s:.5f} s, target depth {target:.2f} m)")
+    arrival = float(np.arcsin(min(1.0, p * c_end)))
+    vertical = target - top
+    return RaySolution(launch(p), horizontal, vertical, float(np.hypot(horizontal, vertical)), calls,
+                       np.pi - arrival if turn is not None else arrival, turn)
+
+
 def solve_ray(profile: SoundSpeedProfile, start_depth_m: float, target_depth_m: float, travel_time_s: float, *,
               tolerance_m: float = 1e-3, max_iterations: int = 100, initial_angle_rad: float | None = None) -> RaySolution:
     """The ray from the transducer to a target at a known depth for a measured one-way travel time.
@@ -338,20 +359,7 @@ def solve_ray(profile: SoundSpeedProfile, start_depth_m: float, target_depth_m: 
         found += _turning_rays(profile, top, target, travel_time_s, 1.0 / c_below, p_high, solve)
     if not found:
         raise NoRayError(_no_ray(profile, top, target, travel_time_s, p_high, c_top, c_max, z_max, c_below, longest))
-    launch = lambda p: float(np.arcsin(min(1.0, p * c_top)))  # noqa: E731
-    if initial_angle_rad is not None:
-        p, horizontal, turn, calls = min(found, key=lambda ray: abs(launch(ray[0]) - initial_angle_rad))
-    else:
-        p, horizontal, turn, calls = found[0]
-    c_end = float(profile.speed_at(target))
-    residual = abs(_direct_many(profile, [p], top, target)[1][0] + (_dives(profile, np.array([p]), target)[1][0] if turn is not None else 0.0)
-                   - travel_time_s)
-    if residual * c_end > tolerance_m:
-        raise ValueError(f"the ray search did not converge to {tolerance_m} m in {max_iterations} traces "
-                         f"(travel time {travel_time_s:.5f} s, target depth {target_depth_m:.2f} m)")
-    arrival = float(np.arcsin(min(1.0, p * c_end)))
-    return RaySolution(launch(p), horizontal, vertical, float(np.hypot(horizontal, vertical)), calls,
-                       np.pi - arrival if turn is not None else arrival, turn)
+    return _chosen_ray(profile, found, top, target, travel_time_s, initial_angle_rad, tolerance_m, max_iterations)
 
 
 def slant_range_from_travel_time(profile: SoundSpeedProfile, travel_time_s: float, transducer_depth_m: float,

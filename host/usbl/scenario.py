@@ -35,8 +35,8 @@ from ..shipped import shipped_names, shipped_path
 from .filter import ImuNoise
 from .fix import UsblArray
 
-__all__ = ["TowSpec", "ImuSpec", "ReplyFaultSpec", "OceanSpec", "UsblScenario", "load_usbl_scenario", "load_processing_config", "builtin_usbl_scenarios",
-           "shipped_cast_path"]
+__all__ = ["TowSpec", "ImuSpec", "ReplyFaultSpec", "OceanSpec", "UsblScenario", "load_usbl_scenario", "load_processing_config",
+           "processing_config_toml", "builtin_usbl_scenarios", "shipped_cast_path"]
 
 DEG_PER_HOUR = np.radians(1.0) / 3600.0
 MILLI_G = 9.80665e-3
@@ -208,7 +208,7 @@ def load_usbl_scenario(path: str | Path) -> UsblScenario:
         message names the file and the key.
     """
     path = Path(path)
-    if not path.exists() and path.suffix == "":
+    if not path.is_file() and path.suffix == "":  # a folder of that name (an earlier run's --out) is not the scenario
         path = shipped_path("lost.host.usbl", path.name, what="usbl scenario, nor a scenario file,")
     table = read_toml(path, "usbl scenario file")
     parts = {"tow": TowSpec, "imu": ImuSpec, "usbl": UsblArray, "faults": ReplyFaultSpec, "ocean": OceanSpec}
@@ -244,6 +244,32 @@ def load_processing_config(path: str | Path) -> dict[str, Any]:
     if "imu" in table:
         settings["imu"] = _build(ImuSpec, table["imu"], path, "imu")
     return settings
+
+
+def processing_config_toml(config: Any) -> str:
+    """A :class:`lost.host.usbl.pipeline.UsblConfig` as the TOML :func:`load_processing_config` reads back into an equal
+    one: its scalar settings, then ``[usbl]`` and ``[imu]``. Floats are written by ``repr``, so they round-trip exactly;
+    a setting that is None (``direction_noise``: from the phase noise) is left out, as its default is None."""
+    lines = _toml_lines({f.name: getattr(config, f.name) for f in fields(config) if f.name not in ("array", "imu")})
+    for table, part in (("usbl", config.array), ("imu", config.imu)):
+        lines += ["", f"[{table}]", *_toml_lines({f.name: getattr(part, f.name) for f in fields(part)})]
+    return "\n".join(lines) + "\n"
+
+
+def _toml_lines(settings: dict[str, Any]) -> list[str]:
+    return [f"{name} = {_toml_value(value)}" for name, value in settings.items() if value is not None]
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool | np.bool_):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(_toml_value(item) for item in value) + "]"
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    return repr(float(value))
 
 
 def _processing_settings(table: Any, path: Path, where: str, also: str = "") -> dict[str, Any]:

@@ -121,7 +121,7 @@ def test_head_elaborates_like_the_working_tree_outside_the_installed_package(tmp
 
 
 def test_an_unknown_revision_is_an_error_naming_it(tmp_path):
-    with pytest.raises(EquivalenceError, match="git archive no-such-revision failed"):
+    with pytest.raises(equiv.RevisionError, match="git archive no-such-revision failed"):
         elaborate_revision("no-such-revision", SMALL, tmp_path / "x.il")
 
 
@@ -255,7 +255,7 @@ def test_the_command_line_proves_two_revisions_of_a_copy(tmp_path, capsys):
     # A throwaway repository: the gateware, then the same with a comment added.
     repo = tmp_path / "repo"
     for part in ("hdl", "model"):
-        shutil.copytree(equiv._CHECKOUT / part, repo / part, ignore=shutil.ignore_patterns("__pycache__"))
+        shutil.copytree(equiv.CHECKOUT / part, repo / part, ignore=shutil.ignore_patterns("__pycache__"))
     git = ["git", "-C", str(repo), "-c", "user.name=t", "-c", "user.email=t@t"]
     subprocess.run([*git, "init", "-q"], check=True)
     subprocess.run([*git, "add", "."], check=True)

@@ -13,13 +13,8 @@ from amaranth.lib.wiring import In, Out
 
 from lost.hdl.flow.pnr import _run, _tool, drop_unused_carry_outs, pack, synthesize
 from lost.hdl.interface import CorrelatorParameters
-from lost.hdl.window_lane import (
-    SerialReciprocal,
-    WindowLane,
-    reciprocal_product_stages,
-    reciprocal_quotient,
-    reciprocal_shift,
-)
+from lost.hdl.reciprocal import SerialReciprocal, reciprocal_product_stages, reciprocal_quotient, reciprocal_shift
+from lost.hdl.window_lane import WindowLane
 from lost.model import correlate
 
 from .test_blocks import simulate

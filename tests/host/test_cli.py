@@ -73,9 +73,14 @@ def test_set_overrides_the_scenarios_navigation_parameters(tmp_path, capsys):
     assert "--set names no navigation parameter: kay" in capsys.readouterr().err
 
 
-def test_run_needs_a_scenario_or_log_and_bathy(capsys):
-    assert main(["run", "--log", "nav.csv"]) == 2
-    assert "needs a scenario file, or both --log" in capsys.readouterr().err
+@pytest.mark.parametrize("argv, message", [
+    (["--log", "nav.csv"], "--log needs the map it is navigated on: --bathy grid.nc"),
+    (["--bathy", "grid.nc"], "give its navigation log (--log nav.csv) or survey files (--survey FILE...)"),
+    ([], "give a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and --bathy grid.nc, or --survey"),
+], ids=["log_alone", "bathy_alone", "nothing"])
+def test_run_needs_a_scenario_or_log_and_bathy(capsys, argv, message):
+    assert main(["run", *argv]) == 2
+    assert message in capsys.readouterr().err
 
 
 def test_a_scenario_with_an_unknown_navigation_field_is_refused(tmp_path, capsys):
@@ -209,3 +214,28 @@ def test_correlate_never_places_the_patch_on_a_hole(tmp_path, capsys):
     assert result["excluded_placements"] == 100  # the 10 x 10 placements whose window covers node (25, 40)
     best = result["best"]
     assert not (16 <= best["i"] <= 25 and 31 <= best["j"] <= 40)
+
+
+def test_the_rtl_backend_says_first_that_its_first_build_takes_minutes(capsys):
+    """Before any work (here a refused --set, so nothing is built), on stderr so that stdout stays the command's report."""
+    assert main(["run", "short", "--backend", "rtl", "--set", "kay=3"]) == 2
+    captured = capsys.readouterr()
+    first, last = captured.err.strip().splitlines()
+    assert first.startswith("--backend rtl: the device's Verilog runs on Verilator; its first build") and "kay" in last
+    assert "Verilator" not in captured.out
+
+
+def test_correlate_gives_no_ratio_against_an_exact_fit(tmp_path, capsys):
+    from lost.host.grid import Grid
+    from lost.host.io.grids import write_npz
+
+    rng = np.random.default_rng(3)
+    depths = 1000.0 + np.cumsum(np.cumsum(rng.normal(size=(30, 30)), 0), 1) * 0.5
+    write_npz(Grid(depths, 0.0, 0.0, 10.0), tmp_path / "map.npz")
+    np.save(tmp_path / "exact.npy", depths[5:13, 9:17])
+    np.save(tmp_path / "noisy.npy", depths[5:13, 9:17] + rng.normal(0.0, 0.2, size=(8, 8)))
+    assert main(["correlate", str(tmp_path / "map.npz"), str(tmp_path / "exact.npy")]) == 0
+    assert "ratio - (the best fit is exact, V = 0)" in capsys.readouterr().out
+    assert main(["correlate", str(tmp_path / "map.npz"), str(tmp_path / "noisy.npy")]) == 0
+    ratio = float(capsys.readouterr().out.split("ratio ")[1].split()[0])
+    assert ratio > 1.0

@@ -28,16 +28,32 @@ def _argparse_exit(argv, capsys):
     (["run", "x.toml", "--patch-shape", "10.5x10"], "expected ROWSxCOLS with two positive integers"),
     (["run", "x.toml", "--set", "novalue"], "expected NAME=VALUE, got 'novalue'"),
     (["frobnicate"], "invalid choice: 'frobnicate'"),
-], ids=["negative_node", "nan_node", "bad_positive", "fractional_shape", "set_without_value", "unknown_command"])
+    (["correlate", "m.npz", "p.npy", "--exclusion-radius", "-3"], "argument --exclusion-radius: expected a whole number of nodes, 0 or more, got '-3'"),
+    (["correlate", "m.npz", "p.npy", "--exclusion-radius", "2.5"], "argument --exclusion-radius: expected a whole number of nodes"),
+    (["correlate", "m.npz", "p.npy", "--lsb-m", "0"], "argument --lsb-m: expected a positive number of metres, got '0'"),
+], ids=["negative_node", "nan_node", "bad_positive", "fractional_shape", "set_without_value", "unknown_command", "negative_exclusion",
+        "fractional_exclusion", "zero_lsb"])
 def test_bad_options_exit_2_through_argparse(argv, message, capsys):
     code, err = _argparse_exit(argv, capsys)
     assert code == EXIT_USAGE and message in err
 
 
+def test_every_option_of_correlate_and_run_says_what_it_is(capsys):
+    """`--help` names each option's meaning, the backends among them, not only its choices."""
+    helps = {}
+    for command in ("correlate", "run", "demo"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        helps[command] = " ".join(capsys.readouterr().out.split())
+        assert "rtl (the device co-simulated on Verilator)" in helps[command]
+    assert "--exclusion-radius NODES" in helps["correlate"] and "--lsb-m METRES" in helps["correlate"]
+    assert "(default runs/demo, replaced at each run)" in helps["demo"] and "(default runs/NAME)" in helps["run"]
+
+
 @pytest.mark.parametrize("extra, message", [
-    (["--set", "k=true"], "--set.k: Input should be a valid number, got True"),
-    (["--set", "use_slant_range=yes"], "--set.use_slant_range: Input should be a valid boolean, got 'yes' (str)"),
-    (["--set", "u=-1"], "[--set]: The adaptive constant u must lie in (0, 1)"),
+    (["--set", "k=true"], "--set k: Input should be a valid number, got True"),
+    (["--set", "use_slant_range=yes"], "--set use_slant_range: Input should be a valid boolean, got 'yes' (str)"),
+    (["--set", "u=-1"], "--set: The adaptive constant u must lie in (0, 1)"),
     (["--set", "kay=3"], "--set names no navigation parameter: kay"),
     (["--node-m", "20"], "--node-m apply to a recorded tow"),
     (["--bathy", "map.nc"], "give either a scenario or --log and --bathy, not both"),
@@ -154,3 +170,35 @@ def test_every_bad_grid_is_one_line_from_the_command_line(recorded, tmp_path, ru
     path, message = _bad_grids(tmp_path)[case]
     code, _, err = run_cli("run", "--log", recorded["nav"], "--bathy", path, "--out", tmp_path / "o")
     assert code == EXIT_ERROR and message in err and "nothing was written to" in err
+
+
+def test_a_folder_named_as_a_shipped_scenario_does_not_hide_it(tmp_path, monkeypatch, run_cli):
+    """`lost run short --out short` leaves a folder `short`; the next `lost run short` there still means the shipped one
+    (the scenario is read, then the unknown --set is refused: exit 2, not 'Is a directory')."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "short").mkdir()
+    code, _, err = run_cli("run", "short", "--set", "kay=3", "--out", tmp_path / "o")
+    assert code == EXIT_USAGE and "--set names no navigation parameter: kay" in err
+    (tmp_path / "usbl_turns").mkdir()
+    from lost.host.usbl.scenario import load_usbl_scenario
+
+    assert load_usbl_scenario("usbl_turns").name == "usbl_turns"
+
+
+def test_the_patent_pipelines_counts_are_printed_only_when_it_ran(tiny, tmp_path, run_cli):
+    code, out, _ = run_cli("run", tiny, "--estimator", "pmf", "--out", tmp_path / "pmf")
+    assert code == 0 and "records without an MLE" not in out
+    code, out, _ = run_cli("run", tiny, "--out", tmp_path / "all")
+    assert code == 0 and "LOST: off-map records " in out and ", records without an MLE " in out
+
+
+def test_track_and_replay_take_the_shipped_scenario_beside_a_folder_of_its_name(tmp_path, monkeypatch, run_cli):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "one_diver").mkdir()
+    code, _, err = run_cli("track", "one_diver", "--set", "kay=3", "--out", tmp_path / "o")
+    assert code == EXIT_USAGE and "names no tracker parameter: kay" in err
+    code, _, err = run_cli("track", "one_diver", "--set", "confirm_existence=abc", "--out", tmp_path / "o")
+    assert code == EXIT_USAGE and "confirm_existence: Input should be a valid number" in err and "tracker." not in err
+    (tmp_path / "short_exact_map").mkdir()
+    code, out, _ = run_cli("replay", "short_exact_map", "--to", "127.0.0.1:9", "--speed", "0")
+    assert code == 0 and "sent 600 pings" in out

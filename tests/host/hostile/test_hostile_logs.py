@@ -240,6 +240,19 @@ def test_a_cable_shorter_than_the_depth_in_some_records_is_reported(tmp_path):
     assert any("2 record(s) with less cable out than the vehicle's depth, the first at data row 3" in w for w in report.warnings)
 
 
+def test_a_cable_of_zero_in_every_record_is_a_sonar_on_the_ship_noted_and_some_zeros_still_reported(tmp_path):
+    table = _log()
+    table["cable_out_m"] = 0.0  # a hull-mounted survey: no cable, no lay-back
+    records, report = read_navlog(_write(tmp_path, table))
+    assert np.all(records.cable_out_m == 0) and not any("cable" in w for w in report.warnings)
+    assert any("cable_out_m is 0 in every record: the sonar is on the ship" in n for n in report.notes)
+    table = _log()
+    table.loc[3:4, "cable_out_m"] = 0.0  # a towed log with two zeros: readings to doubt, not a hull-mounted sonar
+    _, report = read_navlog(_write(tmp_path, table))
+    assert any("2 record(s) with less cable out than the vehicle's depth, the first at data row 3" in w for w in report.warnings)
+    assert not any("on the ship" in n for n in report.notes)
+
+
 def test_a_vehicle_deeper_than_any_sea_is_set_to_missing(tmp_path):
     table = _log()
     table.loc[7, "vehicle_depth_m"] = 30000.0  # feet? centimetres? not metres

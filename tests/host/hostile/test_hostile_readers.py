@@ -152,3 +152,26 @@ def test_lost_grid_with_no_sounding_to_place_is_one_line_and_writes_nothing(tmp_
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "lost grid: nonav.all: no valid sounding to grid" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["nonav.all"]
+
+
+def test_a_kmall_file_ending_inside_a_split_ping_or_with_a_bad_part_number_counts_both_and_reads_the_rest(tmp_path):
+    from lost.host.io.kmall_parts import REASONS
+    from lost.host.io.kmall_write import split_datagram
+
+    datagrams, at, data = [], 0, KMALL.read_bytes()
+    while at < len(data):
+        size = int.from_bytes(data[at:at + 4], "little")
+        datagrams.append(data[at:at + size])
+        at += size
+    mrz = [k for k, d in enumerate(datagrams) if d[4:8] == b"#MRZ"]
+    parts = {k: split_datagram(datagrams[k], 4000) for k in mrz}
+    first, last = mrz[0], mrz[-1]
+    bad = bytearray(parts[first][0])
+    bad[22:24] = (len(parts[first]) + 1).to_bytes(2, "little")  # a part number beyond its count
+    parts[first][0] = bytes(bad)
+    parts[last] = parts[last][:-1]  # the file ends before the last ping's last part
+    path = _write(tmp_path, "split.kmall", b"".join(b"".join(parts[k]) if k in parts else d for k, d in enumerate(datagrams)))
+    s = summarize_survey(path)
+    assert s["pings"] == len(mrz) - 2
+    assert s["skipped"][f"split.kmall: {REASONS['bad_number']}"] == 1
+    assert s["skipped"][f"split.kmall: {REASONS['lost']}"] == 2  # the first ping's other parts wait to the end, and the last

@@ -34,8 +34,8 @@ def _resized(datagram: bytes, body: bytes) -> bytes:
 
 
 @pytest.mark.parametrize("bad, reason", [
-    (b"\x00\x01garbage that is no datagram", "datagram of neither .kmall nor NMEA (skipped)"),
-    (b"", "datagram of neither .kmall nor NMEA (skipped)"),
+    (b"\x00\x01garbage that is no datagram", "datagram of neither .kmall, NMEA, PD6 nor JSON (skipped)"),
+    (b"", "datagram of neither .kmall, NMEA, PD6 nor JSON (skipped)"),
     ("length", "kmall #MRZ datagram whose length fields disagree with its size (skipped)"),
     ("cut", "kmall #MRZ that does not decode (error; skipped)"),
     ("sounding size", "kmall #MRZ that does not decode (ValueError; skipped)"),
@@ -123,6 +123,8 @@ def test_a_gga_before_any_zda_has_no_date_and_is_counted(pings):
     (["--to", "127.0.0.1:9", "--speed", "-1"], "--speed"),
     (["--to", "127.0.0.1:9", "--speed", "inf"], "--speed"),
     (["--to", "127.0.0.1:9", "--max-datagram-bytes", "70000"], "--max-datagram-bytes"),
+    (["--to", "127.0.0.1:9", "--reorder-by", "0"], "--reorder-by"),
+    (["--to", "127.0.0.1:9", "--reorder-by", "two"], "--reorder-by"),
     ([], "--to"),
 ])
 def test_bad_replay_options_are_usage_errors(options, message, capsys):
@@ -142,3 +144,21 @@ def test_a_file_of_no_survey_format_is_named(tmp_path, capsys):
     text.write_text("not a survey at all, just some words in a file\n")
     assert main(["replay", str(text), "--to", "127.0.0.1:9"]) == 1
     assert "notes.txt is not a Kongsberg .all, .kmall or GSF file" in capsys.readouterr().err
+
+
+def test_a_dvl_asked_of_a_survey_file_is_a_usage_error(tmp_path, pings, capsys):
+    from lost.host.io.kmall_write import write_kmall_pings
+
+    path = write_kmall_pings(pings[:2], tmp_path / "two.kmall")
+    assert main(["replay", str(path), "--to", "127.0.0.1:9", "--dvl", "pd6"]) == 2
+    assert "a survey file has no DVL to send" in capsys.readouterr().err
+
+
+def test_usbl_fixes_asked_of_a_survey_file_or_of_a_scenario_without_a_usbl_are_usage_errors(tmp_path, pings, capsys):
+    from lost.host.io.kmall_write import write_kmall_pings
+
+    path = write_kmall_pings(pings, tmp_path / "tow.kmall")
+    assert main(["replay", str(path), "--to", "127.0.0.1:9", "--usbl", "json"]) == 2
+    assert "--usbl json: a survey file has no USBL fixes to send" in capsys.readouterr().err
+    assert main(["replay", "short", "--to", "127.0.0.1:9", "--usbl", "json"]) == 2
+    assert "--usbl json: scenario 'short' has no USBL" in capsys.readouterr().err

@@ -4,6 +4,7 @@ CRS, a port in use and a missing map are named errors; bytes that are no datagra
 from __future__ import annotations
 
 import socket
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ import pytest
 from lost.host.cli import main
 from lost.host.grid import Grid
 from lost.host.io import write_npz
+from lost.host.live.inputs import DvlVelocity, JsonInputDecoder
 from lost.host.live.receiver import LiveDecoder
 
 
@@ -38,6 +40,10 @@ def _serve(tmp_path, text: str, capsys) -> tuple[int, str]:
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\noutputs = ["here"]', "[serve] outputs must be HOST:PORT"),
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\npatch_centre = "middle"', "[serve] patch_centre must be one of"),
     ('listen = "127.0.0.1:0"', "bathy"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nreorder_lag_s = -0.5', "serve.reorder_lag_s"),
+    ('listen = ["127.0.0.1:4001", "127.0.0.1:4001"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
+    ('listen = []\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
+    ('listen = ["127.0.0.1:4001", "here"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
 ])
 def test_a_refused_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, table, named):
     code, err = _serve(tmp_path, f"[serve]\n{table}\n", capsys)
@@ -73,3 +79,116 @@ def test_bytes_that_are_no_datagram_are_counted_never_raised(payload):
     decoder = LiveDecoder()
     assert decoder.feed(payload) == []
     assert sum(decoder.counts.values()) >= 1
+
+
+@pytest.mark.parametrize(("options", "named"), [(["--backend", "fpga"], "--backend fpga needs --port"),
+                                                (["--port", "/dev/ttyUSB9"], "--port is for --backend fpga")])
+def test_a_device_without_its_port_or_a_port_without_the_device_is_a_usage_error(tmp_path, map_path, capsys, options, named):
+    config = tmp_path / "live.toml"
+    config.write_text('[serve]\nlisten = "127.0.0.1:0"\nbathy = "map.npz"\n')
+    assert main(["serve", "--config", str(config), "--out", str(tmp_path / "out"), *options]) == 2
+    assert named in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("lines", "reason"), [
+    ([":BE,+00100,+00200,+00000,A"], "PD6 :BE before any :TS (no time; skipped)"),
+    ([":TS,26010100000000,35.0,+10.0, 100.0,1500.0,  0", ":BE,+00100,+00200,+00000,V"], "PD6 :BE marked bad (status V or -32768; skipped)"),
+    ([":TS,26010100000000,35.0,+10.0, 100.0,1500.0,  0", ":BE,-32768,-32768,-32768,A"], "PD6 :BE marked bad (status V or -32768; skipped)"),
+    ([":TS,2601010000,35.0,+10.0, 100.0,1500.0,  0"], "PD6 :TS line that does not parse (skipped)"),
+    ([":TS,26013200000000,35.0,+10.0, 100.0,1500.0,  0"], "PD6 :TS line that does not parse (skipped)"),
+    ([":TS,26010100000000,35.0,+10.0, 100.0,1500.0,  0", ":BE,+001.0,+00200,+00000,A"], "PD6 :BE line that does not parse (skipped)"),
+    ([":XX,1,2,3"], "PD6 line of no PD6 kind (skipped)"),
+])
+def test_a_pd6_line_that_cannot_be_used_is_counted_never_raised(lines, reason):
+    decoder = LiveDecoder()
+    values = decoder.feed(("\r\n".join(lines) + "\r\n").encode())
+    assert not any(isinstance(v, DvlVelocity) for v in values)
+    assert decoder.counts[reason] == 1
+
+
+def test_a_bad_json_line_is_counted_by_its_kind_never_raised():
+    bad = ['{"kind": "dvl", "time_utc_s": 1.0, "east_mps": 0.1}', '{"kind": "dvl", "time_utc_s": 1.0, "east_mps": 0.1, "north_mps": "0"}',
+           '{"kind": "depth", "time_utc_s": 1.0, "depth_m": 5.0, "extra": 1}', '{"kind": "depth", "time_utc_s": 1.0, "depth_m": NaN}',
+           '{"kind": "gyro"}', "[1, 2]", "{not json"]
+    counts = Counter()
+    json_lines = JsonInputDecoder(counts)
+    assert [v for line in bad for v in json_lines.feed(line)] == []
+    assert counts["JSON dvl line with a missing, unknown or bad field (skipped)"] == 2
+    assert counts["JSON depth line with a missing, unknown or bad field (skipped)"] == 2
+    assert counts["JSON line of no known kind (skipped)"] == 2 and counts["JSON line that does not parse (skipped)"] == 1
+
+
+@pytest.mark.parametrize(("serial", "named"), [
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "ais"', "[[serial]] kind must be one of ['nmea', 'pd6', 'json']"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"', "serial.0.kind"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nbaud = 0', "[[serial]] baud must be a serial line's rate"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nbaud = "9600"', "serial.0.baud"),
+    ('[[serial]]\nport = "tcp://10.0.0.5:4001"\nkind = "nmea"', "pyserial knows no URL scheme 'tcp'"),
+    ('[[serial]]\nport = ""\nkind = "nmea"', "[[serial]] port must be a device path or a pyserial URL"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nparity = "N"', "unknown field(s) ['parity']"),
+    ('[[serial]]\nport = "/dev/ttyUSB0"\nkind = "pd6"\nretry_s = 0.0', "serial.0.retry_s (seconds)"),
+    ('[[serial]]\nport = "/dev/ttyS0"\nkind = "pd6"\n[[serial]]\nport = "/dev/ttyS0"\nkind = "nmea"', "a serial port is named twice"),
+    ('[serial]\nport = "/dev/ttyS0"\nkind = "pd6"', "serial ports are [[serial]] tables"),
+])
+def test_a_refused_serial_port_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, serial, named):
+    code, err = _serve(tmp_path, f'[serve]\nlisten = "127.0.0.1:0"\nbathy = "map.npz"\n{serial}\n', capsys)
+    assert code == 1 and named in err and err.count("\n") == 1
+
+
+def test_serial_noise_an_overlong_line_and_a_port_that_never_opens_are_counted_never_a_stop():
+    """Bytes without line ends (a wrong baud rate) and a port that is not there: counted; the reader goes on."""
+    import threading
+    import time
+
+    from lost.host.live.serial import MAX_LINE_BYTES, SerialReader, SerialSettings
+
+    class Port:
+        def __init__(self, chunks):
+            self.chunks, self.in_waiting = list(chunks), 0
+
+        def read(self, size):
+            return self.chunks.pop(0) if self.chunks else time.sleep(0.01) or b""
+
+        def close(self):
+            pass
+
+    counts, lines = Counter(), []
+    chunks = [b"\xff\xfe" * MAX_LINE_BYTES, b"\x00" * 10, b"still the same line\r\n:TS,bad\r\n", b"\x80\x81\r\n", b":BE,+1,+2,+0,A\r\n"]
+    tries = iter([OSError("no such device"), OSError("no such device"), Port(chunks)])
+
+    def opener(settings):
+        port = next(tries, None) or Port([])
+        if isinstance(port, OSError):
+            raise port
+        return port
+
+    reader = SerialReader(SerialSettings("/dev/ttyUSB9", "pd6", retry_s=0.01), lines.append, counts, opener=opener)
+    thread = threading.Thread(target=reader.run)
+    thread.start()
+    time.sleep(0.5)
+    reader.stop()
+    thread.join(5)
+    assert lines == [b":TS,bad\r\n", b":BE,+1,+2,+0,A\r\n"]
+    assert counts["serial /dev/ttyUSB9: port did not open (tried again; its lines lost meanwhile)"] == 2
+    assert counts[f"serial /dev/ttyUSB9: line longer than {MAX_LINE_BYTES} bytes (skipped)"] == 1
+    assert counts["serial /dev/ttyUSB9: line not of the port's kind pd6 (skipped)"] == 1
+
+
+def test_a_usbl_fix_without_a_covariance_is_refused_and_counted():
+    import json
+    from dataclasses import replace
+
+    from lost.host.io.simulated import EPOCH_S
+    from lost.host.live.inputs import UsblFix, json_input_line
+
+    counts = Counter()
+    decoder = JsonInputDecoder(counts)
+    good = UsblFix(EPOCH_S, 0.01, 0.02, 700.0, 4.0, 9.0, 1.0)
+    assert decoder.feed(json_input_line(good)) == [good]
+    for sxx, syy, sxy in ((0.0, 9.0, 0.0), (-4.0, 9.0, 0.0), (4.0, 9.0, 6.0)):
+        assert decoder.feed(json_input_line(replace(good, sxx_m2=sxx, syy_m2=syy, sxy_m2=sxy))) == []
+    line = json.loads(json_input_line(good))
+    del line["sxy_m2"]
+    assert decoder.feed(json.dumps(line)) == []
+    assert counts["JSON usbl line whose covariance is no covariance (skipped)"] == 3
+    assert counts["JSON usbl line with a missing, unknown or bad field (skipped)"] == 1

@@ -132,3 +132,21 @@ def test_lost_track_exits_with_one_line_on_radians(tmp_path, detections_csv, run
     assert code != 0
     assert "in radians" in err
     assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_strengths_on_another_scale_are_refused_by_name(tmp_path, detections_csv, run_cli):
+    """Strengths in dB re 1 uPa (about 150) are not dB above the threshold: every ratio would be the clip's."""
+    from lost.host.track.amplitude import StrengthScaleError, check_strength_scale
+    from lost.host.track.tracker import TrackerParameters
+
+    bad = tmp_path / "upa.csv"
+    _rewrite(detections_csv, bad, "strength_db", lambda s: s + 150.0)
+    pings, _ = read_detections(bad)
+    with pytest.raises(StrengthScaleError, match=r"strength_db: the median detection strength is 15\d dB, outside .*--set amplitude=false"):
+        check_strength_scale(pings, TrackerParameters())
+    check_strength_scale(pings, TrackerParameters(amplitude=False))  # tracking without the strengths is allowed
+    code, out, err = run_cli("track", bad, "--out", tmp_path / "out", "--no-animation")
+    assert code != 0 and "strength_db" in err and "amplitude=false" in err
+    assert not (tmp_path / "out" / "summary.json").exists()
+    code, out, err = run_cli("track", bad, "--out", tmp_path / "off", "--no-animation", "--set", "amplitude=false")
+    assert code == 0, err

@@ -107,3 +107,49 @@ def test_lost_run_survey_takes_the_maps_depth_std_and_says_so(em122_map, tmp_pat
     assert "map uncertainty: the grid file's uncertainty layer" in printed
     assert summary["survey"]["dr_bias_mps"] == [0.1, 0.05] and summary["survey"]["start_offset_m"] == [30.0, -20.0]
     assert summary["records"] == 6 and summary["truth_known"]
+
+
+def _assert_same_records(a, b) -> None:
+    """Every series value for value (NaN where NaN), every patch node for node with its centre, age and node."""
+    for name in ("t_s", "ship_x_m", "ship_y_m", "ship_heading_deg", "vehicle_depth_m", "altitude_m", "vel_x_mps", "vel_y_mps",
+                 "slant_range_m", "cable_out_m", "truth_x_m", "truth_y_m"):
+        np.testing.assert_array_equal(getattr(b, name), getattr(a, name), err_msg=name)
+    assert len(a.sonar) == len(b.sonar)
+    for p, q in zip(a.sonar, b.sonar, strict=True):
+        assert (p is None) == (q is None)
+        if p is not None:
+            np.testing.assert_array_equal(q.depth_m, p.depth_m)
+            assert (q.node_m, q.centre_offset_m, q.age_s) == (p.node_m, p.centre_offset_m, p.age_s)
+
+
+@needs_real
+def test_survey_records_written_as_a_navigation_log_read_back_value_for_value(em122_map, tmp_path):
+    from lost.host.io.navlog import read_navlog, write_navlog
+
+    grid = read_grid(em122_map)
+    recorder = _recorder(grid.node_m)
+    records = survey_records(open_survey(EM122, crs=grid.crs), recorder)
+    assert sum(p is not None for p in records.sonar) == len(records) and np.all(records.cable_out_m == 0)
+    write_navlog(records, tmp_path / "log.csv", sonar=tmp_path / "sonar.csv", epoch_utc_s=recorder.epoch_s)
+    back, report = read_navlog(tmp_path / "log.csv", sonar=tmp_path / "sonar.csv", patch_shape=(15, 15), node_m=grid.node_m)
+    _assert_same_records(records, back)
+    assert any("the sonar is on the ship" in note for note in report.notes) and not report.warnings
+    first = (tmp_path / "log.csv").read_text().splitlines()[1].split(",")[1]
+    assert first.startswith("2015-02-07T04:43:") and first.endswith("Z")  # the file's clock beside t_s
+
+
+@needs_real
+def test_a_survey_run_saves_its_records_and_lost_run_log_on_them_navigates_alike(em122_map, tmp_path):
+    survey_out, log_out = tmp_path / "survey", tmp_path / "log"
+    common = ["--bathy", str(em122_map), "--patch-shape", "4x4", "--estimator", "pmf"]
+    assert main(["run", "--survey", str(EM122), "--start-offset", "30,-20", "--dr-bias", "0.1,0.05", "--record-s", "3",
+                 "--window-s", "40", "--patch-centre", "soundings", "--out", str(survey_out), *common]) == 0
+    summary = json.loads((survey_out / "summary.json").read_text())
+    assert summary["survey"]["log"] == {"log": "records.csv", "sonar": "records_sonar.csv"}
+    assert main(["run", "--log", str(survey_out / "records.csv"), "--sonar", str(survey_out / "records_sonar.csv"),
+                 "--out", str(log_out), *common]) == 0
+    import pandas as pd
+
+    a, b = pd.read_csv(survey_out / "track.csv"), pd.read_csv(log_out / "track.csv")
+    assert list(a.columns) == list(b.columns) and len(a) == len(b) == summary["records"]
+    pd.testing.assert_frame_equal(a, b)

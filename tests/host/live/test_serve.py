@@ -6,9 +6,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import socket
-import threading
-import time
 from itertools import islice
 
 import numpy as np
@@ -22,7 +19,6 @@ from lost.host.live.outputs import nmea_checksum
 from lost.host.scenario import builtin_scenario_path, load_scenario
 
 PINGS = 120
-SETTINGS = {"record_s": 5.0, "window_s": 20.0, "patch_centre": "soundings", "start_offset_m": [30.0, -20.0], "dr_bias_mps": [0.1, 0.05]}
 
 
 @pytest.fixture(scope="module")
@@ -33,74 +29,11 @@ def tow(tmp_path_factory):
     return write_kmall_pings(islice(pings, PINGS), folder / "tow.kmall"), write_npz(grid, folder / "map.npz")
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _wait_until_bound(port: int, timeout_s: float = 30.0) -> None:
-    """Until the server has bound its port (a datagram sent before would be lost): binding it here fails then."""
-
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            try:
-                probe.bind(("127.0.0.1", port))
-            except OSError:
-                return
-        time.sleep(0.05)
-    raise AssertionError(f"lost serve did not bind port {port} in {timeout_s} s")
-
-
-def _settings(path, map_path, port, output_port, **extra) -> None:
-    table = {"listen": f"127.0.0.1:{port}", "bathy": str(map_path), "estimators": ["lost", "pmf", "pf"], "outputs": [f"127.0.0.1:{output_port}"],
-             "idle_stop_s": 1.5, "status_s": 0.5, **SETTINGS, **extra}
-    lines = ["[serve]"] + [f"{key} = {json.dumps(value)}" for key, value in table.items()]
-    path.write_text("\n".join(lines) + "\n")
-
-
-def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = (), **extra):
-    """Serve on a free port while `lost replay` sends the tow; the run folder and the datagrams that came out."""
+@pytest.fixture(scope="module")
+def batch_rows(tow, tmp_path_factory):
+    """`lost run --survey`'s track.csv rows on the tow, with the served runs' settings."""
     path, map_path = tow
-    port, listener = _free_port(), socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    listener.bind(("127.0.0.1", 0))
-    listener.settimeout(0.2)
-    config, out = tmp_path / "live.toml", tmp_path / "serve"
-    _settings(config, map_path, port, listener.getsockname()[1], **extra)
-    codes: list[int] = []
-    server = threading.Thread(target=lambda: codes.append(main(["serve", "--config", str(config), "--out", str(out)])))
-    server.start()
-    received: list[bytes] = []
-    stop = threading.Event()
-
-    def listen():
-        while not stop.is_set():
-            try:
-                received.append(listener.recv(65_535))
-            except TimeoutError:
-                continue
-
-    listening = threading.Thread(target=listen)
-    listening.start()
-    try:
-        _wait_until_bound(port)
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
-            for payload in junk:
-                sender.sendto(payload, ("127.0.0.1", port))
-        assert main(["replay", str(path), "--to", f"127.0.0.1:{port}", "--speed", "0", *replay_options]) == 0
-        server.join(60)
-    finally:
-        stop.set()
-        listening.join(5)
-        listener.close()
-    assert codes == [0]
-    return out, received
-
-
-def _batch(tow, tmp_path):
-    path, map_path = tow
-    out = tmp_path / "batch"
+    out = tmp_path_factory.mktemp("batch") / "batch"
     arguments = ["run", "--survey", str(path), "--bathy", str(map_path), "--record-s", "5", "--window-s", "20", "--patch-centre", "soundings",
                  "--start-offset", "30,-20", "--dr-bias", "0.1,0.05", "--estimator", "all", "--out", str(out)]
     assert main(arguments) == 0
@@ -112,11 +45,7 @@ def _cell(value) -> str:
     return "" if value is None else f"{value:.3f}"
 
 
-def test_served_estimates_equal_the_batch_runs_record_for_record(tow, tmp_path, capsys):
-    out, datagrams = _serve_replay(tow, tmp_path)
-    rows = _batch(tow, tmp_path)
-    capsys.readouterr()
-    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+def _assert_log_is_the_batch_runs(log: list[dict], rows: list[dict]) -> None:
     assert len(log) == len(rows) > 10
     for line, row in zip(log, rows, strict=True):
         assert f"{line['t_s']:.3f}" == row["t_s"]
@@ -126,6 +55,14 @@ def test_served_estimates_equal_the_batch_runs_record_for_record(tow, tmp_path, 
             served = line["estimates"][name]
             cells = [_cell(served[k]) for k in ("east_m", "north_m", "sxx_m2", "syy_m2", "sxy_m2")] + [str(int(served["usable"])), served["stage"]]
             assert cells == [row[f"{name}_{k}"] for k in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "stage")], (line["record"], name)
+
+
+def test_served_estimates_equal_the_batch_runs_record_for_record(tow, batch_rows, serve_replay, tmp_path, capsys):
+    out, datagrams = serve_replay(tow, tmp_path)
+    rows = batch_rows
+    capsys.readouterr()
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    _assert_log_is_the_batch_runs(log, rows)
     # Every estimate went out twice per record and estimator: a JSON line and a $LOEST sentence with its checksum.
     lines = [json.loads(d) for d in datagrams if d.startswith(b"{")]
     sentences = [d.decode().strip() for d in datagrams if d.startswith(b"$LOEST")]
@@ -179,14 +116,26 @@ def test_the_served_values_are_the_batch_navigations_to_the_bit(tow, tmp_path, c
     capsys.readouterr()
 
 
-def test_lost_duplicated_reordered_and_malformed_datagrams_are_counted_into_the_summary_never_a_stop(tow, tmp_path, capsys):
+def test_pings_reordered_on_the_way_are_put_back_in_time_order_and_served_as_the_batch_run(tow, batch_rows, serve_replay, tmp_path, capsys):
+    """10 % of datagrams sent 8 later (a ping is 6 datagrams): pings complete out of order; the 1.5 s buffer restores the batch run."""
+    out, _ = serve_replay(tow, tmp_path, ["--reorder", "0.1", "--reorder-by", "8", "--seed", "4"], reorder_lag_s=1.5,
+                          reorder_hold_s=1.5)
+    replayed = capsys.readouterr().out
+    assert int(replayed.split(" reordered")[0].rsplit(" ", 1)[1]) > 10
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reorder_lag_s"] == summary["reorder_hold_s"] == 1.5 and not any("late" in reason for reason in summary["server"])
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    _assert_log_is_the_batch_runs(log, batch_rows)
+
+
+def test_lost_duplicated_reordered_and_malformed_datagrams_are_counted_into_the_summary_never_a_stop(tow, serve_replay, tmp_path, capsys):
     junk = (b"\x00\x01 not a datagram", b"$GPGGA,garbled*00\r\n", (40).to_bytes(4, "little") + b"#MRZ" + bytes(28))
-    out, _ = _serve_replay(tow, tmp_path, ["--loss", "0.05", "--reorder", "0.05", "--duplicate", "0.05", "--seed", "3"], junk=junk,
+    out, _ = serve_replay(tow, tmp_path, ["--loss", "0.05", "--reorder", "0.05", "--duplicate", "0.05", "--seed", "3"], junk=junk,
                            estimators=["lost"])
     replayed = capsys.readouterr().out
     summary = json.loads((out / "summary.json").read_text())
     received = summary["received"]
-    assert received["datagram of neither .kmall nor NMEA (skipped)"] == 1
+    assert received["datagram of neither .kmall, NMEA, PD6 nor JSON (skipped)"] == 1
     assert received["kmall #MRZ datagram whose length fields disagree with its size (skipped)"] == 1
     assert sum(n for reason, n in received.items() if "checksum" in reason or "NMEA" in reason) >= 1
     drawn = next(line for line in replayed.splitlines() if line.startswith("faults (seed 3)")).split("(.kmall ")[1]

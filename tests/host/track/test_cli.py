@@ -90,9 +90,9 @@ def test_set_reaches_the_tracker_and_unknown_names_are_refused(scenario_run, tmp
     assert main(["track", detections, "--out", str(out), "--set", "confirm=3"]) == 2
     assert "--set names no tracker parameter: confirm" in capsys.readouterr().err
     # Types are the strict schema's, as for lost run's --set: no string, None or fraction where a number or count goes.
-    for value, message in (("pd=abc", "tracker.pd: Input should be a valid number, got 'abc' (str)"),
-                           ("pd=none", "tracker.pd: Input should be a valid number, got None (NoneType)"),
-                           ("em_points=4.5", "tracker.em_points: Input should be a valid integer, got 4.5")):  # a count: no unit
+    for value, message in (("pd=abc", "--set pd: Input should be a valid number, got 'abc' (str)"),
+                           ("pd=none", "--set pd: Input should be a valid number, got None (NoneType)"),
+                           ("em_points=4.5", "--set em_points: Input should be a valid integer, got 4.5")):  # a count: no unit
         assert main(["track", detections, "--out", str(out), "--set", value]) == 2
         assert message in capsys.readouterr().err
 

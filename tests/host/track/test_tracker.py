@@ -111,7 +111,7 @@ def test_a_contact_seldom_detected_survives_more_misses():
 @pytest.fixture(scope="module")
 def two_divers():
     sim = simulate(load_scenario(builtin_scenario_path("two_divers")))
-    tracker = MultiTargetTracker(sonar=sim.scenario.sonar.sonar, parameters=TrackerParameters(), rng=np.random.default_rng(0))
+    tracker = MultiTargetTracker(sonar=sim.scenario.sonar.sonar, parameters=TrackerParameters(particles=1000), rng=np.random.default_rng(0))
     return sim, [tracker.step(p) for p in sim.pings]
 
 
@@ -142,6 +142,7 @@ def test_two_divers_give_two_confirmed_tracks_that_keep_their_identities(two_div
 
 
 def test_divers_and_the_drifting_object_are_classed_by_speed(two_divers):
+    """Once a track's speed is known its class is right; a track re-born at the sector's edge is "unknown" until then."""
     sim, history = two_divers
     classes: dict[int, list[str]] = {}
     for reports in history[60:]:
@@ -149,7 +150,9 @@ def test_divers_and_the_drifting_object_are_classed_by_speed(two_divers):
             if r.status == "confirmed":
                 classes.setdefault(nearest_truth(sim, r)[0], []).append(r.classification)
     for target, kind in enumerate(("diver", "diver", "drifting")):
-        assert classes[target].count(kind) / len(classes[target]) > 0.8
+        known = [c for c in classes[target] if c != "unknown"]
+        assert len(known) / len(classes[target]) > 0.6
+        assert known.count(kind) / len(known) > 0.95
 
 
 def test_a_fast_animal_is_classed_as_one():
@@ -173,10 +176,11 @@ def test_no_false_track_in_ten_minutes_of_clutter():
 def test_track_covariance_is_consistent_with_the_truth():
     errors, covariances = [], []
     for seed in range(3):
-        scenario = dataclasses.replace(load_scenario(builtin_scenario_path("one_diver")), seed=10 + seed)
+        scenario = dataclasses.replace(load_scenario(builtin_scenario_path("one_diver")), seed=10 + seed, duration_s=300.0)
         sim = simulate(scenario)
         # The filter's process noise is the simulator's, so NEES should average its degrees of freedom (4).
-        params = TrackerParameters(particles=2000, accel_sigma=scenario.targets[0].accel_sigma)
+        # A small search cloud: it only finds the diver; the covariance is the filtered track's.
+        params = TrackerParameters(particles=300, em_points=300, accel_sigma=scenario.targets[0].accel_sigma)
         tracker = MultiTargetTracker(sonar=scenario.sonar.sonar, parameters=params, rng=np.random.default_rng(seed))
         for i, ping in enumerate(sim.pings):
             for r in tracker.step(ping):
@@ -185,7 +189,7 @@ def test_track_covariance_is_consistent_with_the_truth():
                     errors.append(np.array([r.x_m, r.y_m, r.vx_mps, r.vy_mps]) - truth)
                     covariances.append(r.covariance)
     e, P = np.array(errors), np.array(covariances)
-    assert len(e) > 600
+    assert len(e) > 450
     assert 2.5 < nees(e, P).mean() < 6.0
     assert np.mean(nees(e[:, :2], P[:, :2, :2]) < 9.21) > 0.93  # the 99 % position ellipse holds the diver
 

@@ -5,11 +5,12 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from lost.host.cli import main
-from lost.host.usbl.pipeline import read_imu, read_log
-from lost.host.usbl.scenario import load_processing_config, load_usbl_scenario
+from lost.host.usbl.pipeline import UsblConfig, read_imu, read_log
+from lost.host.usbl.scenario import load_processing_config, load_usbl_scenario, processing_config_toml
 from lost.host.usbl.simulate import LOG_COLUMNS
 
 
@@ -175,3 +176,59 @@ def test_a_step_in_the_cast_with_a_long_layback_loses_no_reply_and_writes_every_
     out.mkdir()
     write_outputs(out, run, summary, warnings)
     assert warnings == [] and {path.name for path in out.iterdir()} == {"track.csv", "track.png", "error.png", "profile.png", "summary.json"}
+
+
+SHORT_SCENARIO = """name = "short_turn"
+seed = 5
+duration_s = 120.0
+[tow]
+depth_m = 600.0
+layback_m = 400.0
+course = [[60.0, 0.0], [60.0, 0.3]]
+[usbl]
+phase_noise_rad = 0.008
+noise_growth_per_km = 0.5
+transponder_lever_arm_m = [1.0, 0.0, -1.5]
+[processing]
+cast_age_h = 2.0
+sound_speed_sigma_m_s = 0.4
+"""
+
+
+def test_a_scenario_run_can_be_repeated_from_its_inputs(tmp_path, capsys, monkeypatch):
+    """The recording a scenario run writes, with its inputs/usbl.toml, is processed to the same track; without that
+    file the defaults (no transponder lever arm, another phase noise) give another one, and a warning says so."""
+    monkeypatch.setattr("lost.host.usbl.report.run_plots", lambda run: {})  # the tracks are compared; the plots cost seconds
+    scenario = tmp_path / "short_turn.toml"
+    scenario.write_text(SHORT_SCENARIO)
+    first = tmp_path / "first"
+    assert main(["usbl", str(scenario), "--out", str(first)]) == 0
+    inputs = first / "inputs"
+    again, defaults = tmp_path / "again", tmp_path / "defaults"
+    recording = [str(inputs / "log.csv"), "--svp", str(inputs / "cast.csv"), "--imu", str(inputs / "imu.csv")]
+    assert main(["usbl", *recording, "--config", str(inputs / "usbl.toml"), "--out", str(again)]) == 0
+    assert main(["usbl", *recording, "--out", str(defaults)]) == 0
+    columns = ["north_m", "east_m", "depth_m", "var_north_m2", "var_east_m2", "nis"]
+    expected = pd.read_csv(first / "track.csv")[columns]
+    pd.testing.assert_frame_equal(pd.read_csv(again / "track.csv")[columns], expected)
+    assert not np.allclose(pd.read_csv(defaults / "track.csv")[columns].to_numpy(), expected.to_numpy(), equal_nan=True)
+    warned = json.loads((defaults / "summary.json").read_text())["warnings"]
+    assert any("no --config" in warning for warning in warned)
+    assert not json.loads((again / "summary.json").read_text())["warnings"]
+    assert "warning: no --config" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", ["usbl_turns", "usbl_stale_cast"])
+def test_the_processing_settings_round_trip_through_their_toml(tmp_path, name):
+    config = load_usbl_scenario(name).processing_config()
+    path = tmp_path / "usbl.toml"
+    path.write_text(processing_config_toml(config))
+    assert UsblConfig(**load_processing_config(path)) == config
+
+
+def test_lost_usbl_lists_its_shipped_scenarios_and_asks_for_a_source(capsys):
+    assert main(["usbl", "--list"]) == 0
+    listed = dict(line.split(maxsplit=1) for line in capsys.readouterr().out.splitlines())
+    assert set(listed) == {"usbl_turns", "usbl_stale_cast"} and "4 h old cast" in listed["usbl_stale_cast"]
+    assert main(["usbl"]) == 2
+    assert "give a log (LOG.csv --svp CAST.csv) or a scenario" in capsys.readouterr().err

@@ -46,7 +46,7 @@ def test_nees_inside_its_band_at_nine_epochs_in_ten(turns):
 
 def test_outputs_are_written(turns):
     _, track, out = turns
-    for name in ("track.png", "error.png", "profile.png", "inputs/log.csv", "inputs/imu.csv", "inputs/cast.csv"):
+    for name in ("track.png", "error.png", "profile.png", "inputs/log.csv", "inputs/imu.csv", "inputs/cast.csv", "inputs/usbl.toml"):
         assert (out / name).stat().st_size > 0
     assert set(track.status) <= {"alignment", "accepted", "rejected", "failed", "dropout"}
     assert track.lat_deg.between(17.9, 18.1).all() and track.utm_northing_m.between(1.9e6, 2.1e6).all()
