@@ -147,8 +147,8 @@ def update_speed(rounds: int = 300) -> dict:
     """Median ms per predict + update: the PMF held at 600 m x 600 m over 10 m nodes, the PF at 10,000 particles."""
     scenario = load_scenario(builtin_scenario_path("demo"))
     grid, records = simulate(scenario)
-    prepared = PreparedMap(grid=grid)
     params = NavParameters(**scenario.navigation)
+    prepared = PreparedMap.for_navigation(grid, params)
     sigma = float(np.hypot(params.depth_noise_m, map_error_estimate(grid.depth_m)))
     likelihood = TerrainLikelihood(prepared, sigma_m=sigma)
     truth = np.column_stack([records.truth_x_m, records.truth_y_m])

@@ -22,7 +22,7 @@ def two_hour():
 def test_two_hour_tow_pipeline(benchmark, two_hour):
     scenario, grid, records = two_hour
     params = NavParameters(**scenario.navigation)
-    prepared = PreparedMap(grid=grid, lsb_m=params.lsb_m)
+    prepared = PreparedMap.for_navigation(grid, params)
     result = benchmark.pedantic(run_lost, args=(records, grid, params), kwargs={"prepared": prepared}, rounds=3, iterations=1)
     summary = summarize(result, name=scenario.name, parameters=params.as_dict())
     assert summary["convergence"]["converged"] and summary["methods"]["lost"]["rms_m"] < 5.0

@@ -83,7 +83,8 @@ class LiveNavigator:
         self.grid, self.recorder = grid, recorder
         self.counts: Counter[str] = Counter()
         self._transformer = _transformer("EPSG:4326", grid.crs)
-        self._bank = EstimatorBank(estimators, PreparedMap(grid=grid, lsb_m=params.lsb_m), params, self.counts).estimators
+        self.prepared = PreparedMap.for_navigation(grid, params)
+        self._bank = EstimatorBank(estimators, self.prepared, params, self.counts).estimators
         self._loop = StreamLoop(params, self._bank, self.counts)
         self._names = estimators
         self.sensors = VehicleSensors(self.counts)

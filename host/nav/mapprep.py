@@ -14,6 +14,8 @@ skips hole nodes.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy import ndimage
 
@@ -24,6 +26,9 @@ from ..correlator import Area, Correlation, valid_placements
 from ..correlator.resident import ResidentCorrelator
 from ..grid import Grid
 from .maperror import check_node_sigma
+
+if TYPE_CHECKING:
+    from .parameters import NavParameters
 
 __all__ = ["PreparedMap", "LSB_CANDIDATES_M", "MAX_HOLE_SHARE"]
 
@@ -98,6 +103,16 @@ class PreparedMap:
         layer = node_sigma_m if node_sigma_m is not None else getattr(grid, "sigma_m", None)
         self._node_sigma = None if layer is None else check_node_sigma(layer, grid.depth_m)
         self._last_patch: tuple[np.ndarray, bytes, tuple[np.ndarray, np.ndarray, int]] | None = None
+
+    @classmethod
+    def for_navigation(cls, grid: Grid, params: NavParameters) -> PreparedMap:
+        """The map as the navigation takes it: ``params``' depth step and hole share (batch and live alike)."""
+        return cls(grid=grid, lsb_m=params.lsb_m, max_hole_share=params.max_hole_share)
+
+    @property
+    def max_hole_share(self) -> float:
+        """The share of a patch's valid nodes a placement may put on holes."""
+        return self._max_hole_share
 
     @property
     def grid(self) -> Grid:

@@ -81,7 +81,7 @@ def navigate(
         coarser than the patches named as such), a prepared map of another grid, an unknown estimator.
     """
     params = params or NavParameters()
-    prepared = prepared or PreparedMap(grid=grid, lsb_m=params.lsb_m, max_hole_share=params.max_hole_share)
+    prepared = prepared or PreparedMap.for_navigation(grid, params)
     if prepared.grid is not grid:
         raise ValueError("the prepared map was made from another grid than the one given")
     if params.matching == "patch" and not any(patch is not None for patch in records.sonar):

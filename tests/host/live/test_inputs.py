@@ -98,3 +98,14 @@ def test_a_dvl_that_goes_silent_leaves_the_records_on_the_differenced_positions_
     for a, b in zip([before, *silent], silent, strict=False):  # the pings' positions differenced: the truth here (no bias)
         np.testing.assert_allclose(b.velocity_mps, np.subtract((b.truth_east_m, b.truth_north_m), (a.truth_east_m, a.truth_north_m)) / (b.t_s - a.t_s))
     assert all(math.isfinite(e.east_m) for e in served)
+
+
+def test_the_live_navigator_takes_the_maps_settings_of_its_parameters(tow_with_dvl):
+    """The map the served navigation prepares is the batch navigation's: the same depth step and hole share."""
+    from dataclasses import replace
+
+    grid = tow_with_dvl[0]
+    params = replace(NavParameters(), max_hole_share=0.3)
+    recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=(10, 10), interval_s=5.0, window_s=20.0)
+    navigator = LiveNavigator(grid, params, ("pmf",), recorder)
+    assert navigator.prepared.max_hole_share == 0.3
