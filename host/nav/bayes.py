@@ -335,8 +335,8 @@ class BayesFilter:
         self._rejected = label if not self._rejected else f"{self._rejected},{label}"
         if not terrain:
             self.counts[f"{kind}_rejected_{reason}"] += 1
-            # The trust rules watch the slant ranges only; a refused fix is counted, the terrain decides usability.
-            if kind == "range" and self._trust.range_outcome(refused=True):
+            # A refused range or a run of refused fixes may say the terrain holds the density on a wrong place.
+            if self._trust.range_outcome(refused=True) if kind == "range" else self._trust.fix_refused():
                 self._reinitialize()
                 self._stage = "reinitialized"
             return

@@ -375,6 +375,30 @@ def test_ranges_that_contradict_a_terrain_lock_twenty_times_in_a_row_reinitializ
     assert pmf.counts["reinitialized_by_ranges"] == 1 and pmf.estimate().stage == "reinitialized"
 
 
+def test_usbl_fixes_refused_twenty_times_in_a_row_reinitialize_a_wrong_terrain_lock():
+    """The terrain holds the density 150 m east of the truth; every USBL fix, at the truth, is gated out until the
+    filter re-initializes; then the fixes bring it back."""
+    from dataclasses import replace as with_fix
+
+    grid = _map(shape=(120, 100))
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(use_usbl_fix=True, initial_sigma_m=300.0, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
+    pmf = PointMassFilter(lik, params, grid=grid)
+    truth = np.array([300.0, 200.0])
+    pmf.start(0.0, truth + (150.0, 0.0), _observation())
+    cov = np.diag([9.0, 9.0])
+    for k in range(2 * params.reinit_after + 5):
+        truth = truth + (0.0, 10.0)
+        pmf.predict(Motion(dt_s=1.0, velocity_mps=np.array([0.0, 10.0])))
+        if k < 2 * params.reinit_after:
+            assert pmf.counts["reinitializations"] == 0, k
+        patch = _patch_at(grid, *(truth + (150.0, 0.0))) if k < 2 * params.reinit_after else None
+        pmf.update(with_fix(_observation(patch), fix_position_m=truth.copy(), fix_covariance_m2=cov))
+    assert pmf.counts["fix_rejected_gate"] == 2 * params.reinit_after
+    assert pmf.counts["reinitialized_by_fixes"] == 1 and pmf.counts["fix_updates"] >= 4
+    assert np.hypot(*(pmf.estimate().position - truth)) < 10.0
+
+
 def test_the_point_mass_filter_learns_its_bias_from_every_correction_and_moves_its_patches_by_it():
     """A range's correction and the terrain's that follows are one drift: learning from the terrain's alone
     read a range-versus-terrain tug of war as a bias of the opposite sign."""

@@ -37,7 +37,8 @@ def test_an_unusable_estimate_within_three_sigma_is_its_own():
 
 
 @pytest.mark.parametrize("reason, cause", [(None, "updates_refused"), ("reinitialized_elsewhere", "fits_better_elsewhere"),
-                                           ("reinitialized_by_ranges", "ranges_refused")])
+                                           ("reinitialized_by_ranges", "ranges_refused"),
+                                           ("reinitialized_by_fixes", "fixes_refused")])
 def test_a_reinitialization_carries_its_cause(reason, cause):
     trust = Trust(NavParameters(reinit_after=2), node_m=10.0)
     assert RESTART_CAUSES[reason] == cause
