@@ -58,7 +58,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
                                   patch_centre=settings.patch_centre)
         navigator = LiveNavigator(grid, params, settings.estimators, recorder)
         where = [address(listen, "[serve] listen") for listen in settings.listens]
-        receiver = UdpReceiver(*where[0], more=tuple(where[1:]), serial=settings.serial)
+        receiver = UdpReceiver(*where[0], more=tuple(where[1:]), serial=settings.serial, usbl_default_sigma_m=settings.usbl_default_sigma_m)
         sender = UdpSender([address(o, "[serve] outputs") for o in settings.outputs])
         log = RunLog(folder / "log.jsonl")
         ports = "".join(f", serial {p.port} ({p.kind}, {p.baud} baud)" for p in settings.serial)

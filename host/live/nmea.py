@@ -1,10 +1,11 @@
-"""NMEA 0183 sentences of a GNSS and a gyro: GGA, VTG, ZDA and HDT, formatted and parsed through pynmea2.
+"""NMEA 0183 sentences of a GNSS and a gyro: GGA, VTG, ZDA and HDT (and THS) formatted and parsed through pynmea2.
 
 Sent per fix, in this order: ZDA (the date, which GGA lacks), GGA (position, fix quality), VTG (course and speed
 over ground), HDT (true heading). Times to the millisecond, latitude and longitude to 1e-7 minute (0.2 mm),
 course and heading to 0.01 degree, speed to 0.001 knot. Parsing checks each sentence's checksum (a sentence
 without one is refused too) and joins a GGA's time of day with the date of the latest ZDA;
-a GGA of the same time as the one before (a duplicate) is counted and skipped.
+a GGA of the same time as the one before (a duplicate) is counted and skipped. A USBL's ``$PSONLLD`` and
+``$PSIMSSB`` are decoded by :mod:`lost.host.live.usbl_nmea`, a ``$--THS`` heading like HDT.
 """
 
 from __future__ import annotations
@@ -14,6 +15,9 @@ import math
 from dataclasses import dataclass
 
 import pynmea2
+
+from .inputs import UsblFix
+from .usbl_nmea import HEADING_MODES_USED, usbl_fix
 
 __all__ = ["PositionFix", "HeadingFix", "fix_sentences", "NmeaDecoder", "KNOT_MPS"]
 
@@ -74,14 +78,15 @@ def fix_sentences(time_s: float, lat_deg: float, lon_deg: float, *, heading_deg:
 class NmeaDecoder:
     """Sentences in, fixes out; what cannot be used is counted in ``counts`` (reason -> count), never raised."""
 
-    def __init__(self, counts) -> None:
+    def __init__(self, counts, usbl_default_sigma_m: float | None = None) -> None:
         self.counts = counts
+        self.usbl_default_sigma_m = usbl_default_sigma_m  # the 1 sigma (m) of a vendor USBL fix without error fields; None: refused
         self._date: dt.date | None = None
         self._last_time_s = math.nan
         self._pending: PositionFix | None = None
 
-    def feed(self, line: str) -> list[PositionFix | HeadingFix]:
-        """The fixes one sentence completes (a GGA is held until its VTG, or the next GGA, comes)."""
+    def feed(self, line: str) -> list[PositionFix | HeadingFix | UsblFix]:
+        """The fixes one sentence completes (a GGA is held until its VTG, or the next GGA, comes; a USBL's at once)."""
         try:
             sentence = pynmea2.parse(line.strip(), check=True)
         except pynmea2.ChecksumError:
@@ -90,6 +95,8 @@ class NmeaDecoder:
         except (pynmea2.ParseError, ValueError, AttributeError, TypeError):
             self.counts["NMEA sentence that does not parse"] += 1
             return []
+        if isinstance(sentence, pynmea2.ProprietarySentence):
+            return self._proprietary(sentence)
         kind = sentence.sentence_type
         self.counts[f"NMEA {kind} sentences"] += 1
         try:
@@ -102,10 +109,22 @@ class NmeaDecoder:
                 return self._vtg(sentence)
             if kind == "HDT":
                 return [HeadingFix(self._last_time_s, float(sentence.heading))]
+            if kind == "THS":
+                if sentence.mode not in HEADING_MODES_USED:
+                    self.counts["NMEA THS heading marked not valid (mode not A or E; skipped)"] += 1
+                    return []
+                return [HeadingFix(self._last_time_s, float(sentence.heading))]
         except (ValueError, TypeError):
             self.counts[f"NMEA {kind} sentence with a field that is no number"] += 1
             return []
         self.counts[f"NMEA {kind} sentence (not used)"] += 1
+        return []
+
+    def _proprietary(self, sentence: pynmea2.ProprietarySentence) -> list[UsblFix]:
+        kind = f"P{sentence.manufacturer}{sentence.data[0] if sentence.data else ''}"
+        if kind in ("PSONLLD", "PSIMSSB"):
+            return usbl_fix(sentence, self._date, self._last_time_s, self.usbl_default_sigma_m, self.counts)
+        self.counts["NMEA proprietary sentence (not used)"] += 1  # one counter: a vendor's names are not a bounded set
         return []
 
     def flush(self) -> list[PositionFix]:

@@ -15,7 +15,9 @@ length and the next a ``#`` and three capitals, NMEA when it starts with ``$``.
 - a datagram whose length fields disagree with its size, or that pykmall cannot decode, is counted and skipped;
 - a ping whose #MRZ never came whole shows as a gap in the MRZ ping counter, counted at the end;
 - a ping decoded without attitude after #SKM samples were received (its own sample late or lost) is counted;
-- NMEA sentences through :class:`~lost.host.live.nmea.NmeaDecoder` (checksums checked, bad ones counted).
+- NMEA sentences through :class:`~lost.host.live.nmea.NmeaDecoder` (checksums checked, bad ones counted), a USBL's
+  ``$PSONLLD``/``$PSIMSSB`` among them (``usbl_default_sigma_m``: the 1 sigma of a fix whose sentence has no error
+  fields; None refuses those, :mod:`lost.host.live.usbl_nmea`).
 
 :class:`UdpReceiver` binds a socket and feeds a decoder until stopped.
 """
@@ -52,9 +54,9 @@ _HEADER = struct.Struct("<I4sBBHII")
 class LiveDecoder:
     """Datagrams in, pings and fixes out (see the module); ``counts`` holds reason -> count."""
 
-    def __init__(self) -> None:
+    def __init__(self, usbl_default_sigma_m: float | None = None) -> None:
         self.counts: Counter[str] = Counter()
-        self._nmea = NmeaDecoder(self.counts)
+        self._nmea = NmeaDecoder(self.counts, usbl_default_sigma_m)
         self._pd6 = Pd6Decoder(self.counts)
         self._json = JsonInputDecoder(self.counts)
         self._attitude: deque[tuple[float, float, float, float]] = deque(maxlen=ATTITUDE_SAMPLES)
@@ -187,8 +189,8 @@ class UdpReceiver:
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 0, *, more: tuple[tuple[str, int], ...] = (), buffer_bytes: int = 4 << 20,
-                 serial: tuple[SerialSettings, ...] = ()) -> None:
-        self.decoder = LiveDecoder()
+                 serial: tuple[SerialSettings, ...] = (), usbl_default_sigma_m: float | None = None) -> None:
+        self.decoder = LiveDecoder(usbl_default_sigma_m)
         self.serial = serial
         self._feeding = threading.Lock()  # the decoder's state is one: a UDP datagram and a serial line are decoded in turn
         self.socks: list[socket.socket] = []

@@ -18,6 +18,7 @@
     reorder_lag_s = 0.5                     # a ping waits for a ping this much later in ping time ... (0: not held)
     reorder_hold_s = 0.05                   # ... or this long in wall-clock time, to put pings back into time order
     device_retry_s = 30.0                   # [navigation] backend fpga or rtl: seconds between tries of a device not answering
+    usbl_default_sigma_m = 10.0             # 1 sigma (m) of a $PSONLLD/$PSIMSSB fix without error fields (default none: such fixes refused)
 
     [navigation]                            # NavParameters, as lost run --config's
 
@@ -74,6 +75,7 @@ class ServeSettings:
     reorder_lag_s: NonNegativeFloat = 0.5
     reorder_hold_s: NonNegativeFloat = 0.05
     device_retry_s: PositiveFloat = 30.0
+    usbl_default_sigma_m: PositiveFloat | None = None
     navigation: dict = field(default_factory=dict)
     serial: tuple[SerialSettings, ...] = ()
 
