@@ -44,6 +44,8 @@ def _serve(tmp_path, text: str, capsys) -> tuple[int, str]:
     ('listen = ["127.0.0.1:4001", "127.0.0.1:4001"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
     ('listen = []\nbathy = "map.npz"', "[serve] listen must be HOST:PORT or a list of them, each once"),
     ('listen = ["127.0.0.1:4001", "here"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nusbl_default_sigma_m = 0.0', "serve.usbl_default_sigma_m"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nusbl_default_sigma_m = "5"', "serve.usbl_default_sigma_m"),
 ])
 def test_a_refused_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, table, named):
     code, err = _serve(tmp_path, f"[serve]\n{table}\n", capsys)
@@ -192,3 +194,42 @@ def test_a_usbl_fix_without_a_covariance_is_refused_and_counted():
     assert decoder.feed(json.dumps(line)) == []
     assert counts["JSON usbl line whose covariance is no covariance (skipped)"] == 3
     assert counts["JSON usbl line with a missing, unknown or bad field (skipped)"] == 1
+
+
+def _nmea(body: str) -> bytes:
+    checksum = 0
+    for char in body:
+        checksum ^= ord(char)
+    return f"${body}*{checksum:02X}\r\n".encode()
+
+
+@pytest.mark.parametrize(("body", "reason"), [
+    ("PSONLLD,120000.00,1,V,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD marked not valid (status not A; skipped)"),
+    ("PSONLLD,120000.00,1,A,north,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,120000.00,1,A,10.0,20.0,nan,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,250000.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,120000.00,1,A,95.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a position off the globe (skipped)"),
+    ("PSONLLD,120000.00", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,120000.00,1,A,10.0,20.0,700.0,,,,,,,,", "USBL $PSONLLD without error fields and no [serve] usbl_default_sigma_m (skipped)"),
+    ("PSIMSSB,120000.00,B01,A,,U,E,M,500000.0,6000000.0,700.0,2.0,N,,", "USBL $PSIMSSB in coordinate system U (not geographic; skipped)"),
+    ("PSIMSSB,120000.00,B01,A,,P,H,M,30.0,400.0,700.0,2.0,N,,", "USBL $PSIMSSB in coordinate system P (not geographic; skipped)"),
+    ("PSIMSSB,120000.00,B01,V,E12,R,N,M,0.1,0.2,700.0,2.0,N,,", "USBL $PSIMSSB marked not valid (status not A; skipped)"),
+    ("PSIMSSB,120000.00,B01,A,,R,N,M,0.1,0.2,700.0,0.0,N,,", "USBL $PSIMSSB without error fields and no [serve] usbl_default_sigma_m (skipped)"),
+    ("PXYZ,1,2,3", "NMEA proprietary sentence (not used)"),
+    ("HETHS,north,A", "NMEA THS sentence with a field that is no number"),
+])
+def test_a_usbl_sentence_that_cannot_be_used_is_counted_never_raised(body, reason):
+    from lost.host.live.nmea import fix_sentences
+
+    decoder = LiveDecoder()
+    for sentence in fix_sentences(1767225600.0, 0.0, 0.0):
+        decoder.feed(sentence.encode())
+    assert decoder.feed(_nmea(body)) == [] and decoder.counts[reason] == 1
+    assert decoder.feed(_nmea(body)[:-5] + b"\r\n") == []  # its checksum cut off
+    assert decoder.counts["NMEA sentence with a wrong or missing checksum"] == 1
+
+
+def test_a_usbl_sentence_before_any_zda_is_counted():
+    decoder = LiveDecoder()
+    assert decoder.feed(_nmea("PSONLLD,120000.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,")) == []
+    assert decoder.counts["USBL $PSONLLD before any ZDA (no date; skipped)"] == 1

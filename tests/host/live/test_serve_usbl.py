@@ -124,3 +124,50 @@ def test_fixes_of_an_interval_are_carried_to_the_records_time_and_combined_late_
     assert counts["USBL fixes used"] == 2 and counts["records with a USBL fix"] == 1
     assert placer.place(EPOCH_S + 10.0, (0.0, 0.0))[2] == 1
 
+
+
+def test_served_usbl_sentences_over_udp_and_a_serial_port_are_the_fixes_they_carry(usbl_tow, serve_replay, tmp_path):
+    """The tow's fixes as a ship's USBLs send them: `$PSONLLD` over UDP (its error ellipse from the fix's covariance) and
+    `$PSIMSSB` on a serial pty (geographic, radians; no accuracy: the configured default); `lost serve` logs and weighs each."""
+    import os
+
+    from lost.host.io.crs import _transformer
+    from lost.host.live.inputs import UsblFix
+    from lost.host.live.nmea import fix_sentences
+    from lost.host.live.receiver import LiveDecoder
+    from lost.host.live.usbl_nmea import psimssb_sentence, psonlld_sentence
+
+    from .test_serial import _pty, _wait_configured
+
+    path, map_path, simulated, crs = usbl_tow
+    to_lonlat = _transformer(crs, "EPSG:4326")
+    zda = (fix_sentences(EPOCH_S, 0.0, 0.0)[0] + "\r\n").encode()
+    udp, serial = [zda], [zda]
+    for n, k in enumerate(np.flatnonzero(np.isfinite(simulated.usbl_x_m))):
+        lon, lat = to_lonlat.transform(simulated.usbl_x_m[k], simulated.usbl_y_m[k])
+        fix = UsblFix(EPOCH_S + float(simulated.t_s[k]), float(lat), float(lon), 700.0, 0.0, 0.0, 0.0)
+        if n % 2:
+            serial.append((psimssb_sentence(fix) + "\r\n").encode())
+            continue
+        sxy = simulated.usbl_sxy[k]
+        variances, axes = np.linalg.eigh(np.array([[simulated.usbl_sxx[k], sxy], [sxy, simulated.usbl_syy[k]]]))
+        direction = float(np.degrees(np.arctan2(axes[0, 1], axes[1, 1])) % 180.0)
+        udp.append((psonlld_sentence(fix, major_m=float(np.sqrt(variances[1])), minor_m=float(np.sqrt(variances[0])), direction_deg=direction)
+                    + "\r\n").encode())
+    master, port = _pty()
+    try:
+        out, _ = serve_replay((path, map_path), tmp_path, ["--dvl", "none", "--usbl", "none"], junk=tuple(udp), two_ports=True,
+                              serial=({"port": port, "kind": "nmea"},), usbl_default_sigma_m=8.0,
+                              before_replay=lambda: (_wait_configured(master), os.write(master, b"".join(serial))))
+    finally:
+        os.close(master)
+    expected = LiveDecoder(usbl_default_sigma_m=8.0)
+    fixes = [v for line in udp + serial for v in expected.feed(line)]
+    assert len(fixes) == len(udp) + len(serial) - 2 > 40
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    received = sorted((line["usbl"] for line in log if "usbl" in line), key=lambda fix: fix["time_utc_s"])
+    assert received == [{"time_utc_s": f.time_s, **{k: v for k, v in f.__dict__.items() if k != "time_s"}} for f in sorted(fixes, key=lambda f: f.time_s)]
+    summary = json.loads((out / "summary.json").read_text())
+    served = [line["estimates"]["pmf"]["usbl_fixes"] for line in log if "record" in line]
+    assert summary["navigation"]["USBL fixes used"] == sum(served) > 30 and summary["estimator_counts"]["pmf"]["fix_updates"] > 10
+    assert summary["received"]["USBL $PSIMSSB fixes given the default sigma"] == len(serial) - 1
