@@ -64,8 +64,11 @@ def _number(text: str) -> float:
 
 
 def _sigma(text: str) -> float | None:
-    """A 1-sigma field: None when empty or 0 (the sentence gives none)."""
-    return _number(text) or None if text.strip() else None
+    """A 1-sigma field: None when empty or 0 (the sentence gives none); a negative one is no sigma."""
+    value = _number(text) if text.strip() else 0.0
+    if value < 0.0:
+        raise ValueError(text)
+    return value or None
 
 
 def usbl_fix(sentence: pynmea2.ProprietarySentence, date: dt.date | None, near_s: float, default_sigma_m: float | None,
