@@ -46,6 +46,8 @@ def _serve(tmp_path, text: str, capsys) -> tuple[int, str]:
     ('listen = ["127.0.0.1:4001", "here"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nusbl_default_sigma_m = 0.0', "serve.usbl_default_sigma_m"),
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nusbl_default_sigma_m = "5"', "serve.usbl_default_sigma_m"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nqueue_max_values = 0', "serve.queue_max_values"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nqueue_max_values = 100.5', "serve.queue_max_values"),
 ])
 def test_a_refused_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, table, named):
     code, err = _serve(tmp_path, f"[serve]\n{table}\n", capsys)
