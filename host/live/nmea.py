@@ -84,6 +84,7 @@ class NmeaDecoder:
         self._date: dt.date | None = None
         self._last_time_s = math.nan
         self._pending: PositionFix | None = None
+        self.sonar_time_s = math.nan  # the latest .kmall datagram's time, set by the receiver: dates a vendor USBL fix when no ZDA has come
 
     def feed(self, line: str) -> list[PositionFix | HeadingFix | UsblFix]:
         """The fixes one sentence completes (a GGA is held until its VTG, or the next GGA, comes; a USBL's at once)."""
@@ -123,7 +124,7 @@ class NmeaDecoder:
     def _proprietary(self, sentence: pynmea2.ProprietarySentence) -> list[UsblFix]:
         kind = f"P{sentence.manufacturer}{sentence.data[0] if sentence.data else ''}"
         if kind in ("PSONLLD", "PSIMSSB"):
-            return usbl_fix(sentence, self._date, self._last_time_s, self.usbl_default_sigma_m, self.counts)
+            return usbl_fix(sentence, self._date, self._last_time_s, self.usbl_default_sigma_m, self.counts, sonar_time_s=self.sonar_time_s)
         self.counts["NMEA proprietary sentence (not used)"] += 1  # one counter: a vendor's names are not a bounded set
         return []
 

@@ -92,7 +92,7 @@ class LiveDecoder:
         return list(self._nmea.flush())
 
     def _kmall(self, payload: bytes) -> list[Ping]:
-        size, kind, *_ = _HEADER.unpack_from(payload)
+        size, kind, _, _, _, time_sec, time_nanosec = _HEADER.unpack_from(payload)
         name = kind.decode("ascii") if kind.decode("ascii") in _KMALL_KINDS else "(other kind)"
         if size != len(payload) or int.from_bytes(payload[-4:], "little") != size:
             self.counts[f"kmall {name} datagram whose length fields disagree with its size (skipped)"] += 1
@@ -101,6 +101,8 @@ class LiveDecoder:
             self.counts["duplicate kmall datagram (skipped)"] += 1
             return []
         self.counts[f"kmall {name} datagrams"] += 1
+        if time_nanosec < 1_000_000_000:  # the sonar's clock: dates a vendor USBL fix when no ZDA has come
+            self._nmea.sonar_time_s = time_sec + time_nanosec * 1e-9
         if name == "#SKM":
             self._skm(payload)
             return []

@@ -232,7 +232,7 @@ def test_a_usbl_sentence_that_cannot_be_used_is_counted_never_raised(body, reaso
     assert decoder.counts["NMEA sentence with a wrong or missing checksum"] == 1
 
 
-def test_a_usbl_sentence_before_any_zda_is_counted():
+def test_a_usbl_sentence_before_any_zda_and_any_kmall_datagram_is_counted():
     decoder = LiveDecoder()
     assert decoder.feed(_nmea("PSONLLD,120000.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,")) == []
-    assert decoder.counts["USBL $PSONLLD before any ZDA (no date; skipped)"] == 1
+    assert decoder.counts["USBL $PSONLLD before any ZDA or .kmall datagram (no date; skipped)"] == 1
