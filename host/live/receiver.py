@@ -102,7 +102,7 @@ class LiveDecoder:
             return []
         self.counts[f"kmall {name} datagrams"] += 1
         if time_nanosec < 1_000_000_000:  # the sonar's clock: dates a vendor USBL fix when no ZDA has come
-            self._nmea.sonar_time_s = time_sec + time_nanosec * 1e-9
+            self.sonar_clock(time_sec + time_nanosec * 1e-9)
         if name == "#SKM":
             self._skm(payload)
             return []
@@ -146,6 +146,10 @@ class LiveDecoder:
         if self._attitude and not np.isfinite(ping.roll_deg):
             self.counts["ping without attitude at its time (its #SKM late or lost)"] += 1
         return [ping]
+
+    def sonar_clock(self, time_s: float) -> None:
+        """Set the sonar's clock (POSIX seconds), as a ``.kmall`` datagram of that time would: it dates vendor USBL fixes until a ZDA comes."""
+        self._nmea.sonar_time_s = time_s
 
     def sequence(self, ping: Ping) -> int | None:
         """The MRZ ping counter of a ping this decoder made (unwrapped past 65,535), among its last 4,096; None if not."""

@@ -98,10 +98,34 @@ def test_served_usbl_fixes_give_the_batch_navigation_with_the_fixes_in_their_rec
         assert [e["usable"] for e in mine] == list(track.usable)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["server"]["USBL fixes received"] == len(received)
+    _assert_batch_run_with_the_fixes_is_the_served_one(simulated, crs, map_path, tmp_path / "tow.kmall", served, used, tmp_path)
     assert summary["navigation"]["USBL fixes used"] == used.sum() and summary["navigation"]["records with a USBL fix"] == (used > 0).sum()
     # Every estimator weighed fixes (the 20 s windows' patches are too sparse on the 30 m map: the fixes alone correct).
     assert summary["estimator_counts"]["pmf"]["fix_updates"] > 10 and summary["estimator_counts"]["pf"]["fix_updates"] > 10
     assert summary["navigation"]["usbl_fix_recentred"] > 0 and summary["navigation"]["patch_too_sparse"] == len(served) - 1
+
+
+def _assert_batch_run_with_the_fixes_is_the_served_one(simulated, crs, map_path, pings_path, served, used, tmp_path):
+    """`lost run --survey --usbl-fixes` on the pings and a file of the very lines `lost replay` sent: the served run's records."""
+    import csv
+
+    from lost.host.cli import main
+    from lost.host.live.stream import vehicle_datagrams
+
+    from .test_serve import _assert_log_is_the_batch_runs
+
+    fixes_path = tmp_path / "fixes.jsonl"
+    fixes_path.write_bytes(b"".join(d.payload for d in vehicle_datagrams(simulated, crs, dvl_format="none", epoch_s=EPOCH_S)))
+    out = tmp_path / "batch"
+    arguments = ["run", "--survey", str(pings_path), "--bathy", str(map_path), "--record-s", "5", "--window-s", "20", "--patch-centre",
+                 "soundings", "--start-offset", "30,-20", "--dr-bias", "0.1,0.05", "--estimator", "all", "--usbl-fixes", str(fixes_path),
+                 "--out", str(out)]
+    assert main(arguments) == 0
+    with open(out / "track.csv") as stream:
+        _assert_log_is_the_batch_runs(served, list(csv.DictReader(stream)))
+    batch = json.loads((out / "summary.json").read_text())["usbl_fixes"]
+    assert batch["placed"]["USBL fixes used"] == used.sum() and batch["placed"]["records with a USBL fix"] == (used > 0).sum()
+    assert batch["fixes"] == batch["read"]["JSON usbl lines"] == len(fixes_path.read_text().splitlines())
 
 
 def test_fixes_of_an_interval_are_carried_to_the_records_time_and_combined_late_and_first_ones_counted():
