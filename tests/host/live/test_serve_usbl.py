@@ -8,25 +8,12 @@ from collections import Counter
 from dataclasses import replace
 
 import numpy as np
-import pytest
 
-from lost.host.io import write_npz
 from lost.host.io.simulated import EPOCH_S, simulated_pings
 from lost.host.live.usbl import PlacedFix, UsblPlacer
-from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
+from lost.host.scenario import load_scenario
 
-from .conftest import SETTINGS
-
-
-@pytest.fixture(scope="module")
-def usbl_tow(tmp_path_factory):
-    """Two minutes of the deep USBL tow (fixes every 2 s, some lost): scenario file, map, the simulator's records, the ping CRS."""
-    folder = tmp_path_factory.mktemp("usbl_tow")
-    path = folder / "usbl_tow.toml"
-    path.write_text(builtin_scenario_path("usbl_nav").read_text().replace("duration_s = 1800", "duration_s = 120"))
-    scenario = load_scenario(path)
-    grid, crs, _ = simulated_pings(scenario)
-    return path, write_npz(grid, folder / "map.npz"), simulate(scenario)[1], crs
+from .conftest import SETTINGS, batch_survey_run
 
 
 def _batch(map_path, pings_path, fixes: list[tuple[float, np.ndarray, np.ndarray]]):
@@ -107,23 +94,15 @@ def test_served_usbl_fixes_give_the_batch_navigation_with_the_fixes_in_their_rec
 
 def _assert_batch_run_with_the_fixes_is_the_served_one(simulated, crs, map_path, pings_path, served, used, tmp_path):
     """`lost run --survey --usbl-fixes` on the pings and a file of the very lines `lost replay` sent: the served run's records."""
-    import csv
-
-    from lost.host.cli import main
     from lost.host.live.stream import vehicle_datagrams
 
     from .test_serve import _assert_log_is_the_batch_runs
 
     fixes_path = tmp_path / "fixes.jsonl"
     fixes_path.write_bytes(b"".join(d.payload for d in vehicle_datagrams(simulated, crs, dvl_format="none", epoch_s=EPOCH_S)))
-    out = tmp_path / "batch"
-    arguments = ["run", "--survey", str(pings_path), "--bathy", str(map_path), "--record-s", "5", "--window-s", "20", "--patch-centre",
-                 "soundings", "--start-offset", "30,-20", "--dr-bias", "0.1,0.05", "--estimator", "all", "--usbl-fixes", str(fixes_path),
-                 "--out", str(out)]
-    assert main(arguments) == 0
-    with open(out / "track.csv") as stream:
-        _assert_log_is_the_batch_runs(served, list(csv.DictReader(stream)))
-    batch = json.loads((out / "summary.json").read_text())["usbl_fixes"]
+    rows, summary = batch_survey_run(map_path, pings_path, fixes_path, tmp_path / "batch")
+    _assert_log_is_the_batch_runs(served, rows)
+    batch = summary["usbl_fixes"]
     assert batch["placed"]["USBL fixes used"] == used.sum() and batch["placed"]["records with a USBL fix"] == (used > 0).sum()
     assert batch["fixes"] == batch["read"]["JSON usbl lines"] == len(fixes_path.read_text().splitlines())
 
