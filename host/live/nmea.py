@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import pynmea2
 
+from .clock import nmea_clock
 from .inputs import UsblFix
 from .usbl_nmea import HEADING_MODES_USED, usbl_fix
 
@@ -61,8 +62,7 @@ def _bearing(degrees: float) -> str:
 def fix_sentences(time_s: float, lat_deg: float, lon_deg: float, *, heading_deg: float = math.nan, course_deg: float = math.nan,
                   speed_mps: float = math.nan) -> list[str]:
     """The sentences of one fix (see the module), each with its ``$`` and checksum, without line ending; HDT only with a heading, VTG only with a course."""
-    moment = dt.datetime.fromtimestamp(round(time_s, 3), dt.UTC)
-    clock = moment.strftime("%H%M%S.") + f"{moment.microsecond // 1000:03d}"
+    moment, clock = nmea_clock(time_s, 3)
     lat, ns = _angle(lat_deg, 2, "NS")
     lon, ew = _angle(lon_deg, 3, "EW")
     out = [pynmea2.ZDA(_TALKER, "ZDA", (clock, f"{moment.day:02d}", f"{moment.month:02d}", f"{moment.year:04d}", "00", "00")),

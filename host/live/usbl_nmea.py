@@ -35,7 +35,9 @@ import math
 from collections import Counter
 
 import pynmea2
+from pynmea2 import nmea_utils
 
+from .clock import nmea_clock
 from .inputs import UsblFix
 
 __all__ = ["THS", "usbl_fix", "psonlld_sentence", "psimssb_sentence", "ellipse_covariance", "HEADING_MODES_USED"]
@@ -130,18 +132,15 @@ def usbl_fix(sentence: pynmea2.ProprietarySentence, date: dt.date | None, near_s
 
 
 def _clock_s(text: str) -> float:
+    """Seconds of the day of an ``hhmmss.s...`` field, read by pynmea2 (to the microsecond); ValueError if it is no time of day."""
     if len(text) < 6 or not text[:6].isdigit():
         raise ValueError(text)
-    hours, minutes, seconds = int(text[:2]), int(text[2:4]), _number(text[4:])
-    if hours > 23 or minutes > 59 or not 0.0 <= seconds < 61.0:
-        raise ValueError(text)
-    return hours * 3600.0 + minutes * 60.0 + seconds
+    clock = nmea_utils.timestamp(text)  # datetime.time: an hour 24 or more, a minute or second 60 or more raise ValueError
+    return clock.hour * 3600.0 + clock.minute * 60.0 + clock.second + clock.microsecond * 1e-6
 
 
 def _clock(time_s: float, decimals: int) -> str:
-    moment = dt.datetime.fromtimestamp(round(time_s, decimals), dt.UTC)
-    fraction = f"{moment.microsecond / 1e6:.{decimals}f}"[1:]
-    return moment.strftime("%H%M%S") + fraction
+    return nmea_clock(time_s, decimals)[1]
 
 
 def psonlld_sentence(fix: UsblFix, beacon: str = "1", *, major_m: float | None = None, minor_m: float | None = None,

@@ -210,6 +210,8 @@ def _nmea(body: str) -> bytes:
     ("PSONLLD,120000.00,1,A,north,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,120000.00,1,A,10.0,20.0,nan,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,250000.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,125960.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,1200005,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,120000.00,1,A,10.0,20.0,700.0,-3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,120000.00,1,A,95.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a position off the globe (skipped)"),
     ("PSONLLD,120000.00", "USBL $PSONLLD with a field that is no number (skipped)"),
