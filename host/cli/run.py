@@ -232,7 +232,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 #: Options of `lost run` that only a recorded survey (--survey) takes.
-_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "usbl_fixes")
+_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "usbl_fixes", "usbl_default_sigma_m")
 
 
 def _run_survey(args: argparse.Namespace) -> int:
@@ -241,6 +241,8 @@ def _run_survey(args: argparse.Namespace) -> int:
     from ..io.survey import open_survey
     from ..io.survey_records import DEFAULT_RECORD_S, SurveyRecorder, check_survey_on_map, survey_records
 
+    if args.usbl_default_sigma_m is not None and args.usbl_fixes is None:
+        raise UsageError("--usbl-default-sigma-m is the 1 sigma of --usbl-fixes' sentences without error fields: give --usbl-fixes FILE")
     params = _parameters(args, {})
     files = [Path(f) for f in args.survey]
     names = ", ".join(f.name for f in files)
@@ -257,7 +259,7 @@ def _run_survey(args: argparse.Namespace) -> int:
                                   patch_centre=args.patch_centre)
         records = survey_records(survey, recorder)
         if args.usbl_fixes is not None:
-            records, extra["usbl_fixes"] = _survey_usbl_fixes(args.usbl_fixes, records, recorder.epoch_s, grid.crs)
+            records, extra["usbl_fixes"] = _survey_usbl_fixes(args.usbl_fixes, records, recorder.epoch_s, grid.crs, args.usbl_default_sigma_m)
         warnings += check_survey_on_map(records, grid, names)
         skipped = {**dict(survey.skipped), **dict(recorder.skipped)}
         extra["survey"] = {"files": [str(f) for f in files], "format": survey.format, "first_ping_utc_s": recorder.epoch_s,
@@ -272,14 +274,14 @@ def _run_survey(args: argparse.Namespace) -> int:
     return 0
 
 
-def _survey_usbl_fixes(path: Path, records, epoch_s: float, crs: str):
+def _survey_usbl_fixes(path: Path, records, epoch_s: float, crs: str, default_sigma_m: float | None):
     """``--usbl-fixes``: the file's fixes (the lines `lost serve` receives) in the records whose intervals hold them, as served."""
     from collections import Counter
 
     from ..io.crs import _transformer
     from ..live.usbl import place_usbl_fixes, placed_fix, read_usbl_fixes
 
-    fixes, counts = read_usbl_fixes(path, sonar_time_s=epoch_s)
+    fixes, counts = read_usbl_fixes(path, sonar_time_s=epoch_s, default_sigma_m=default_sigma_m)
     to_map = _transformer("EPSG:4326", crs)
     placed = Counter()
     records, used = place_usbl_fixes(records, epoch_s, [placed_fix(fix, to_map) for fix in fixes], placed)
@@ -362,6 +364,9 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     run.add_argument("--usbl-fixes", type=Path, default=None, metavar="FILE",
                      help="--survey: USBL fixes, a line each as lost serve receives them (JSON usbl lines, $PSONLLD, $PSIMSSB), "
                           "each in the record whose interval holds it")
+    run.add_argument("--usbl-default-sigma-m", type=positive_metres, default=None, metavar="METRES",
+                     help="--usbl-fixes: the 1 sigma of a $PSONLLD/$PSIMSSB fix without error fields, as lost serve's "
+                          "usbl_default_sigma_m (default: such fixes refused, counted)")
     run.add_argument("--node-m", type=positive_metres, default=None, metavar="METRES",
                      help="node spacing of the map (and of the sonar patches), metres (default: the grid file's)")
     run.add_argument("--crs", default=None, help="projected CRS to navigate in (default: the grid's own, or its UTM zone)")

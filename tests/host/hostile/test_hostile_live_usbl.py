@@ -3,6 +3,7 @@ survey, vendor sentences that nothing can date: each a named error or a counted 
 
 from __future__ import annotations
 
+import json
 from itertools import islice
 
 import pytest
@@ -60,3 +61,22 @@ def test_vendor_sentences_without_a_zda_or_a_sonar_clock_are_counted_and_refused
     (fix,), counts = read_usbl_fixes(fixes, sonar_time_s=EPOCH_S + 3600.0)  # the survey's first ping dates it
     assert fix.time_s == pytest.approx(EPOCH_S, abs=1e-6)
     assert counts["USBL $PSONLLD fixes dated by the sonar's datagram time (no ZDA)"] == 1
+
+
+def test_sentences_without_error_fields_need_the_default_sigma(survey, tmp_path, capsys):
+    from lost.host.live.usbl_nmea import psimssb_sentence
+
+    fixes = tmp_path / "fixes.nmea"
+    fixes.write_text("".join(psimssb_sentence(UsblFix(EPOCH_S + t, 0.0, 0.0, 100.0, 0.0, 0.0, 0.0)) + "\r\n" for t in (2.0, 7.0)))
+    code, err = _run(survey, fixes, tmp_path, capsys)
+    assert code == 1 and "without error fields and no [serve] usbl_default_sigma_m (skipped): 2" in err
+    (fix, _), counts = read_usbl_fixes(fixes, sonar_time_s=EPOCH_S, default_sigma_m=4.0)
+    assert (fix.sxx_m2, fix.syy_m2, fix.sxy_m2) == (16.0, 16.0, 0.0) and counts["USBL $PSIMSSB fixes given the default sigma"] == 2
+    path, map_path = survey
+    with_default = ["run", "--survey", str(path), "--bathy", str(map_path), "--usbl-fixes", str(fixes), "--usbl-default-sigma-m", "4"]
+    assert main([*with_default, "--out", str(tmp_path / "used")]) == 0
+    summary = json.loads((tmp_path / "used" / "summary.json").read_text())["usbl_fixes"]
+    assert summary["fixes"] == 2 and summary["read"]["USBL $PSIMSSB fixes given the default sigma"] == 2
+    capsys.readouterr()
+    assert main(["run", "--survey", str(path), "--bathy", str(map_path), "--usbl-default-sigma-m", "4", "--out", str(tmp_path / "out")]) == 2
+    assert "give --usbl-fixes FILE" in capsys.readouterr().err and not (tmp_path / "out").exists()
