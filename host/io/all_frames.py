@@ -36,21 +36,25 @@ def header_dtype(order: str) -> np.dtype:
 
 
 def byte_order(path: Path) -> str:
-    """``"<"`` or ``">"``: the order in which the file's first datagram's length word ends on its ETX.
+    """``"<"`` or ``">"``: the order in which the file's first well-framed datagram's length word ends on its ETX.
 
-    A file whose first datagram frames in neither order (damaged at its start) is read little-endian; the
-    reader then resynchronises and counts the damage.
+    The first datagram decides; when it is damaged, the first of the file's first MiB that frames in one order
+    and has a plausible date. A file in which none frames is read little-endian (and its damage counted).
     """
     size = path.stat().st_size
     with path.open("rb") as f:
-        head = f.read(ALL_HEADER.itemsize)
-        if len(head) < ALL_HEADER.itemsize or head[4] != STX:
-            return "<"
-        for order in ("<", ">"):
-            length = int(np.frombuffer(head, f"{order}u4", 1)[0])
-            if ALL_HEADER.itemsize - 4 <= length <= _MAX_DATAGRAM and 4 + length <= size:
-                f.seek(4 + length - 3)
-                if f.read(1) == bytes([ETX]):
+        chunk = f.read(1 << 20)
+        starts = [0] + [int(k) - 4 for k in np.flatnonzero(np.frombuffer(chunk, np.uint8) == STX) if k >= 4]
+        for at in starts:
+            if chunk[at + 4:at + 5] != bytes([STX]) or at + ALL_HEADER.itemsize > len(chunk):
+                continue
+            for order in ("<", ">"):
+                header = np.frombuffer(chunk, header_dtype(order), 1, at)[0]
+                length = int(header["length"])
+                if not (ALL_HEADER.itemsize - 4 <= length <= _MAX_DATAGRAM and at + 4 + length <= size):
+                    continue
+                f.seek(at + 4 + length - 3)
+                if f.read(1) == bytes([ETX]) and (at == 0 or 1980 < int(header["date"]) // 10000 < 2200):
                     return order
     return "<"
 
