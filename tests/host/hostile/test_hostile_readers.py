@@ -198,3 +198,13 @@ def test_a_big_endian_all_file_damaged_at_its_start_is_still_read_in_its_order(t
     s = summarize_survey(_write(tmp_path, "big.all", b"\x07\x00\x00\x00\x02X" + junk + big_endian(GA.read_bytes())))
     assert s["pings"] == 11 and s["valid_soundings"] == summarize_survey(GA)["valid_soundings"]
     assert s["skipped"] == {"big.all: bytes that are no datagram (damaged data, resynchronised)": 1}
+
+
+def test_garbage_inside_a_gsf_file_keeps_the_pings_before_it_and_counts_the_rest(tmp_path):
+    data = GSF.read_bytes()
+    at = len(data) // 2
+    while int.from_bytes(data[at + 4:at + 8], "big") & 0x3FFFFF != 2 or int.from_bytes(data[at:at + 4], "big") > 1 << 20:
+        at += 1  # the framing of a ping record past the middle
+    s = summarize_survey(_write(tmp_path, "junk.gsf", data[:at] + b"\xff" * 64 + data[at:]))
+    assert 0 < s["pings"] < 8
+    assert s["skipped"] == {f"junk.gsf: bytes that are no GSF record at byte {at} (the file's remainder not read)": 1}
