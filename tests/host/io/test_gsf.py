@@ -2,7 +2,7 @@
 
 libgsf's JSON hand-over gives the depth, across-track offsets, position, heading and attitude of each ping (and the
 beam flags of files with a sensor-specific subrecord), not the along-track offsets: it is the independent decoder of
-those. Real pings (an EM122 .all, the EX1604 GSF, an EM2040 .kmall) written as GSF read back to the format's precision;
+those, and the along-track offsets are decoded here with ``struct`` from the format's layout. Real pings (an EM122 .all, the EX1604 GSF, an EM2040 .kmall) written as GSF read back to the format's precision;
 a simulated tow written as GSF gives the records and the navigation the .all export gives.
 """
 
@@ -59,6 +59,36 @@ def assert_libgsf_agrees(pings, records: list[dict]) -> None:
             np.testing.assert_array_equal(p.valid, np.array(r["beam_flags"]) == 0)
 
 
+def along_track_by_struct(path: Path) -> list[np.ndarray]:
+    """Each ping's along-track offsets decoded here from GSF's layout (libgsf's gsf_dec.c): the record framing, the
+    ping's 56-byte fixed part (GSF 3), then subrecords (identifier in the top byte of a word, size in the rest): the
+    scale factors (100: per array a word, a multiplier, an offset) and the along-track array (3: value = raw / multiplier - offset)."""
+    import struct
+
+    data, at, out = path.read_bytes(), 0, []
+    scale: dict[int, tuple[int, int]] = {}
+    while at + 8 <= len(data):
+        size, word = struct.unpack_from(">II", data, at)
+        start = at + 8 + (4 if word & 0x80000000 else 0)
+        if word & 0x3FFFFF == 2:
+            beams = struct.unpack_from(">H", data, start + 16)[0]
+            p, along = start + 56, None
+            while p + 4 <= start + size:
+                head = struct.unpack_from(">I", data, p)[0]
+                kind, length = head >> 24, head & 0xFFFFFF
+                if kind == 100:
+                    for k in range(struct.unpack_from(">I", data, p + 4)[0]):
+                        sub, multiplier, offset = struct.unpack_from(">IIi", data, p + 8 + 12 * k)
+                        scale[sub >> 24] = (multiplier, offset)
+                elif kind == 3:
+                    raw = np.frombuffer(data, f">i{length // beams}", beams, p + 4)
+                    along = raw / scale[3][0] - scale[3][1]
+                p += 4 + length
+            out.append(along)
+        at = start + size
+    return out
+
+
 @needs_real
 def test_the_ex1604_pings_are_libgsfs_values_and_carry_their_along_track_offsets():
     skipped, notes = Counter(), Counter()
@@ -68,6 +98,8 @@ def test_the_ex1604_pings_are_libgsfs_values_and_carry_their_along_track_offsets
     assert all("beam_flags" in r and "along_track" not in r for r in records)  # what libgsf's JSON leaves out
     assert_libgsf_agrees(pings, records)
     assert sum(int(p.valid.sum()) for p in pings) == 2369  # the independent parser's count
+    for p, along in zip(pings, along_track_by_struct(EX1604), strict=True):
+        np.testing.assert_array_equal(p.along_m, along)
     along = np.concatenate([p.along_m for p in pings])
     assert along.min() < -600.0  # the outer beams hundreds of metres aft: taken as 0, they would be misplaced by that
 
@@ -94,6 +126,8 @@ def test_real_pings_written_as_gsf_read_back_to_the_formats_precision(source, tm
         np.testing.assert_allclose(b.across_m[finite], a.across_m[finite], atol=0.001 + 1e-9)  # a step of 1 mm (gsfu rounds within one)
         np.testing.assert_allclose(b.along_m[finite], a.along_m[finite], atol=0.001 + 1e-9)  # a step of 1 mm (gsfu rounds within one)
     assert_libgsf_agrees(read, libgsf_pings(path))  # the reference library reads what gsfu wrote, as gsfu reads it
+    for p, along in zip(read, along_track_by_struct(path), strict=True):
+        np.testing.assert_array_equal(p.along_m, along)
 
 
 @needs_real
