@@ -2,8 +2,9 @@
 
 libgsf's JSON hand-over gives the depth, across-track offsets, position, heading and attitude of each ping (and the
 beam flags of files with a sensor-specific subrecord), not the along-track offsets: it is the independent decoder of
-those, and the along-track offsets are decoded here with ``struct`` from the format's layout. Real pings (an EM122 .all, the EX1604 GSF, an EM2040 .kmall) written as GSF read back to the format's precision;
-a simulated tow written as GSF gives the records and the navigation the .all export gives.
+those, and the along-track offsets are decoded here with ``struct`` from the format's layout. Real pings (an EM122
+.all, the EX1604 GSF, an EM2040 .kmall) written as GSF read back to the format's precision; a simulated tow written
+as GSF gives the records and the navigation the .all export gives.
 """
 
 from __future__ import annotations
