@@ -96,3 +96,20 @@ def test_the_second_sensor_marked_active_gives_the_pings_its_attitude(tmp_path):
     finite = np.isfinite(expected)
     assert finite.sum() >= 3
     np.testing.assert_allclose(rolls[finite], expected[finite] + 5.0, atol=1e-5)
+
+
+def test_an_skm_datagram_holding_fewer_samples_than_it_says_is_skipped_and_counted(tmp_path):
+    path = next(p for p in FILES if p.read_bytes().count(b"#SKM") >= 2)
+    data, at, damaged = bytearray(path.read_bytes()), 0, False
+    while at + 8 <= len(data) and not damaged:
+        length = struct.unpack_from("<I", data, at)[0]
+        if data[at + 4:at + 8] == b"#SKM":
+            struct.pack_into("<H", data, at + 26, 60000)  # numSamplesArray far beyond the datagram
+            damaged = True
+        at += length
+    other = tmp_path / "short_skm.kmall"
+    other.write_bytes(bytes(data))
+    skipped = Counter()
+    pings = list(read_kmall_pings(other, skipped, Counter()))
+    assert skipped == Counter({f"{other.name}: damaged datagram 'SKM' (fewer samples than it says)": 1})
+    assert len(pings) == len(list(read_kmall_pings(path, Counter(), Counter())))
