@@ -8,8 +8,8 @@ hand over.
 
 The records' framing (a big-endian size and record identifier each) is walked here first, record by record,
 without decoding: the whole records before the first one cut off by the end of the file or not framed as a
-GSF record are read, and that damage is counted (gsfu alone refuses a damaged file whole). Memory: the
-offsets of the records (16 bytes each) and one record at a time.
+GSF record are read, and that damage is counted (gsfu alone refuses a damaged file whole). Memory: gsfu's
+index of the records (about 50 bytes a record) and one record at a time.
 
 A ping's position is the record's own; depths are GSF's (below the sea surface, as processed); a beam is
 valid when its beam flag is 0 (GSF's flags: bit 0 ignore, bits 1-7 the reasons); GSF's "not available"
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import struct
+from array import array
 from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
@@ -71,7 +72,7 @@ def _whole_records(path: Path, skipped: Counter):
     import pandas as pd
 
     size = path.stat().st_size
-    offsets, sizes, words = [], [], []
+    offsets, sizes, words = array("q"), array("q"), array("q")
     version = None
     with path.open("rb") as f:
         at = 0
@@ -103,7 +104,7 @@ def _whole_records(path: Path, skipped: Counter):
     ids = words_array & 0x003FFFFF
     checksum = (words_array & _CHECKSUM_FLAG) != 0
     sizes_array = np.array(sizes, dtype=np.int64)
-    index = pd.DataFrame({"RecordType": ids.astype(str), "RecordID": ids, "ByteOffset": np.array(offsets, dtype=np.int64),
+    index = pd.DataFrame({"RecordType": pd.Categorical(ids), "RecordID": ids, "ByteOffset": np.array(offsets, dtype=np.int64),
                           "RecordSize": sizes_array, "TotalBytes": _FRAMING.size + sizes_array + np.where(checksum, 4, 0),
                           "ChecksumFlag": checksum})
     return index, version
