@@ -20,7 +20,11 @@ run toward the scenario's own run, so that each step's change of the error is on
 5. ``patch_true_placed``: as 4 with the beams placed by the true track (no dead-reckoning error inside a patch, and
    the patch's age 0, so that no velocity-bias estimate moves it);
 6. ``scenario``: ``lost run SCENARIO`` with that seed (its lay-back start, its sensors, its ``[navigation]``, its
-   patches: the floor sampled at the map's nodes around the true position).
+   patches: the floor sampled at the map's nodes around the true position);
+
+and, beside them, 7. ``scenario_swath``: the scenario's own run with its sonar a multibeam swath (``[sensors.sonar]``
+``mode = "swath"``, ``realtime = true``: its own pings binned by its own dead reckoning, as the shipped swath
+scenarios make their patches): what the scenario itself gives with patches gridded from pings.
 
 Reported: each filter's RMS and 95th percentile error after its convergence, the share of seeds that converged and
 the dead reckoning's RMS, as medians and 90th percentiles over the seeds.
@@ -38,7 +42,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 ESTIMATORS = ("pmf", "pf")
-VARIANTS = ("survey", "survey_params", "survey_dr", "patch_only", "patch_true_placed", "scenario")
+VARIANTS = ("survey", "survey_params", "survey_dr", "patch_only", "patch_true_placed", "scenario", "scenario_swath")
 #: The survey route's settings (what the docs' `lost run --survey` example gives).
 RECORD_S, WINDOW_S, START_OFFSET_M, DR_BIAS_MPS = 2.0, 60.0, (30.0, -20.0), (0.1, 0.05)
 
@@ -99,6 +103,9 @@ def one_seed(scenario, folder: Path, file_format: str = "all") -> dict:
             patches = tuple(None if p is None else replace(p, age_s=0.0) for p in patches)
         mixed = replace(own_records, sonar=patches)
         results[label] = (navigate(mixed, own_grid, own_params, estimators=ESTIMATORS), own_params)
+    swath = replace(scenario, sensors={**scenario.sensors, "sonar": replace(scenario.sensors["sonar"], mode="swath", realtime=True)})
+    swath_grid, swath_records = simulate(swath)
+    results["scenario_swath"] = (navigate(swath_records, swath_grid, own_params, estimators=ESTIMATORS), own_params)
     row = {"seed": scenario.seed}
     for label in VARIANTS:
         result, params = results[label]
