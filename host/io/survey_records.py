@@ -12,7 +12,9 @@ model's start), so no record carries the truth to the estimators.
 Each record closes an interval of ``interval_s`` seconds of pings (counted from the first ping); its time
 is the interval's last ping's. Its patch is :func:`lost.host.io.sonar.grid_soundings` of the valid beams of
 the pings of the last ``window_s`` seconds up to the record (default ``interval_s``: the interval's own
-pings; longer, a patch that reaches along the track as well as across it), at the map's ``node_m``, placed relative to the vehicle at the record as the
+pings; longer, a patch that reaches along the track as well as across it; with ``full_window``, none until
+``window_s`` seconds after the first ping: a window still filling is a strip of the swath, which can match the map
+elsewhere), at the map's ``node_m``, placed relative to the vehicle at the record as the
 navigation knows it: the beam's offset from its own ping plus the ping's position reckoned back from
 the record over the ping's age (the true displacement plus the dead reckoning's error over the age: the
 velocity bias times the age, as a dead-reckoned vehicle would place it), with the patch's ``age_s`` the soundings' mean age. The patch is
@@ -24,7 +26,8 @@ over a :class:`~lost.host.io.survey.Survey` into :class:`~lost.host.records.NavR
 navigation log reader produces.
 
 Counted, never silent (:attr:`SurveyRecorder.skipped`): a record interval whose pings have no valid beam
-(the record is kept without a patch: the navigation dead-reckons through it); valid beams beyond the
+(the record is kept without a patch: the navigation dead-reckons through it); with ``full_window``, a record
+before its window was full (kept without a patch); valid beams beyond the
 patch; a ping earlier than a record already closed. Refused by name: a ping of a sonar head or ship not
 seen in the first record (:class:`~lost.host.io.errors.DifferentShipsError`: files of different ships given
 together).
@@ -94,11 +97,13 @@ class SurveyRecorder:
         by its difference between the ping and the record.
     patch_centre : {"vehicle", "soundings"}
         Where each record's patch is centred.
+    full_window : bool
+        No patch for the records of the first ``window_s`` seconds (their window is still filling).
     """
 
     def __init__(self, *, node_m: float, patch_shape: tuple[int, int], interval_s: float, window_s: float | None = None,
                  dr_bias_mps=(0.0, 0.0), start_offset_m=(0.0, 0.0), dead_reckoning_error: Callable[[float], object] | None = None,
-                 patch_centre: str = "vehicle") -> None:
+                 patch_centre: str = "vehicle", full_window: bool = False) -> None:
         window_s = interval_s if window_s is None else window_s
         for name, value in (("interval_s", interval_s), ("window_s", window_s)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
@@ -112,6 +117,7 @@ class SurveyRecorder:
         if dead_reckoning_error is not None and (self.bias.any() or self.start_offset.any()):
             raise ValueError("give either dead_reckoning_error or dr_bias_mps and start_offset_m, not both")
         self._scripted = dead_reckoning_error
+        self.full_window = bool(full_window)
         self.skipped: Counter[str] = Counter()
         self.epoch_s: float | None = None  # the first ping's time: record times count from it
         self._interval: int | None = None  # the index of the interval being filled
@@ -162,7 +168,11 @@ class SurveyRecorder:
             t0, _, reckoned0 = self._last
             velocity = (reckoned - reckoned0) / (t - t0)
         self._last = (t, truth, reckoned)
-        patch, soundings = self._patch(pings, last)
+        if self.full_window and t < self.window_s:
+            self.skipped["record before its window of pings was full (kept without a patch)"] += 1
+            patch, soundings = None, 0
+        else:
+            patch, soundings = self._patch(pings, last)
         nadir = _nadir_depth(last)
         vehicle_depth = last.origin_depth_m if math.isfinite(last.origin_depth_m) else 0.0
         return [SurveyRecord(t_s=t, ship_x_m=float(reckoned[0]), ship_y_m=float(reckoned[1]),
