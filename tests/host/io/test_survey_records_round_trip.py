@@ -91,7 +91,8 @@ def test_the_patches_of_the_file_are_those_of_the_pings_never_written_to_the_for
 
 
 def test_lost_run_survey_takes_the_scenarios_navigation_parameters_with_config(tow, tmp_path, capsys):
-    scenario, _, _, _, _, _, path, map_path = tow
+    scenario, _, _, memory, _, _, _, map_path = tow
+    path = write_all_pings(iter(memory[:40]), tmp_path / "first_40_s.all")  # the parameters, not the navigation, are checked
     out = tmp_path / "run"
     code = main(["run", "--survey", str(path), "--bathy", str(map_path), "--config", str(builtin_scenario_path("short_exact_map")),
                  "--record-s", "2", "--window-s", "60", "--patch-centre", "soundings", "--estimator", "pmf", "--out", str(out)])
@@ -100,3 +101,17 @@ def test_lost_run_survey_takes_the_scenarios_navigation_parameters_with_config(t
     used = json.loads((out / "summary.json").read_text())["parameters"]
     for name, value in scenario.navigation.items():
         assert used[name] == (list(value) if isinstance(value, tuple | list) else value), name
+
+
+def test_full_window_withholds_the_patches_until_the_window_of_pings_is_full_and_counts_them(tow):
+    _, _, _, _, read_back, grid, _, _ = tow
+    full = _recorder(grid, full_window=True)
+    withheld = survey_records(iter(read_back), full)
+    every = survey_records(iter(read_back), _recorder(grid))
+    early = withheld.t_s < 60.0
+    assert early.sum() == 60 and all(patch is None for patch, e in zip(withheld.sonar, early) if e)
+    assert full.skipped["record before its window of pings was full (kept without a patch)"] == 60
+    for a, b, e in zip(withheld.sonar, every.sonar, early):
+        if not e:
+            np.testing.assert_array_equal(a.depth_m, b.depth_m)
+    np.testing.assert_array_equal(withheld.ship_x_m, every.ship_x_m)
