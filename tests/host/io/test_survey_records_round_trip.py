@@ -115,3 +115,11 @@ def test_full_window_withholds_the_patches_until_the_window_of_pings_is_full_and
         if not e:
             np.testing.assert_array_equal(a.depth_m, b.depth_m)
     np.testing.assert_array_equal(withheld.ship_x_m, every.ship_x_m)
+
+
+def test_a_scripted_dead_reckoning_is_refused_beside_a_bias_or_when_it_gives_no_position(tow):
+    _, _, _, _, read_back, grid, _, _ = tow
+    with pytest.raises(ValueError, match="either dead_reckoning_error or dr_bias_mps and start_offset_m"):
+        _recorder(grid, dead_reckoning_error=lambda t: (0.0, 0.0), dr_bias_mps=(0.1, 0.0))
+    with pytest.raises(ValueError, match=r"dead_reckoning_error\(t\) must be two finite numbers"):
+        survey_records(iter(read_back[:5]), _recorder(grid, dead_reckoning_error=lambda t: (float("nan"), 0.0)))
