@@ -68,6 +68,17 @@ def test_periodic_terrain_is_a_false_lock_and_rough_terrain_is_not():
     assert np.nanmin(alike) > 0.99 and np.nanmax(rough) < 0.01
 
 
+def test_a_repeated_tile_is_as_many_look_alikes_as_its_repeats():
+    tile = 20.0 * ndimage.gaussian_filter(np.random.default_rng(3).normal(size=(10, 10)), 1.5, mode="wrap")
+    repeated = Grid(depth_m=500.0 + np.tile(tile, (7, 7)), x0_m=0.0, y0_m=0.0, node_m=10.0)  # a 100 m tile repeated
+    found = lookalike_grid(repeated, SonarModel(shape=(8, 8), noise_m=0.3), 0.1, radius_m=150.0, work=3e6)
+    # the ring to 150 m holds the 4 repeats at 100 m and the 4 at 141 m: each a chance of 1/2 to win a patch
+    assert np.nanmin(found.snr[-1]) < 1e-6
+    assert np.allclose(found.rivals[-1, 25:45, 25:45], 4.0, atol=0.05)  # where every repeat is on the map
+    rough = lookalike_grid(_rough((70, 70)), SonarModel(shape=(8, 8), noise_m=0.3), 0.1, radius_m=150.0, work=3e6)
+    assert np.nanmax(rough.rivals[-1]) < 0.05
+
+
 def test_the_lock_is_lost_over_look_alike_ground_and_regained_on_informative_terrain():
     rng = np.random.default_rng(4)
     y, x = np.mgrid[0:50, 0:240] * 10.0
