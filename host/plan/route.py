@@ -10,18 +10,26 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
   error keeps growing. The filters keep
   their density at least ``floor_m`` wide, so no update takes ``P`` below it.
-- Not holding it (probability ``unlocked``): the filter sits on another placement, at a mean square distance that
-  starts at the initial search's (``2 initial_sigma_m^2``) and drifts with the dead reckoning.
+- Not holding it (probability ``unlocked``): still searching (a mean square distance that starts at the initial
+  search's, ``2 initial_sigma_m^2``), or holding a wrong place (a look-alike's distance); both drift with the dead
+  reckoning.
 
-The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr`` and distance)
-move the probability between the states. A patch prefers a placement of separation ``snr`` at distance ``d`` over
-the truth with probability ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``;
-``d^2 / 2P`` the locked density's own odds against a jump). A lock slips with that probability, summed over the rings
-beyond three sigma, per new patch; the error is then the look-alike's distance. A filter without the lock finds it
-where the terrain fixes the position and no look-alike within twice its error competes: per new patch, one minus the
-rivals of the rings within twice its error (:attr:`Lookalike.rivals`), with ``acquisitions_per_patch`` chances in
-the length of a patch. A lost lock therefore persists over smooth or look-alike
-ground and is regained on informative terrain. The predicted error is ``sqrt((1 - unlocked) 2P + unlocked E^2)``.
+The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr``, distance and
+the ring's rivals, one per basin of the misfit) move the probability between the states:
+
+- The search ends on accumulated evidence: per ring, the new share of each patch times the ring's smallest separation
+  adds up, and each of the ring's look-alikes as good as its best is still ahead of the truth with
+  ``Phi(-sqrt(evidence) / 2)`` (:func:`_still_searching`). Rough ground ends it within a patch length, repeated
+  terrain never; a hole adds nothing, and a search over a hole narrows (a patch length of such updates) into a wrong
+  lock: the filter updates on the patch's valid nodes, where the truth's placement is neutral and the others are not.
+- A lock slips onto a ring's best look-alike with the probability a new patch prefers it against the locked density's
+  own odds, ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``), summed over
+  the rings beyond three sigma, per new patch.
+- A wrong lock is left where the terrain fixes the position and no look-alike within twice its error competes: per new
+  patch, one minus the rivals of those rings, with ``acquisitions_per_patch`` chances in the length of a patch. A wrong
+  lock therefore persists over smooth or look-alike ground and is left on informative terrain.
+
+The predicted error is ``sqrt((1 - unlocked) 2P + unlocked E^2)``.
 
 Without look-alikes the filter is taken to hold the lock from the start (the bound and the growth only).
 """
