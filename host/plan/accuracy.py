@@ -94,8 +94,9 @@ def accuracy_grid(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | float
     Infinity where the patch leaves the map, touches a hole, or sees terrain that fixes no position (flat or a plane).
     """
     ixx, ixy, iyy, defined = information(grid, sonar, map_sigma_m)
-    det = ixx * iyy - ixy * ixy
-    scale = np.maximum(ixx + iyy, 1e-300)
+    with np.errstate(invalid="ignore"):  # inside a hole wider than the patch the sums are undefined (no bound there)
+        det = ixx * iyy - ixy * ixy
+        scale = np.maximum(ixx + iyy, 1e-300)
     ok = defined & np.isfinite(det) & (det > 1e-12 * scale * scale)
     accuracy = np.full(grid.shape, np.inf)
     accuracy[ok] = np.sqrt((ixx[ok] + iyy[ok]) / det[ok])
