@@ -9,7 +9,12 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   is within ``usable_sigma_m`` fuses as a Gaussian measurement of the share of its patch that is new (the filters
   temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
   error keeps growing. The filters keep
-  their density at least ``floor_m`` wide, so no update takes ``P`` below it.
+  their density at least ``floor_m`` wide, so no update takes ``P`` below it. ``P`` is the density's width, which sets
+  the lock's odds against its look-alikes; the error of the position held is another thing (``held``): the bound of one
+  patch with the map's error against the sonar's patch alone (:func:`lost.host.plan.accuracy.held_sigma`: no slope
+  allowance, no density floor), not averaged along the track, since the map's errors and the relief a node cannot show
+  are the same on every pass over a place and the patches of one stretch share them. Where there is no fix it grows as
+  the density does from the last one.
 - Not holding it (probability ``unlocked``): still searching (a mean square distance that starts at the initial
   search's, ``2 initial_sigma_m^2``), or holding a wrong place (a look-alike's distance); both drift with the dead
   reckoning.
@@ -29,7 +34,7 @@ the ring's rivals, one per basin of the misfit) move the probability between the
   patch, one minus the rivals of those rings, with ``acquisitions_per_patch`` chances in the length of a patch. A wrong
   lock therefore persists over smooth or look-alike ground and is left on informative terrain.
 
-The predicted error is ``sqrt((1 - unlocked) 2P + unlocked E^2)``.
+The predicted error is ``sqrt((1 - unlocked) H^2 + unlocked E^2)``, ``H`` the held error (``2P`` without ``held``).
 
 Without look-alikes the filter is taken to hold the lock from the start (the bound and the growth only).
 """
@@ -121,10 +126,11 @@ def route_points(waypoints: np.ndarray, model: RouteModel) -> tuple[np.ndarray, 
     return t, np.column_stack([np.interp(along, distance, waypoints[:, 0]), np.interp(along, distance, waypoints[:, 1])])
 
 
-def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None) -> dict[str, np.ndarray]:
-    """The prediction at every update along the waypoints, with the map's bound (and look-alikes) there."""
+def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None,
+                  held: Grid | None = None) -> dict[str, np.ndarray]:
+    """The prediction at every update along the waypoints, with the map's bound (and look-alikes, and the held error's bound) there."""
     t, xy = route_points(waypoints, model)
-    return predict_along(accuracy, t, xy, model, lookalike)
+    return predict_along(accuracy, t, xy, model, lookalike, held)
 
 
 def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -136,18 +142,24 @@ def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     return r, c, on_map
 
 
-def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None) -> dict[str, np.ndarray]:
+def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None,
+                  held: Grid | None = None) -> dict[str, np.ndarray]:
     """The predicted 1-sigma horizontal error at updates at times ``t`` and positions ``xy`` (a track already known).
 
     Without ``lookalike`` the filter is taken to hold the true position from the start (the bound and the growth
     only); with it, the lock is acquired, lost and regained as the module docstring says, and the result also
     carries ``unlocked`` (the probability of not holding the true position) and ``locked_m`` (the error when holding it).
+    With ``held`` (one patch's bound with the survey's error alone, :func:`lost.host.plan.accuracy.held_sigma`) the error holding the lock is that
+    bound where there is one, growing as the density does between (module docstring); without it, the density's own.
     """
     from ..nav.trust import ins_position_sigma
 
     r, c, on_map = _sample(accuracy, xy)
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
+    held_bound = np.full(len(t), np.inf)
+    if held is not None:
+        held_bound[on_map] = held.depth_m[r[on_map], c[on_map]]
     usable = bound <= model.usable_sigma_m
     rings = None
     if lookalike is not None:
@@ -155,7 +167,9 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
         for along, grid in zip(rings, (lookalike.snr, lookalike.distance_m, lookalike.rivals)):
             along[:, on_map] = grid[:, r[on_map], c[on_map]]
     share = min(1.0, model.speed_mps * model.interval_s / model.patch_length_m)  # of a patch new at each update (tempering)
-    variance = np.empty(len(t))  # per axis, holding the lock
+    variance = np.empty(len(t))  # per axis, holding the lock: the density's
+    held_ms = np.empty(len(t))  # horizontal mean square error holding the lock
+    error_ms, grown_from = np.inf, 0.0
     unlocked = np.zeros(len(t))
     unlocked_ms = np.zeros(len(t))  # horizontal mean square error while not holding it
     p_fix, last_fix, previous, fixed = model.initial_sigma_m**2 / 2, float(t[0]) if len(t) else 0.0, None, False
@@ -195,10 +209,14 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
             unlocked_ms[n] = (searching * search_ms + slipped * slip_ms) / max(lost, 1e-300)
             unlocked[n] = lost
         variance[n], previous = p, time_s
-    predicted = np.sqrt((1.0 - unlocked) * 2.0 * variance + unlocked * unlocked_ms)
+        if usable[n] and np.isfinite(held_bound[n]):
+            error_ms, grown_from = held_bound[n] ** 2, 2.0 * p
+        # two bounds on the error held, each from above: the density's width and one patch's bound grown since; the lower
+        held_ms[n] = 2.0 * p if held is None or not np.isfinite(error_ms) else min(error_ms + max(2.0 * p - grown_from, 0.0), 2.0 * p)
+    predicted = np.sqrt((1.0 - unlocked) * held_ms + unlocked * unlocked_ms)
     result = {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": predicted}
     if rings is not None:
-        result.update(unlocked=unlocked, locked_m=np.sqrt(2.0 * variance))
+        result.update(unlocked=unlocked, locked_m=np.sqrt(held_ms))
     return result
 
 
