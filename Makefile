@@ -91,7 +91,7 @@ bench-read: setup
 
 # A simulated tow exported as .all and navigated with lost run --survey, against the scenario's run, over 10 seeds (a few minutes).
 bench-read-survey: setup
-	$(BIN)/python benchmarks/read_survey_nav.py
+	$(BIN)/python benchmarks/read_survey_nav.py --full-window
 
 # lost serve: the navigation on a stream with 5 % loss, reordering and duplication against the clean one over 10 seeds
 # (build/bench/live_faults.json, under a minute), and the latency of lost replay into lost serve on localhost, 150 s of

@@ -30,7 +30,7 @@ import numpy as np
 from lost.host.campaign import scenario_with
 from lost.host.grid import Grid
 from lost.host.nav import NavParameters, navigate
-from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, lookalike_grid, map_sigma, predict_along
+from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, held_sigma, lookalike_grid, map_sigma, predict_along
 from lost.host.report import ConvergenceRule, convergence_index, horizontal_error
 from lost.host.scenario import builtin_scenario_path, load_scenario, scenario_grid, simulate
 
@@ -79,6 +79,7 @@ class Floor:
     sigma: np.ndarray
     radius_m: float
     accuracy: Grid
+    held: Grid
     model: RouteModel
     sonar_times: np.ndarray
     sonar_xy: np.ndarray
@@ -96,20 +97,21 @@ def prepare(name: str, seeds: int, workers: int, cache: Path | None = None) -> F
     grid = scenario_grid(scenario)
     params = NavParameters(**scenario.navigation)
     spec = scenario.sensors["sonar"]
-    sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3))
+    sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3), binned=spec.mode == "swath")
     sigma = map_sigma(grid, params.survey_sigma_m)
     t = np.asarray(runs[0]["t_s"])
     model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), speed_mps=scenario.ship.speed_kn * 1852 / 3600,
                                        interval_s=spec.interval_s, initial_sigma_m=params.initial_sigma_m)
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
     sonar_xy = np.asarray(runs[0]["truth"])[np.searchsorted(t, sonar_times)]
-    return Floor(name, runs, grid, sonar, sigma, params.lookalike_radius_m, accuracy_grid(grid, sonar, sigma), model, sonar_times, sonar_xy)
+    return Floor(name, runs, grid, sonar, sigma, params.lookalike_radius_m, accuracy_grid(grid, sonar, sigma),
+                 accuracy_grid(grid, sonar, held_sigma(grid, sonar, params.survey_sigma_m)), model, sonar_times, sonar_xy)
 
 
 def score(floor: Floor, lookalike: Lookalike, model: RouteModel, segment_s: float = 120.0) -> dict:
     """The prediction along the true track against the Monte Carlo, per segment of ``segment_s``, and the scores."""
     runs, t = floor.runs, np.asarray(floor.runs[0]["t_s"])
-    route = predict_along(floor.accuracy, floor.sonar_times, floor.sonar_xy, model, lookalike)
+    route = predict_along(floor.accuracy, floor.sonar_times, floor.sonar_xy, model, lookalike, floor.held)
     predicted = np.interp(t, floor.sonar_times, route["predicted_m"])
     unlocked = np.interp(t, floor.sonar_times, route["unlocked"])
     bound = np.interp(t, floor.sonar_times, np.where(np.isfinite(route["bound_m"]), route["bound_m"], 1e9))

@@ -1,18 +1,19 @@
 """Reading speed of the survey readers (soundings per second per format) and the memory of reading a large file.
 
-    python benchmarks/read_speed.py [--repeats 7] [--big-gb 1.0] [--big-from export|investigator] [--out build/bench/read_speed.json]
+    python benchmarks/read_speed.py [--repeats 7] [--big-gb 1.0] [--big-from export|investigator] [--big-format all|gsf]
+                                    [--out build/bench/read_speed.json]
 
 Per format, every real file of ../shared/data/real_survey of that format is read through
 ``lost.host.io.survey.open_survey`` (pings projected to the file's UTM zone, looked up once beforehand;
 beams placed) ``--repeats`` times after one warm-up read; the table gives the median and the 10th percentile (the slowest tenth) of soundings per
-second over the repeats. Then a Kongsberg ``.all`` file of ``--big-gb`` gigabytes is made, by default by the
-export (``--big-from export``: the ``short`` scenario's tow with 512 beams a ping, :func:`simulated_pings`,
-written by :func:`write_all_pings` streaming, the tow repeated with its times shifted by its duration until the
-size is reached), or from the RV Investigator file's datagrams repeated with their times shifted (checksums
-recomputed), and read by ``summarize_survey`` in a child process whose peak resident memory is reported beside
-the file's size: reading is streamed when the first is a small fraction of the second. The peak is the child's own
-``VmHWM`` (``/proc/self/status``): its ``ru_maxrss`` would not do, as Linux carries the parent's peak into a child
-started by vfork and exec.
+second over the repeats. Then a Kongsberg ``.all`` file of ``--big-gb`` gigabytes is made, by default by the export
+(``--big-from export``: the ``short`` scenario's tow with 512 beams a ping, :func:`simulated_pings`, written by
+:func:`write_all_pings` streaming, the tow repeated with its times shifted by its duration until the size is
+reached; ``--big-format gsf`` writes it as GSF by :func:`write_gsf_pings` instead), or from the RV Investigator
+file's datagrams repeated with their times shifted (checksums recomputed), and read by ``summarize_survey`` in a
+child process whose peak resident memory is reported beside the file's size: reading is streamed when the first is
+a small fraction of the second. The peak is the child's own ``VmHWM`` (``/proc/self/status``): its ``ru_maxrss``
+would not do, as Linux carries the parent's peak into a child started by vfork and exec.
 """
 
 from __future__ import annotations
@@ -78,11 +79,12 @@ def make_big_all(path: Path, gigabytes: float) -> int:
     return copies
 
 
-def make_big_export(path: Path, gigabytes: float, beams: int = 512) -> int:
-    """A simulated tow exported as ``.all``, repeated (times shifted by the tow's duration) to ``gigabytes``; returns the copies."""
+def make_big_export(path: Path, gigabytes: float, beams: int = 512, file_format: str = "all") -> int:
+    """A simulated tow exported as ``.all`` (or GSF), repeated (times shifted by the tow's duration) to ``gigabytes``; returns the copies."""
     from dataclasses import replace
     from itertools import count
 
+    from lost.host.io.gsf_write import write_gsf_pings
     from lost.host.io.kongsberg_all import write_all_pings
     from lost.host.io.simulated import simulated_pings
     from lost.host.scenario import builtin_scenario_path, load_scenario
@@ -102,7 +104,7 @@ def make_big_export(path: Path, gigabytes: float, beams: int = 512) -> int:
             if path.with_name(path.name + ".partial").stat().st_size >= target:
                 return
 
-    write_all_pings(repeated(), path)
+    (write_gsf_pings if file_format == "gsf" else write_all_pings)(repeated(), path)
     return written[0]
 
 
@@ -128,6 +130,7 @@ def main() -> int:
     parser.add_argument("--big-gb", type=float, default=1.0, help="size of the large .all file; 0 skips it")
     parser.add_argument("--big-from", choices=("export", "investigator"), default="export",
                         help="the large file: a simulated tow exported (default), or the Investigator file repeated")
+    parser.add_argument("--big-format", choices=("all", "gsf"), default="all", help="the large export's format")
     parser.add_argument("--skip-formats", action="store_true", help="only the large file")
     parser.add_argument("--out", type=Path, default=ROOT / "build" / "bench" / "read_speed.json")
     args = parser.parse_args()
@@ -146,15 +149,20 @@ def main() -> int:
         print(f"{name:<14} {row['files']:>5} {row['median']:>19,.0f} {row['p10']:>10,.0f}")
     if args.big_gb > 0:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        big = args.out.parent / "big.all"
+        if args.big_format == "gsf" and args.big_from != "export":
+            parser.error("--big-format gsf needs --big-from export")
+        big = args.out.parent / f"big.{args.big_format}"
         start = time.perf_counter()
-        copies = (make_big_export if args.big_from == "export" else make_big_all)(big, args.big_gb)
+        if args.big_from == "export":
+            copies = make_big_export(big, args.big_gb, file_format=args.big_format)
+        else:
+            copies = make_big_all(big, args.big_gb)
         made_s = time.perf_counter() - start
         read = read_big_in_child(big)
-        read.update(file_mb=big.stat().st_size / 1e6, copies=copies, made_from=args.big_from, made_s=made_s,
+        read.update(file_mb=big.stat().st_size / 1e6, copies=copies, made_from=args.big_from, file_format=args.big_format, made_s=made_s,
                     soundings_per_s=read["soundings"] / read["seconds"])
         results["big_all"] = read
-        print(f"big .all ({args.big_from}, made in {made_s:.0f} s): {read['file_mb']:,.0f} MB, {read['pings']:,} pings, "
+        print(f"big .{args.big_format} ({args.big_from}, made in {made_s:.0f} s): {read['file_mb']:,.0f} MB, {read['pings']:,} pings, "
               f"{read['soundings']:,} soundings in {read['seconds']:.1f} s "
               f"({read['soundings_per_s']:,.0f}/s), peak memory {read['peak_rss_mb']:,.0f} MB")
         big.unlink()

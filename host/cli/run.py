@@ -4,7 +4,7 @@
 
     lost run SCENARIO.toml|NAME [--out DIR]                                  a simulated tow
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
-    lost run --survey FILE... --bathy grid.nc [--dr-bias E,N] [--start-offset E,N] [--record-s S] [--window-s S]
+    lost run --survey FILE... --bathy grid.nc [--dr-bias E,N] [--start-offset E,N] [--record-s S] [--window-s S] [--full-window]
                                          [--usbl-fixes FILE]                 a recorded multibeam survey (.all, .kmall, GSF)
     lost demo [--out runs/demo]                                              the built-in scenario "demo"
 
@@ -232,7 +232,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 #: Options of `lost run` that only a recorded survey (--survey) takes.
-_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "usbl_fixes", "usbl_default_sigma_m")
+_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "full_window", "usbl_fixes", "usbl_default_sigma_m")
 
 
 def _run_survey(args: argparse.Namespace) -> int:
@@ -256,14 +256,14 @@ def _run_survey(args: argparse.Namespace) -> int:
         interval = args.record_s if args.record_s is not None else DEFAULT_RECORD_S
         recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=args.patch_shape, interval_s=interval, window_s=args.window_s,
                                   dr_bias_mps=args.dr_bias or (0.0, 0.0), start_offset_m=args.start_offset or (0.0, 0.0),
-                                  patch_centre=args.patch_centre)
+                                  patch_centre=args.patch_centre, full_window=bool(args.full_window))
         records = survey_records(survey, recorder)
         if args.usbl_fixes is not None:
             records, extra["usbl_fixes"] = _survey_usbl_fixes(args.usbl_fixes, records, recorder.epoch_s, grid.crs, args.usbl_default_sigma_m)
         warnings += check_survey_on_map(records, grid, names)
         skipped = {**dict(survey.skipped), **dict(recorder.skipped)}
         extra["survey"] = {"files": [str(f) for f in files], "format": survey.format, "first_ping_utc_s": recorder.epoch_s,
-                           "record_s": interval, "window_s": recorder.window_s, "dr_bias_mps": list(recorder.bias),
+                           "record_s": interval, "window_s": recorder.window_s, "full_window": recorder.full_window, "dr_bias_mps": list(recorder.bias),
                            "start_offset_m": list(recorder.start_offset), "skipped": skipped, "notes": dict(survey.notes)}
         extra["survey"]["log"] = _save_survey_log(records, folder, recorder.epoch_s)
         print(f"{names}: {len(records)} records of {interval:g} s, patches of the last {recorder.window_s:g} s of pings"
@@ -361,6 +361,8 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     run.add_argument("--record-s", type=_seconds, default=None, metavar="SECONDS", help="--survey: seconds of pings per record (default 5)")
     run.add_argument("--window-s", type=_seconds, default=None, metavar="SECONDS",
                      help="--survey: seconds of pings up to a record that make its patch (default --record-s)")
+    run.add_argument("--full-window", action="store_true", default=None,
+                     help="--survey: no patch until --window-s seconds of pings are in (a window still filling is a strip of the swath)")
     run.add_argument("--usbl-fixes", type=Path, default=None, metavar="FILE",
                      help="--survey: USBL fixes, a line each as lost serve receives them (JSON usbl lines, $PSONLLD, $PSIMSSB), "
                           "each in the record whose interval holds it")

@@ -5,7 +5,9 @@ info); its soundings, a fixed 120-byte record each, are read as one NumPy array 
 rather than one dict per sounding (five times faster).
 
 Two passes, one datagram in memory at a time: the first keeps the attitude samples of the SKM datagrams
-(roll, pitch, heave, with the sensor's own times); the second yields one ping per MRZ datagram, an MRZ split
+(roll, pitch, heave, with the sensor's own times; read here as one NumPy array per datagram on pykmall's layout,
+the same values as pykmall's dicts, and only of the sensor the datagrams mark active when the file holds several:
+the sensor status bit 0); the second yields one ping per MRZ datagram, an MRZ split
 into partitions joined first (:mod:`lost.host.io.kmall_parts`, the live receiver's rule). The MRZ carries its
 own position (the reference point's latitude and longitude at the ping), heading and sound
 speed at the transducer; the per-sounding x/y/z are re the reference point, and z minus the water
@@ -29,7 +31,7 @@ import numpy as np
 from .kmall_parts import DROPPED, HEADER, REASONS, MrzJoiner
 from .survey import Ping, interpolate_at
 
-__all__ = ["MRZ_SOUNDING", "decode_mrz", "mrz_ping", "read_kmall_pings", "read_mrz"]
+__all__ = ["MRZ_SOUNDING", "decode_mrz", "mrz_ping", "read_kmall_pings", "read_mrz", "skm_samples"]
 
 _PARTITION_AT = HEADER.size
 _WHOLE = (1).to_bytes(2, "little") * 2  # numOfDgms 1, dgmNum 1: an MRZ of one part
@@ -51,10 +53,21 @@ MRZ_SOUNDING = np.dtype([
 ])
 
 
+# One SKM sample as pykmall reads it: KMbinary (EMdgmSKM_KMbinary_def, 120 bytes: its type, length, version, time,
+# status, position, then 21 float32 from the ellipsoid height on) and KMdelayedHeave (12 bytes); the fields read.
+_SKM_INFO = struct.Struct("<H2B4H")  # numBytesInfoPart, sensorSystem, sensorStatus, sensorInputFormat, numSamplesArray, numBytesPerSample, ...
+_SKM_SAMPLE_FIELDS = {"time_sec": ("<u4", 8), "time_nanosec": ("<u4", 12), "roll_deg": ("<f4", 40), "pitch_deg": ("<f4", 44),
+                      "heave_m": ("<f4", 52)}
+_SKM_SAMPLE_MIN = 56  # bytes of a sample up to its heave
+_SKM_ACTIVE = 0x01  # sensor status bit 0: the sensor chosen as active
+
+
 def read_kmall_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
     """Pings of one ``.kmall`` file, in file order; damaged or cut-off datagrams, and split MRZ that cannot be joined
     whole (:mod:`lost.host.io.kmall_parts`), counted in ``skipped``."""
-    attitude = _attitude(path, Counter())
+    first_pass = Counter()  # its framing damage is counted by the second pass
+    attitude = _attitude(path, first_pass, notes)
+    skipped.update({reason: n for reason, n in first_pass.items() if "'SKM'" in reason and "fewer samples" in reason})
     if attitude["t"].size == 0:
         notes[f"{path.name}: no SKM attitude datagram (roll, pitch and heave unknown)"] += 1
     joiner = MrzJoiner()
@@ -68,9 +81,9 @@ def read_kmall_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[P
             notes[f"{path.name}: {reason}"] += count
 
 
-def _datagrams(path: Path, wanted: str, skipped: Counter, joiner: MrzJoiner | None = None) -> Iterator[dict]:
-    """The ``wanted`` datagrams of a file decoded by pykmall; an MRZ in partitions goes through ``joiner`` and is
-    decoded when whole."""
+def _datagrams(path: Path, wanted: str, skipped: Counter, joiner: MrzJoiner | None = None, *, raw: bool = False) -> Iterator:
+    """The ``wanted`` datagrams of a file decoded by pykmall (their bytes with ``raw``); an MRZ in partitions goes
+    through ``joiner`` and is decoded when whole."""
     from KMALL.kmall import kmall
 
     reader = kmall(str(path))
@@ -94,7 +107,9 @@ def _datagrams(path: Path, wanted: str, skipped: Counter, joiner: MrzJoiner | No
                 skipped[f"{path.name}: datagram '{name.decode()}' whose closing length disagrees with its opening one (the file's remainder not read)"] += 1
                 return
             reader.FID.seek(at)
-            if name[1:].decode() == wanted:
+            if raw and name[1:].decode() == wanted:
+                yield reader.FID.read(size)
+            elif name[1:].decode() == wanted:
                 try:
                     dg = _decoded(reader, wanted, size, joiner)
                 except (struct.error, KeyError, ValueError, IndexError) as error:
@@ -154,17 +169,42 @@ def _read_at(f, offset: int, count: int) -> bytes:
     return data
 
 
-def _attitude(path: Path, skipped: Counter) -> dict:
-    columns: dict[str, list] = {"t": [], "roll": [], "pitch": [], "heave": []}
-    for dg in _datagrams(path, "SKM", skipped):
-        samples = dg["sample"]["KMdefault"]
-        columns["t"].extend(samples["dgtime"])
-        columns["roll"].extend(samples["roll_deg"])
-        columns["pitch"].extend(samples["pitch_deg"])
-        columns["heave"].extend(samples["heave_m"])
-    out = {k: np.asarray(v, dtype=np.float64) for k, v in columns.items()}
+def _attitude(path: Path, skipped: Counter, notes: Counter) -> dict:
+    """The SKM samples' times (the sensor's own: time_sec + time_nanosec / 1e9, as pykmall computes them), roll, pitch
+    and heave, in time order; of the active sensor's datagrams when the file holds more than one sensor."""
+    by_sensor: dict[int, list] = {}
+    active: Counter = Counter()
+    for data in _datagrams(path, "SKM", skipped, raw=True):
+        samples = skm_samples(data)
+        if samples is None:
+            skipped[f"{path.name}: damaged datagram 'SKM' (fewer samples than it says)"] += 1
+            continue
+        sensor, status = data[HEADER.size + 2], data[HEADER.size + 3]
+        by_sensor.setdefault(sensor, []).append(samples)
+        active[sensor] += bool(status & _SKM_ACTIVE)
+    if not by_sensor:
+        return {k: np.empty(0) for k in ("t", "roll", "pitch", "heave")}
+    chosen = max(by_sensor, key=lambda s: (active[s], -s))  # the one marked active; else the lowest-numbered
+    if len(by_sensor) > 1:
+        others = ", ".join(str(s) for s in sorted(by_sensor) if s != chosen)
+        how = "marked active" if active[chosen] else "none marked active: the lowest-numbered"
+        notes[f"{path.name}: attitude from SKM sensor {chosen} ({how}); not used: SKM sensor {others}"] += 1
+    out = {k: np.concatenate([s[k] for s in by_sensor[chosen]]) for k in ("t", "roll", "pitch", "heave")}
     order = np.argsort(out["t"], kind="stable")
     return {k: v[order] for k, v in out.items()}
+
+
+def skm_samples(data: bytes) -> dict | None:
+    """One whole SKM datagram's samples as arrays ``t``, ``roll``, ``pitch``, ``heave`` (None if it holds fewer than it says)."""
+    info_bytes, _, _, _, count, per_sample, _ = _SKM_INFO.unpack_from(data, HEADER.size)
+    start = HEADER.size + info_bytes
+    if per_sample < _SKM_SAMPLE_MIN or start + count * per_sample > len(data) - 4:
+        return None
+    layout = np.dtype({"names": list(_SKM_SAMPLE_FIELDS), "formats": [f for f, _ in _SKM_SAMPLE_FIELDS.values()],
+                       "offsets": [o for _, o in _SKM_SAMPLE_FIELDS.values()], "itemsize": per_sample})
+    raw = np.frombuffer(data, layout, count, start)
+    return {"t": raw["time_sec"].astype(np.float64) + raw["time_nanosec"] / 1.0e9, "roll": raw["roll_deg"].astype(np.float64),
+            "pitch": raw["pitch_deg"].astype(np.float64), "heave": raw["heave_m"].astype(np.float64)}
 
 
 def mrz_ping(dg: dict, attitude: dict) -> Ping:

@@ -6,13 +6,13 @@ ping's beams through an interface without the XYZ88 detection flags, which decid
 counts a ping whose depth datagram is missing, and pulls in numba and Jupyter widgets.
 
 Two passes over the file: the first keeps only the active positioning system's positions ('P') and the
-attitude samples ('A'), small arrays (one sample per fix or per attitude reading), and counts the datagrams of
-each type; the second yields one :class:`~lost.host.io.survey.Ping` per XYZ88 ('X') datagram, reading one
-datagram at a time, or, in a file without XYZ88 (EM 120/300/1002/2000/3000-era sonars), one per depth ('D')
-datagram. Every
-datagram's frame is checked (start byte, end byte and, for the datagrams read, the checksum); a damaged
-or truncated one is counted in the skip counter, the reader resynchronises on the next good datagram,
-and the file's remainder is read. :func:`write_all_pings` writes pings back in the same three datagrams.
+attitude samples ('A' and the network attitude 'n', each quantity from the sensor the datagrams mark active:
+:mod:`lost.host.io.all_attitude`), small arrays (one sample per fix or per attitude reading), and counts the
+datagrams of each type; the second yields one :class:`~lost.host.io.survey.Ping` per XYZ88 ('X') datagram, reading
+one datagram at a time, or, in a file without XYZ88 (EM 120/300/1002/2000/3000-era sonars), one per depth ('D')
+datagram. The framing, the checks and the byte order (big-endian files of older processing units are read in
+their order) are :mod:`lost.host.io.all_frames`. :func:`write_all_pings` writes pings back in the three datagrams
+'P', 'A' and 'X' (little-endian).
 
 The depth datagram 'D' (Kongsberg's *EM Series datagram formats*; read as MB-System's ``mbsys_simrad2`` reads
 it): per ping the heading (0.01 degree), the sound speed at the transducer (0.1 m/s), the transmit
@@ -27,6 +27,7 @@ re-expressed as 'D' datagrams with the format's scaling (``tests/host/io/test_al
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import math
 import os
 from collections import Counter
@@ -35,18 +36,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .all_attitude import ATTITUDE, NETWORK_ATTITUDE, AttitudeSources
+from .all_frames import ALL_HEADER, ETX, STX, byte_order, datagrams, time_s
 from .crs import offset_degrees, offset_metres
 from .survey import Ping, interpolate_at
 
 __all__ = ["read_all_pings", "write_all_pings", "ALL_HEADER"]
 
-_STX, _ETX = 0x02, 0x03
-_POSITION, _ATTITUDE, _XYZ88, _DEPTH = ord("P"), ord("A"), ord("X"), ord("D")
-_MAX_DATAGRAM = 1 << 26  # no .all datagram is 64 MiB; a length beyond it is a damaged length field
-
-# The length field counts the bytes after itself; the header's fields follow it.
-ALL_HEADER = np.dtype([("length", "<u4"), ("stx", "u1"), ("type", "u1"), ("model", "<u2"), ("date", "<u4"), ("time_ms", "<u4"),
-                       ("counter", "<u2"), ("serial", "<u2")])
+_POSITION, _XYZ88, _DEPTH = ord("P"), ord("X"), ord("D")
+# Body layouts little-endian (the usual order); :func:`_layouts` gives them in a file's order.
 _XYZ88_HEAD = np.dtype([("heading", "<u2"), ("sound_speed", "<u2"), ("tx_depth", "<f4"), ("beams", "<u2"), ("valid", "<u2"),
                         ("sample_rate", "<f4"), ("scanning", "u1"), ("spare", "u1", 3)])
 _XYZ88_BEAM = np.dtype([("depth", "<f4"), ("across", "<f4"), ("along", "<f4"), ("window", "<u2"), ("quality", "u1"),
@@ -59,7 +57,7 @@ _DEPTH_BEAM = np.dtype([("depth", "<i2"), ("across", "<i2"), ("along", "<i2"), (
                         ("range", "<u2"), ("quality", "u1"), ("window", "u1"), ("reflectivity", "i1"), ("number", "u1")])
 _UNSIGNED_DEPTH_MODELS = frozenset({120, 300})  # their 'D' depths are unsigned
 _EM3000_MODELS = frozenset({3000, *range(3001, 3009), 3020})  # their transducer depth offset multiplier is undefined
-_ATTITUDE_SAMPLE = np.dtype([("t_ms", "<u2"), ("status", "<u2"), ("roll", "<i2"), ("pitch", "<i2"), ("heave", "<i2"), ("heading", "<u2")])
+_ATTITUDE_SAMPLE = np.dtype([("t_ms", "<u2"), ("status", "<u2"), ("roll", "<i2"), ("pitch", "<i2"), ("heave", "<i2"), ("heading", "<u2")])  # written
 _INVALID_DETECTION = 0x80  # detection info bit 7: the beam holds no valid sounding
 _ACTIVE_POSITION_SYSTEM = 0x80  # position system descriptor bit 7: the system the sonar uses
 # Position or attitude samples farther apart than this around a ping leave it without that value.
@@ -69,17 +67,21 @@ _MAX_ATTITUDE_GAP_S = 1.0
 
 def read_all_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Ping]:
     """Pings of one ``.all`` file, in file order; damaged datagrams counted in ``skipped``, dead-reckoned positions in ``notes``."""
+    order = byte_order(path)
+    if order == ">":
+        notes[f"{path.name}: a big-endian .all file (as older processing units wrote them), read in that byte order"] += 1
     # The first pass sees every frame too: only what it alone reads (position and attitude) is counted from it.
     first_pass, kinds = Counter(), Counter()
-    positions, attitude = _navigation(path, first_pass, kinds)
-    skipped.update({reason: n for reason, n in first_pass.items() if any(word in reason for word in ("'P'", "'A'", "position", "attitude"))})
+    positions, attitude = _navigation(path, order, first_pass, notes, kinds)
+    skipped.update({reason: n for reason, n in first_pass.items() if any(word in reason for word in ("'P'", "'A'", "'n'", "position", "attitude"))})
     depth_kind = _DEPTH if kinds[_DEPTH] and not kinds[_XYZ88] else _XYZ88
     if depth_kind == _XYZ88 and kinds[_DEPTH]:
         notes[f"{path.name}: depth datagrams 'D' beside the XYZ88 ones, not read (XYZ88 is the newer form of the same soundings)"] += kinds[_DEPTH]
     decode = _xyz88_ping if depth_kind == _XYZ88 else _depth_ping
+    layouts = _layouts(order)
     pings = 0
-    for header, body in _datagrams(path, {depth_kind}, skipped):
-        ping = decode(path, header, body, positions, attitude, skipped, notes)
+    for header, body in datagrams(path, {depth_kind}, skipped, order):
+        ping = decode(path, header, body, layouts, positions, attitude, skipped, notes)
         if ping is not None:
             pings += 1
             yield ping
@@ -87,87 +89,24 @@ def read_all_pings(path: Path, skipped: Counter, notes: Counter) -> Iterator[Pin
         skipped[f"{path.name}: no depth datagram in the file (XYZ88 'X' or depth 'D')"] += 1
 
 
-def _time_s(header) -> float:
-    date = int(header["date"])
-    day = dt.datetime(date // 10000, date // 100 % 100, date % 100, tzinfo=dt.UTC)
-    return day.timestamp() + int(header["time_ms"]) / 1000.0
+@functools.cache
+def _layouts(order: str) -> dict[str, np.dtype]:
+    """The datagram bodies' layouts in byte order ``order``."""
+    layouts = {"xyz88_head": _XYZ88_HEAD, "xyz88_beam": _XYZ88_BEAM, "position": _POSITION_BODY, "depth_head": _DEPTH_HEAD, "depth_beam": _DEPTH_BEAM}
+    return layouts if order == "<" else {k: v.newbyteorder(">") for k, v in layouts.items()}
 
 
-def _datagrams(path: Path, wanted: set[int], skipped: Counter, kinds: Counter | None = None) -> Iterator[tuple[np.void, bytes]]:
-    """(header, whole datagram) of each wanted datagram whose frame and checksum hold; others are skipped by seeking.
-    ``kinds`` counts every well-framed datagram by type."""
-    size = path.stat().st_size
-    with path.open("rb") as f:
-        at = 0
-        while at + ALL_HEADER.itemsize <= size:
-            f.seek(at)
-            head = f.read(ALL_HEADER.itemsize)
-            header = np.frombuffer(head, ALL_HEADER)[0]
-            length = int(header["length"])
-            if header["stx"] != _STX or not ALL_HEADER.itemsize - 4 <= length <= _MAX_DATAGRAM:
-                at = _resync(f, at + 1, size, path, skipped)
-                continue
-            end = at + 4 + length
-            if end > size:
-                skipped[f"{path.name}: datagram cut off by the end of the file ({size - at} of {length + 4} bytes)"] += 1
-                return
-            f.seek(end - 3)
-            if f.read(1)[0] != _ETX:
-                at = _resync(f, at + 1, size, path, skipped)
-                continue
-            if kinds is not None:
-                kinds[int(header["type"])] += 1
-            if int(header["type"]) in wanted:
-                f.seek(at)
-                data = f.read(length + 4)
-                checksum = int.from_bytes(data[-2:], "little")
-                if int(np.frombuffer(data, np.uint8, length - 4, 5).sum()) & 0xFFFF != checksum:
-                    skipped[f"{path.name}: datagram '{chr(header['type'])}' with a wrong checksum"] += 1
-                else:
-                    yield header, data
-            at = end
-
-
-def _resync(f, start: int, size: int, path: Path, skipped: Counter) -> int:
-    """The offset of the next well-framed datagram at or after ``start`` (or the end of the file); the gap is counted."""
-    f.seek(start)
-    chunk_start = start
-    while chunk_start < size:
-        f.seek(chunk_start)
-        chunk = f.read(1 << 20)
-        for k in np.flatnonzero(np.frombuffer(chunk, np.uint8) == _STX):
-            at = chunk_start + int(k) - 4
-            if at < start or at + ALL_HEADER.itemsize > size:
-                continue
-            f.seek(at)
-            header = np.frombuffer(f.read(ALL_HEADER.itemsize), ALL_HEADER)[0]
-            length = int(header["length"])
-            if not 16 <= length <= _MAX_DATAGRAM or at + 4 + length > size:
-                continue
-            f.seek(at + 4 + length - 3)
-            if f.read(1)[0] == _ETX and header["date"] // 10000 > 1980:
-                skipped[f"{path.name}: bytes that are no datagram (damaged data, resynchronised)"] += 1
-                return at
-        chunk_start += max(len(chunk) - ALL_HEADER.itemsize, 1)
-    skipped[f"{path.name}: bytes that are no datagram (damaged data, resynchronised)"] += 1
-    return size
-
-
-def _navigation(path: Path, skipped: Counter, kinds: Counter | None = None) -> tuple[dict, dict]:
+def _navigation(path: Path, order: str, skipped: Counter, notes: Counter, kinds: Counter | None = None) -> tuple[dict, dict]:
     fixes: list[tuple[float, ...]] = []
-    samples: list[np.ndarray] = []
-    for header, data in _datagrams(path, {_POSITION, _ATTITUDE}, skipped, kinds):
-        t0 = _time_s(header)
+    attitude = AttitudeSources(path, order)
+    position_body = _layouts(order)["position"]
+    for header, data in datagrams(path, {_POSITION, ATTITUDE, NETWORK_ATTITUDE}, skipped, order, kinds):
         if header["type"] == _POSITION:
-            body = np.frombuffer(data, _POSITION_BODY, 1, ALL_HEADER.itemsize)[0]
-            fixes.append((t0, body["lat"] / 2e7, body["lon"] / 1e7, int(body["system"]), _or_nan(body["speed"]) / 100.0, _or_nan(body["course"]) / 100.0))
+            body = np.frombuffer(data, position_body, 1, ALL_HEADER.itemsize)[0]
+            fixes.append((time_s(header), body["lat"] / 2e7, body["lon"] / 1e7, int(body["system"]), _or_nan(body["speed"]) / 100.0,
+                          _or_nan(body["course"]) / 100.0))
         else:
-            n = int(np.frombuffer(data, "<u2", 1, ALL_HEADER.itemsize)[0])
-            if ALL_HEADER.itemsize + 2 + n * _ATTITUDE_SAMPLE.itemsize > len(data) - 3:
-                skipped[f"{path.name}: attitude datagram holding fewer samples than it says"] += 1
-                continue
-            raw = np.frombuffer(data, _ATTITUDE_SAMPLE, n, ALL_HEADER.itemsize + 2)
-            samples.append(np.column_stack([t0 + raw["t_ms"] / 1000.0, raw["roll"] / 100.0, raw["pitch"] / 100.0, raw["heave"] / 100.0]))
+            attitude.add(header, data, skipped)
     fix = np.array(fixes, dtype=np.float64).reshape(-1, 6)
     active = (fix[:, 3].astype(int) & _ACTIVE_POSITION_SYSTEM) != 0
     if active.any():
@@ -177,20 +116,18 @@ def _navigation(path: Path, skipped: Counter, kinds: Counter | None = None) -> t
         skipped[f"{path.name}: position datagram with latitude/longitude out of range"] += int(bad.sum())
         fix = fix[~bad]
     fix = fix[np.argsort(fix[:, 0], kind="stable")]
-    att = np.concatenate(samples) if samples else np.empty((0, 4))
-    att = att[np.argsort(att[:, 0], kind="stable")]
     positions = {"t": fix[:, 0], "lat": fix[:, 1], "lon": fix[:, 2], "speed": fix[:, 4], "course": fix[:, 5]}
-    return positions, {"t": att[:, 0], "roll": att[:, 1], "pitch": att[:, 2], "heave": att[:, 3]}
+    return positions, attitude.series(notes)
 
 
-def _xyz88_ping(path: Path, header, data: bytes, positions: dict, attitude: dict, skipped: Counter, notes: Counter) -> Ping | None:
-    head = np.frombuffer(data, _XYZ88_HEAD, 1, ALL_HEADER.itemsize)[0]
+def _xyz88_ping(path: Path, header, data: bytes, layouts: dict, positions: dict, attitude: dict, skipped: Counter, notes: Counter) -> Ping | None:
+    head = np.frombuffer(data, layouts["xyz88_head"], 1, ALL_HEADER.itemsize)[0]
     n = int(head["beams"])
     start = ALL_HEADER.itemsize + _XYZ88_HEAD.itemsize
     if start + n * _XYZ88_BEAM.itemsize > len(data) - 3:
         skipped[f"{path.name}: XYZ88 datagram holding fewer beams than it says"] += 1
         return None
-    beams = np.frombuffer(data, _XYZ88_BEAM, n, start)
+    beams = np.frombuffer(data, layouts["xyz88_beam"], n, start)
     tx_depth = float(head["tx_depth"])
     return _placed_ping(path, header, positions, attitude, notes, heading_deg=head["heading"] / 100.0, sound_speed_raw=int(head["sound_speed"]),
                         along_m=beams["along"].astype(np.float64), across_m=beams["across"].astype(np.float64),
@@ -198,17 +135,17 @@ def _xyz88_ping(path: Path, header, data: bytes, positions: dict, attitude: dict
                         origin_depth_m=tx_depth)
 
 
-def _depth_ping(path: Path, header, data: bytes, positions: dict, attitude: dict, skipped: Counter, notes: Counter) -> Ping | None:
+def _depth_ping(path: Path, header, data: bytes, layouts: dict, positions: dict, attitude: dict, skipped: Counter, notes: Counter) -> Ping | None:
     """A ping of an older depth datagram ('D'): the beams it includes, scaled by its resolutions (see the module)."""
-    head = np.frombuffer(data, _DEPTH_HEAD, 1, ALL_HEADER.itemsize)[0]
+    head = np.frombuffer(data, layouts["depth_head"], 1, ALL_HEADER.itemsize)[0]
     n = int(head["beams"])
     start = ALL_HEADER.itemsize + _DEPTH_HEAD.itemsize
     if start + n * _DEPTH_BEAM.itemsize + 1 > len(data) - 3 or n > int(head["max_beams"]):
         skipped[f"{path.name}: depth datagram 'D' holding fewer beams than it says"] += 1
         return None
-    beams = np.frombuffer(data, _DEPTH_BEAM, n, start)
+    beams = np.frombuffer(data, layouts["depth_beam"], n, start)
     model = int(header["model"])
-    raw_depth = beams["depth"].view("<u2") if model in _UNSIGNED_DEPTH_MODELS else beams["depth"]
+    raw_depth = (beams["depth"].astype(np.int64) & 0xFFFF) if model in _UNSIGNED_DEPTH_MODELS else beams["depth"]
     multiplier = 0 if model in _EM3000_MODELS else int(np.frombuffer(data, "i1", 1, start + n * _DEPTH_BEAM.itemsize)[0])
     tx_depth = int(head["tx_depth_cm"]) / 100.0 + 655.36 * multiplier
     z_res, xy_res = int(head["z_res_cm"]) / 100.0, int(head["xy_res_cm"]) / 100.0
@@ -219,14 +156,14 @@ def _depth_ping(path: Path, header, data: bytes, positions: dict, attitude: dict
 
 def _placed_ping(path: Path, header, positions: dict, attitude: dict, notes: Counter, *, sound_speed_raw: int, **beams) -> Ping:
     """The ping at the header's time: position and attitude interpolated from the file's fixes and samples."""
-    t = np.array([_time_s(header)])
+    t = np.array([time_s(header)])
     lat = interpolate_at(t, positions["t"], positions["lat"], max_gap_s=_MAX_NAV_GAP_S)[0]
     lon = interpolate_at(t, positions["t"], positions["lon"], max_gap_s=_MAX_NAV_GAP_S)[0]
     if not math.isfinite(lat) and positions["t"].size:
         lat, lon = _dead_reckoned(float(t[0]), positions)
         if math.isfinite(lat):
             notes[f"{path.name}: pings before the first or after the last fix, placed by the nearest fix's speed and course"] += 1
-    roll, pitch, heave = (interpolate_at(t, attitude["t"], attitude[k], max_gap_s=_MAX_ATTITUDE_GAP_S)[0] for k in ("roll", "pitch", "heave"))
+    roll, pitch, heave = (interpolate_at(t, *attitude[k], max_gap_s=_MAX_ATTITUDE_GAP_S)[0] for k in ("roll", "pitch", "heave"))
     return Ping(time_s=float(t[0]), lat_deg=float(lat), lon_deg=float(lon), roll_deg=float(roll), pitch_deg=float(pitch), heave_m=float(heave),
                 sound_speed_mps=sound_speed_raw / 10.0 if sound_speed_raw else math.nan, head=int(header["serial"]), **beams)
 
@@ -298,13 +235,13 @@ def _framed(kind: int, ping: Ping, counter: int, model: int, body: bytes) -> byt
     if len(body) % 2:
         body += b"\x00"  # Kongsberg datagrams have an even length
     header["length"] = ALL_HEADER.itemsize - 4 + len(body) + 3
-    header["stx"], header["type"], header["model"] = _STX, kind, model
+    header["stx"], header["type"], header["model"] = STX, kind, model
     header["date"] = moment.year * 10000 + moment.month * 100 + moment.day
     header["time_ms"] = round((ping.time_s - midnight.timestamp()) * 1000)
     header["counter"], header["serial"] = counter & 0xFFFF, ping.head & 0xFFFF
     framed = header.tobytes() + body
     checksum = int(np.frombuffer(framed, np.uint8, len(framed) - 5, 5).sum()) & 0xFFFF
-    return framed + bytes([_ETX]) + checksum.to_bytes(2, "little")
+    return framed + bytes([ETX]) + checksum.to_bytes(2, "little")
 
 
 def _angle(value: float, scale: float, dtype: str) -> int:
@@ -325,7 +262,7 @@ def _attitude_datagram(ping: Ping, counter: int, model: int) -> bytes:
     sample = np.zeros(1, _ATTITUDE_SAMPLE)
     sample["roll"], sample["pitch"] = _angle(ping.roll_deg, 100, "<i2"), _angle(ping.pitch_deg, 100, "<i2")
     sample["heave"], sample["heading"] = _angle(ping.heave_m, 100, "<i2"), _angle(ping.heading_deg % 360.0, 100, "<u2")
-    return _framed(_ATTITUDE, ping, counter, model, np.uint16(1).tobytes() + sample.tobytes() + b"\x00")
+    return _framed(ATTITUDE, ping, counter, model, np.uint16(1).tobytes() + sample.tobytes() + b"\x00")
 
 
 def _xyz88_datagram(ping: Ping, counter: int, model: int) -> bytes:

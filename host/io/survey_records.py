@@ -4,17 +4,20 @@ The platform is the surveying ship itself (a hull-mounted multibeam), so a recor
 (``cable_out_m`` 0) and no slant range. The file's positions are the truth (``truth_x_m``/``truth_y_m``)
 and are not given to the navigation: it dead-reckons from the velocity of the file's positions,
 differenced ping to ping, plus an injected velocity bias (``dr_bias_mps``), from the file's first
-position plus an injected offset (``start_offset_m``). That dead-reckoned track is also the record's
+position plus an injected offset (``start_offset_m``); or, for a scripted dead reckoning (a simulated tow's own,
+say), the reckoned position less the truth as a function of time (``dead_reckoning_error``). That dead-reckoned track is also the record's
 ``ship_x_m``/``ship_y_m`` (the frame the patent pipeline measures cross-track in, and the lay-back
 model's start), so no record carries the truth to the estimators.
 
 Each record closes an interval of ``interval_s`` seconds of pings (counted from the first ping); its time
 is the interval's last ping's. Its patch is :func:`lost.host.io.sonar.grid_soundings` of the valid beams of
 the pings of the last ``window_s`` seconds up to the record (default ``interval_s``: the interval's own
-pings; longer, a patch that reaches along the track as well as across it), at the map's ``node_m``, placed relative to the vehicle at the record as the
+pings; longer, a patch that reaches along the track as well as across it; with ``full_window``, none until
+``window_s`` seconds after the first ping: a window still filling is a strip of the swath, which can match the map
+elsewhere), at the map's ``node_m``, placed relative to the vehicle at the record as the
 navigation knows it: the beam's offset from its own ping plus the ping's position reckoned back from
-the record over the ping's age (the true displacement plus the velocity bias times the age, as a
-dead-reckoned vehicle would place it), with the patch's ``age_s`` the soundings' mean age. The patch is
+the record over the ping's age (the true displacement plus the dead reckoning's error over the age: the
+velocity bias times the age, as a dead-reckoned vehicle would place it), with the patch's ``age_s`` the soundings' mean age. The patch is
 centred on the vehicle (``patch_centre="vehicle"``) or on the middle of the soundings (``"soundings"``).
 
 :class:`SurveyRecorder` is streaming: :meth:`~SurveyRecorder.add` takes one ping and returns the
@@ -23,7 +26,8 @@ over a :class:`~lost.host.io.survey.Survey` into :class:`~lost.host.records.NavR
 navigation log reader produces.
 
 Counted, never silent (:attr:`SurveyRecorder.skipped`): a record interval whose pings have no valid beam
-(the record is kept without a patch: the navigation dead-reckons through it); valid beams beyond the
+(the record is kept without a patch: the navigation dead-reckons through it); with ``full_window``, a record
+before its window was full (kept without a patch); valid beams beyond the
 patch; a ping earlier than a record already closed. Refused by name: a ping of a sonar head or ship not
 seen in the first record (:class:`~lost.host.io.errors.DifferentShipsError`: files of different ships given
 together).
@@ -33,6 +37,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,12 +90,20 @@ class SurveyRecorder:
         Added to the velocity the navigation dead-reckons with, m/s.
     start_offset_m : (east, north)
         The navigation's start less the file's first position, metres.
+    dead_reckoning_error : callable, optional
+        ``t`` (seconds from the first ping) to the dead-reckoned position less the true one, (east, north) metres:
+        a scripted dead reckoning in place of ``dr_bias_mps`` and ``start_offset_m`` (which must then be zero).
+        The records' track is the truth plus it, their velocity that track differenced, and each beam is placed
+        by its difference between the ping and the record.
     patch_centre : {"vehicle", "soundings"}
         Where each record's patch is centred.
+    full_window : bool
+        No patch for the records of the first ``window_s`` seconds (their window is still filling).
     """
 
     def __init__(self, *, node_m: float, patch_shape: tuple[int, int], interval_s: float, window_s: float | None = None,
-                 dr_bias_mps=(0.0, 0.0), start_offset_m=(0.0, 0.0), patch_centre: str = "vehicle") -> None:
+                 dr_bias_mps=(0.0, 0.0), start_offset_m=(0.0, 0.0), dead_reckoning_error: Callable[[float], object] | None = None,
+                 patch_centre: str = "vehicle", full_window: bool = False) -> None:
         window_s = interval_s if window_s is None else window_s
         for name, value in (("interval_s", interval_s), ("window_s", window_s)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
@@ -101,12 +114,17 @@ class SurveyRecorder:
         self.interval_s, self.window_s = float(interval_s), float(window_s)
         self.bias = _pair(dr_bias_mps, "dr_bias_mps")
         self.start_offset = _pair(start_offset_m, "start_offset_m")
+        if dead_reckoning_error is not None and (self.bias.any() or self.start_offset.any()):
+            raise ValueError("give either dead_reckoning_error or dr_bias_mps and start_offset_m, not both")
+        self._scripted = dead_reckoning_error
+        self.full_window = bool(full_window)
         self.skipped: Counter[str] = Counter()
         self.epoch_s: float | None = None  # the first ping's time: record times count from it
         self._interval: int | None = None  # the index of the interval being filled
         self._recent: deque[Ping] = deque()  # the pings of the last window_s, the interval's included
         self._heads: set[int] | None = None
         self._last: tuple[float, np.ndarray, np.ndarray] | None = None  # the last record: time, truth, dead reckoning
+        self._first_s = 0.0  # the first record's time: a constant bias counts from it
 
     def add(self, ping: Ping) -> list[SurveyRecord]:
         """Take one ping; the records it closed (none, or one per interval it passed)."""
@@ -142,15 +160,19 @@ class SurveyRecorder:
             self._heads = {p.head for p in pings}
         t = last.time_s - self.epoch_s
         truth = np.array([last.east_m, last.north_m])
+        reckoned = truth + self._error(t)
         if self._last is None:
             velocity = np.full(2, np.nan)  # the first record starts the navigation; it moves nobody
-            reckoned = truth + self.start_offset
+            self._first_s = t
         else:
-            t0, truth0, reckoned0 = self._last
-            velocity = (truth - truth0) / (t - t0) + self.bias
-            reckoned = reckoned0 + velocity * (t - t0)
+            t0, _, reckoned0 = self._last
+            velocity = (reckoned - reckoned0) / (t - t0)
         self._last = (t, truth, reckoned)
-        patch, soundings = self._patch(pings, last)
+        if self.full_window and t < self.window_s:
+            self.skipped["record before its window of pings was full (kept without a patch)"] += 1
+            patch, soundings = None, 0
+        else:
+            patch, soundings = self._patch(pings, last)
         nadir = _nadir_depth(last)
         vehicle_depth = last.origin_depth_m if math.isfinite(last.origin_depth_m) else 0.0
         return [SurveyRecord(t_s=t, ship_x_m=float(reckoned[0]), ship_y_m=float(reckoned[1]),
@@ -164,9 +186,10 @@ class SurveyRecorder:
             if not p.valid.any():
                 continue
             ping_age = last.time_s - p.time_s
-            # Where the navigation places the ping: the true displacement plus the velocity bias over its age, backwards.
-            dx = p.east_m - last.east_m - self.bias[0] * ping_age
-            dy = p.north_m - last.north_m - self.bias[1] * ping_age
+            # Where the navigation places the ping: the true displacement plus the dead reckoning's error over its age, backwards.
+            drift = self._error(p.time_s - self.epoch_s) - self._error(last.time_s - self.epoch_s)
+            dx = p.east_m - last.east_m + drift[0]
+            dy = p.north_m - last.north_m + drift[1]
             v = p.valid & np.isfinite(p.depth_m)
             east.append(p.beam_east_m[v] - p.east_m + dx)
             north.append(p.beam_north_m[v] - p.north_m + dy)
@@ -184,6 +207,14 @@ class SurveyRecorder:
             self.skipped["record interval with no valid beam in the patch (kept without a patch)"] += 1
             return None, 0
         return gridded.patch, gridded.used
+
+
+    def _error(self, t: float) -> np.ndarray:
+        """The dead-reckoned position less the truth at ``t`` seconds from the first ping."""
+        if self._scripted is not None:
+            return _pair(self._scripted(t), "dead_reckoning_error(t)")
+        first = t if self._last is None else self._first_s
+        return self.start_offset + self.bias * (t - first)
 
 
 def _nadir_depth(ping: Ping) -> float:

@@ -24,15 +24,18 @@ from scipy import ndimage
 
 from ..grid import Grid
 
-__all__ = ["SonarModel", "accuracy_grid", "information", "map_sigma"]
+__all__ = ["SonarModel", "accuracy_grid", "information", "map_sigma", "survey_sigma", "held_sigma"]
 
 
 @dataclass(frozen=True, kw_only=True)
 class SonarModel:
-    """What the planner assumes of the sonar: the patch (nodes of the map) and its depth noise (1 sigma, metres)."""
+    """What the planner assumes of the sonar: the patch (nodes of the map), its depth noise (1 sigma, metres), and whether
+    its patch is a swath binned into the map's cells (``binned``, as ``lost.host.io.sonar`` grids soundings: each node the
+    mean of its cell's soundings) or sampled at points (a simulator's ``gridded`` patch)."""
 
     shape: tuple[int, int] = (10, 10)
     noise_m: float = 0.5
+    binned: bool = True
 
     def __post_init__(self) -> None:
         if len(self.shape) != 2 or min(self.shape) < 2:
@@ -41,19 +44,54 @@ class SonarModel:
             raise ValueError(f"the sonar's noise must be a positive number of metres, got {self.noise_m!r}")
 
 
-def map_sigma(grid: Grid, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray:
-    """The map's own 1-sigma error at every node, as the filters' likelihood takes it (``lost.host.nav.maperror``): survey
-    noise (the grid's ``sigma_m`` when it carries one, else ``survey_sigma_m``, else NavParameters' default), the slope
-    the node cannot place and the relief it cannot show."""
-    from ..nav.maperror import node_variance
+def survey_sigma(grid: Grid, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray | float:
+    """The survey's 1-sigma error at every node: the grid's ``sigma_m`` when it carries one (its holes the median of the
+    rest), else ``survey_sigma_m``, else NavParameters' default."""
     from ..nav.parameters import NavParameters
 
     survey = getattr(grid, "sigma_m", None)
     if survey is None:
-        survey = NavParameters().survey_sigma_m if survey_sigma_m is None else survey_sigma_m
-    else:
-        survey = np.where(np.isfinite(survey), survey, np.nanmedian(survey) if np.isfinite(survey).any() else 0.0)
-    return np.sqrt(node_variance(grid.depth_m, grid.node_m, survey))
+        return NavParameters().survey_sigma_m if survey_sigma_m is None else survey_sigma_m
+    return np.where(np.isfinite(survey), survey, np.nanmedian(survey) if np.isfinite(survey).any() else 0.0)
+
+
+def held_sigma(grid: Grid, sonar: SonarModel, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray:
+    """The error of each node's depth against the sonar's patch there, as it biases a held position (not the filters'
+    allowance: no term for the slope the filters cannot place, which is their density's width, not their error).
+
+    A gridded layer's ``sigma_m`` is its soundings' spread in the cell. A patch sampled at points (``sonar.binned`` False)
+    sees that whole spread against the cell's mean; a swath binned into cells (``sonar.binned``) sees only what a plane
+    through the cell does not explain (the mean of a plane's soundings is its centre's depth), with the relief the node
+    cannot show. A map without a layer: the survey's one sigma (:func:`survey_sigma`) and the relief.
+    """
+    survey = np.asarray(survey_sigma(grid, survey_sigma_m), np.float64)
+    relief = _relief_variance(grid)
+    if getattr(grid, "sigma_m", None) is None:
+        return np.sqrt(survey**2 + relief)
+    if not sonar.binned:
+        return np.broadcast_to(survey, grid.shape).copy()
+    from ..nav.maperror import node_variance
+
+    plane = node_variance(grid.depth_m, grid.node_m, 0.0) - relief
+    return np.sqrt(np.maximum(survey**2 - plane, 0.0) + relief)
+
+
+def _relief_variance(grid: Grid) -> np.ndarray:
+    """The relief term of ``lost.host.nav.maperror``: (|laplacian| L^2 / 16)^2, from the map's own second differences."""
+    depth = np.where(np.isfinite(grid.depth_m), grid.depth_m, np.nanmean(grid.depth_m) if np.isfinite(grid.depth_m).any() else 0.0)
+    if min(depth.shape) < 3:
+        return np.zeros(depth.shape)
+    grad_y, grad_x = np.gradient(depth, grid.node_m)
+    laplacian = np.gradient(grad_x, grid.node_m, axis=1) + np.gradient(grad_y, grid.node_m, axis=0)
+    return (laplacian * grid.node_m**2 / 16.0) ** 2
+
+
+def map_sigma(grid: Grid, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray:
+    """The map's own 1-sigma error at every node, as the filters' likelihood takes it (``lost.host.nav.maperror``): the
+    survey's (:func:`survey_sigma`), the slope the node cannot place and the relief it cannot show."""
+    from ..nav.maperror import node_variance
+
+    return np.sqrt(node_variance(grid.depth_m, grid.node_m, survey_sigma(grid, survey_sigma_m)))
 
 
 def _box(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -94,8 +132,9 @@ def accuracy_grid(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | float
     Infinity where the patch leaves the map, touches a hole, or sees terrain that fixes no position (flat or a plane).
     """
     ixx, ixy, iyy, defined = information(grid, sonar, map_sigma_m)
-    det = ixx * iyy - ixy * ixy
-    scale = np.maximum(ixx + iyy, 1e-300)
+    with np.errstate(invalid="ignore"):  # inside a hole wider than the patch the sums are undefined (no bound there)
+        det = ixx * iyy - ixy * ixy
+        scale = np.maximum(ixx + iyy, 1e-300)
     ok = defined & np.isfinite(det) & (det > 1e-12 * scale * scale)
     accuracy = np.full(grid.shape, np.inf)
     accuracy[ok] = np.sqrt((ixx[ok] + iyy[ok]) / det[ok])

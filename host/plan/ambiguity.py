@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from scipy import fft
+from scipy import fft, ndimage
 from scipy.special import ndtr
 
 from ..grid import Grid
@@ -62,9 +62,10 @@ class Lookalike:
     distance_m : np.ndarray
         ``(rings, rows, cols)``: that placement's distance from the truth, metres.
     rivals : np.ndarray
-        ``(rings, rows, cols)``: the look-alikes of the ring, counted by their chance to win one patch: the sum over its
-        placements of ``Phi(-sqrt(snr / evidence_scale) / 2)`` over the nodes of a patch (neighbouring placements are
-        one look-alike, not many), and at least the best placement's chance. Their sum over the rings bounds the chance that a patch locks on one of them.
+        ``(rings, rows, cols)``: the look-alikes of the ring, counted by their chance to win one patch: the sum of
+        ``Phi(-sqrt(snr / evidence_scale) / 2)`` over the basins of the misfit in the ring (a basin's lowest placement
+        stands for it: neighbouring placements are one look-alike, not many; a tile repeated eight times in the ring is
+        eight), and at least the best placement's chance. Their sum over the rings bounds the chance that a patch locks on one of them.
     evidence_scale : float
         How much less the filters make of a patch's contrast than independent Gaussian residuals would
         (:data:`EVIDENCE_SCALE`).
@@ -175,6 +176,9 @@ def _fill(filled, sum1, sum2, spoiled, noise, centre_rows, centre_cols, shape, r
         separation = n * misfit / noise[r + reach, c + reach][:, None, None]
         separation[placements["bad"][r, c]] = np.inf
         flat = separation.reshape(len(r), -1)[:, order]
+        # one look-alike is one basin of the misfit: its lowest placement stands for it (its neighbours are the same match)
+        lowest = np.isfinite(separation) & (separation <= ndimage.minimum_filter(separation, size=(1, 3, 3), mode="nearest"))
+        basins = lowest.reshape(len(r), -1)[:, order]
         ci, cj = np.unravel_index(np.arange(lo, lo + len(r)), (snr.shape[1], snr.shape[2]))
         for k in range(len(edges)):
             if bounds[k] == bounds[k + 1]:
@@ -184,6 +188,6 @@ def _fill(filled, sum1, sum2, spoiled, noise, centre_rows, centre_cols, shape, r
             value = part[np.arange(len(r)), best]
             snr[k, ci, cj] = np.where(np.isfinite(value), value, np.nan)
             dist[k, ci, cj] = np.where(np.isfinite(value), ring_radius[bounds[k] + best], np.nan)
-            chances = ndtr(-np.sqrt(part / scale) / 2.0)
-            count = np.maximum(chances.sum(axis=1) / n, chances[np.arange(len(r)), best])  # the best placement is one rival at least
+            chances = np.where(basins[:, bounds[k]: bounds[k + 1]], ndtr(-np.sqrt(part / scale) / 2.0), 0.0)
+            count = np.maximum(chances.sum(axis=1), chances[np.arange(len(r)), best])  # the best placement is one rival at least
             rivals[k, ci, cj] = np.where(np.isfinite(value), count, np.nan)

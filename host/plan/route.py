@@ -9,19 +9,32 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   is within ``usable_sigma_m`` fuses as a Gaussian measurement of the share of its patch that is new (the filters
   temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
   error keeps growing. The filters keep
-  their density at least ``floor_m`` wide, so no update takes ``P`` below it.
-- Not holding it (probability ``unlocked``): the filter sits on another placement, at a mean square distance that
-  starts at the initial search's (``2 initial_sigma_m^2``) and drifts with the dead reckoning.
+  their density at least ``floor_m`` wide, so no update takes ``P`` below it. ``P`` is the density's width, which sets
+  the lock's odds against its look-alikes; the error of the position held is another thing (``held``): the bound of one
+  patch with the map's error against the sonar's patch alone (:func:`lost.host.plan.accuracy.held_sigma`: no slope
+  allowance, no density floor), not averaged along the track, since the map's errors and the relief a node cannot show
+  are the same on every pass over a place and the patches of one stretch share them. Where there is no fix it grows as
+  the density does from the last one.
+- Not holding it (probability ``unlocked``): still searching (a mean square distance that starts at the initial
+  search's, ``2 initial_sigma_m^2``), or holding a wrong place (a look-alike's distance); both drift with the dead
+  reckoning.
 
-The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr`` and distance)
-move the probability between the states. A patch prefers a placement of separation ``snr`` at distance ``d`` over
-the truth with probability ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``;
-``d^2 / 2P`` the locked density's own odds against a jump). A lock slips with that probability, summed over the rings
-beyond three sigma, per new patch; the error is then the look-alike's distance. A filter without the lock finds it
-where the terrain fixes the position and no look-alike within twice its error competes: per new patch, one minus the
-rivals of the rings within twice its error (:attr:`Lookalike.rivals`), with ``acquisitions_per_patch`` chances in
-the length of a patch. A lost lock therefore persists over smooth or look-alike
-ground and is regained on informative terrain. The predicted error is ``sqrt((1 - unlocked) 2P + unlocked E^2)``.
+The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr``, distance and
+the ring's rivals, one per basin of the misfit) move the probability between the states:
+
+- The search ends on accumulated evidence: per ring, the new share of each patch times the ring's smallest separation
+  adds up, and each of the ring's look-alikes as good as its best is still ahead of the truth with
+  ``Phi(-sqrt(evidence) / 2)`` (:func:`_still_searching`). Rough ground ends it within a patch length, repeated
+  terrain never; a hole adds nothing, and a search over a hole narrows (a patch length of such updates) into a wrong
+  lock: the filter updates on the patch's valid nodes, where the truth's placement is neutral and the others are not.
+- A lock slips onto a ring's best look-alike with the probability a new patch prefers it against the locked density's
+  own odds, ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``), summed over
+  the rings beyond three sigma, per new patch.
+- A wrong lock is left where the terrain fixes the position and no look-alike within twice its error competes: per new
+  patch, one minus the rivals of those rings, with ``acquisitions_per_patch`` chances in the length of a patch. A wrong
+  lock therefore persists over smooth or look-alike ground and is left on informative terrain.
+
+The predicted error is ``sqrt((1 - unlocked) H^2 + unlocked E^2)``, ``H`` the held error (``2P`` without ``held``).
 
 Without look-alikes the filter is taken to hold the lock from the start (the bound and the growth only).
 """
@@ -61,7 +74,7 @@ class RouteModel:
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
     patch_length_m: float = 100.0
-    acquisitions_per_patch: float = 10.0
+    acquisitions_per_patch: float = 100.0
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
@@ -113,10 +126,11 @@ def route_points(waypoints: np.ndarray, model: RouteModel) -> tuple[np.ndarray, 
     return t, np.column_stack([np.interp(along, distance, waypoints[:, 0]), np.interp(along, distance, waypoints[:, 1])])
 
 
-def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None) -> dict[str, np.ndarray]:
-    """The prediction at every update along the waypoints, with the map's bound (and look-alikes) there."""
+def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None,
+                  held: Grid | None = None) -> dict[str, np.ndarray]:
+    """The prediction at every update along the waypoints, with the map's bound (and look-alikes, and the held error's bound) there."""
     t, xy = route_points(waypoints, model)
-    return predict_along(accuracy, t, xy, model, lookalike)
+    return predict_along(accuracy, t, xy, model, lookalike, held)
 
 
 def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -128,18 +142,24 @@ def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     return r, c, on_map
 
 
-def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None) -> dict[str, np.ndarray]:
+def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None,
+                  held: Grid | None = None) -> dict[str, np.ndarray]:
     """The predicted 1-sigma horizontal error at updates at times ``t`` and positions ``xy`` (a track already known).
 
     Without ``lookalike`` the filter is taken to hold the true position from the start (the bound and the growth
     only); with it, the lock is acquired, lost and regained as the module docstring says, and the result also
     carries ``unlocked`` (the probability of not holding the true position) and ``locked_m`` (the error when holding it).
+    With ``held`` (one patch's bound with the survey's error alone, :func:`lost.host.plan.accuracy.held_sigma`) the error holding the lock is that
+    bound where there is one, growing as the density does between (module docstring); without it, the density's own.
     """
     from ..nav.trust import ins_position_sigma
 
     r, c, on_map = _sample(accuracy, xy)
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
+    held_bound = np.full(len(t), np.inf)
+    if held is not None:
+        held_bound[on_map] = held.depth_m[r[on_map], c[on_map]]
     usable = bound <= model.usable_sigma_m
     rings = None
     if lookalike is not None:
@@ -147,35 +167,56 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
         for along, grid in zip(rings, (lookalike.snr, lookalike.distance_m, lookalike.rivals)):
             along[:, on_map] = grid[:, r[on_map], c[on_map]]
     share = min(1.0, model.speed_mps * model.interval_s / model.patch_length_m)  # of a patch new at each update (tempering)
-    variance = np.empty(len(t))  # per axis, holding the lock
+    variance = np.empty(len(t))  # per axis, holding the lock: the density's
+    held_ms = np.empty(len(t))  # horizontal mean square error holding the lock
+    error_ms, grown_from = np.inf, 0.0
     unlocked = np.zeros(len(t))
     unlocked_ms = np.zeros(len(t))  # horizontal mean square error while not holding it
     p_fix, last_fix, previous, fixed = model.initial_sigma_m**2 / 2, float(t[0]) if len(t) else 0.0, None, False
-    lost, lost_ms = (1.0, 2.0 * model.initial_sigma_m**2) if lookalike is not None else (0.0, 0.0)
+    searching, search_ms = (1.0, 2.0 * model.initial_sigma_m**2) if lookalike is not None else (0.0, 0.0)
+    slipped, slip_ms = 0.0, 0.0
+    evidence = np.zeros(len(lookalike.ring_edges_m)) if lookalike is not None else None  # per ring, against its best look-alike
     for n, time_s in enumerate(t):
         since = time_s - last_fix
         step = model.interval_s if previous is None else max(time_s - previous, 0.0)
         ins = float(ins_position_sigma(since, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
         p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2
-        lost_ms += 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
+        drift = 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
+        search_ms, slip_ms = search_ms + drift, slip_ms + drift
         if usable[n]:
             new = share if fixed else min(1.0, model.speed_mps * since / model.patch_length_m) if n else 1.0
             p = max(1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2), model.floor_m**2 / 2)  # horizontal: half an axis
             p_fix, last_fix, fixed = p, time_s, True
         else:
             fixed = False
+        if rings is not None and on_map[n] and np.isnan(rings[0][:, n]).all() and searching > 0.0:
+            # a search over a hole of the map: the filter still updates on the patch's valid nodes, where the truth's
+            # placement is neutral and the others are not, and narrows onto a wrong place (a false lock, not a search)
+            # as a patch's length of such updates accumulates
+            narrowed = searching * share
+            slip_ms = (slipped * slip_ms + narrowed * search_ms) / (slipped + narrowed)
+            slipped, searching = slipped + narrowed, searching - narrowed
         if rings is not None:
+            evidence += share * np.nan_to_num(rings[0][:, n], nan=0.0, posinf=0.0)  # the filters temper every patch, the first too
+            searching = min(searching, _still_searching(rings[0][:, n], rings[2][:, n], evidence, lookalike.evidence_scale))
             lose, lose_ms = _loss(rings[0][:, n], rings[1][:, n], p, lookalike.evidence_scale)
-            gain = _acquisition(rings[2][:, n], lost_ms, lookalike.ring_edges_m) if usable[n] else 0.0
-            stay = lost * (1.0 - min(1.0, share * model.acquisitions_per_patch) * gain)
-            fresh = (1.0 - lost) * share * lose
-            lost_ms = (stay * lost_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
-            lost = stay + fresh
-        variance[n], unlocked[n], unlocked_ms[n], previous = p, lost, lost_ms, time_s
-    predicted = np.sqrt((1.0 - unlocked) * 2.0 * variance + unlocked * unlocked_ms)
+            gain = _acquisition(rings[2][:, n], slip_ms, lookalike.ring_edges_m) if usable[n] else 0.0
+            stay = slipped * (1.0 - min(1.0, share * model.acquisitions_per_patch) * gain)
+            fresh = max(1.0 - searching - slipped, 0.0) * share * lose
+            slip_ms = (stay * slip_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
+            slipped = min(stay + fresh, 1.0 - searching)
+            lost = searching + slipped
+            unlocked_ms[n] = (searching * search_ms + slipped * slip_ms) / max(lost, 1e-300)
+            unlocked[n] = lost
+        variance[n], previous = p, time_s
+        if usable[n] and np.isfinite(held_bound[n]):
+            error_ms, grown_from = held_bound[n] ** 2, 2.0 * p
+        # two bounds on the error held, each from above: the density's width and one patch's bound grown since; the lower
+        held_ms[n] = 2.0 * p if held is None or not np.isfinite(error_ms) else min(error_ms + max(2.0 * p - grown_from, 0.0), 2.0 * p)
+    predicted = np.sqrt((1.0 - unlocked) * held_ms + unlocked * unlocked_ms)
     result = {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": predicted}
     if rings is not None:
-        result.update(unlocked=unlocked, locked_m=np.sqrt(2.0 * variance))
+        result.update(unlocked=unlocked, locked_m=np.sqrt(held_ms))
     return result
 
 
@@ -202,6 +243,24 @@ def false_lock_probability(lookalike: Lookalike) -> np.ndarray:
     (the rivals of every ring, capped at 1; NaN where there is no patch): where a filter without a lock locks wrongly,
     or not at all."""
     return np.where(np.isnan(lookalike.rivals).all(axis=0), np.nan, np.minimum(np.nansum(lookalike.rivals, axis=0), 1.0))
+
+
+def _still_searching(separation: np.ndarray, rivals: np.ndarray, evidence: np.ndarray, scale: float) -> float:
+    """The chance that a filter still searching has not found the truth: a look-alike of some ring still ahead of it.
+
+    The evidence against a ring's look-alikes accumulates over the patches seen (``evidence``: the new share of each
+    patch times the ring's smallest separation there, a lower bound, as a fixed offset's separation changes along the
+    track). The ring holds ``rivals / Phi(-sqrt(snr / c) / 2)`` look-alikes as good as its best (each basin of the
+    misfit one; ``c`` the look-alikes' evidence scale, with which ``rivals`` were counted), each still ahead with
+    ``Phi(-sqrt(evidence) / 2)``: the accumulated evidence taken at face value, as a Bayesian filter's product of
+    likelihoods takes it (no evidence scale: the lower bound already discounts it). Terrain that repeats keeps the
+    separation at zero and the search going; rough terrain ends it within a patch length; a hole adds nothing."""
+    ok = np.isfinite(separation) & np.isfinite(rivals)
+    if not ok.any():
+        return 1.0
+    best = ndtr(-np.sqrt(separation[ok] / scale) / 2.0)
+    count = rivals[ok] / np.maximum(best, 1e-300)
+    return float(min(1.0, np.sum(count * ndtr(-np.sqrt(evidence[ok]) / 2.0))))
 
 
 def _acquisition(rivals: np.ndarray, lost_ms: float, edges_m: np.ndarray) -> float:

@@ -175,3 +175,36 @@ def test_a_kmall_file_ending_inside_a_split_ping_or_with_a_bad_part_number_count
     assert s["pings"] == len(mrz) - 2
     assert s["skipped"][f"split.kmall: {REASONS['bad_number']}"] == 1
     assert s["skipped"][f"split.kmall: {REASONS['lost']}"] == 2  # the first ping's other parts wait to the end, and the last
+
+
+def test_a_big_endian_all_file_cut_and_damaged_keeps_its_whole_pings_and_counts_both(tmp_path):
+    from ..io.big_endian_all import big_endian
+
+    data = big_endian(GA.read_bytes())
+    little = GA.read_bytes()
+    third_x, last_x = [d for d in _datagrams(little) if d[2] == "X"][2], [d for d in _datagrams(little) if d[2] == "X"][-1]
+    junk = np.random.default_rng(6).integers(0, 256, 3000, dtype=np.uint8).tobytes().replace(b"\x02", b"\x01")
+    damaged = data[: third_x[0]] + junk + data[third_x[0]: last_x[0] + last_x[1] // 2]  # same offsets: re-written in place
+    s = summarize_survey(_write(tmp_path, "big.all", damaged))
+    assert s["pings"] == 10
+    assert s["skipped"]["big.all: bytes that are no datagram (damaged data, resynchronised)"] == 1
+    assert any("cut off by the end of the file" in reason for reason in s["skipped"])
+
+
+def test_a_big_endian_all_file_damaged_at_its_start_is_still_read_in_its_order(tmp_path):
+    from ..io.big_endian_all import big_endian
+
+    junk = np.random.default_rng(7).integers(0, 256, 500, dtype=np.uint8).tobytes().replace(b"\x02", b"\x01")
+    s = summarize_survey(_write(tmp_path, "big.all", b"\x07\x00\x00\x00\x02X" + junk + big_endian(GA.read_bytes())))
+    assert s["pings"] == 11 and s["valid_soundings"] == summarize_survey(GA)["valid_soundings"]
+    assert s["skipped"] == {"big.all: bytes that are no datagram (damaged data, resynchronised)": 1}
+
+
+def test_garbage_inside_a_gsf_file_keeps_the_pings_before_it_and_counts_the_rest(tmp_path):
+    data = GSF.read_bytes()
+    at = len(data) // 2
+    while int.from_bytes(data[at + 4:at + 8], "big") & 0x3FFFFF != 2 or int.from_bytes(data[at:at + 4], "big") > 1 << 20:
+        at += 1  # the framing of a ping record past the middle
+    s = summarize_survey(_write(tmp_path, "junk.gsf", data[:at] + b"\xff" * 64 + data[at:]))
+    assert 0 < s["pings"] < 8
+    assert s["skipped"] == {f"junk.gsf: bytes that are no GSF record at byte {at} (the file's remainder not read)": 1}

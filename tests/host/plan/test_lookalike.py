@@ -68,6 +68,17 @@ def test_periodic_terrain_is_a_false_lock_and_rough_terrain_is_not():
     assert np.nanmin(alike) > 0.99 and np.nanmax(rough) < 0.01
 
 
+def test_a_repeated_tile_is_as_many_look_alikes_as_its_repeats():
+    tile = 20.0 * ndimage.gaussian_filter(np.random.default_rng(3).normal(size=(10, 10)), 1.5, mode="wrap")
+    repeated = Grid(depth_m=500.0 + np.tile(tile, (7, 7)), x0_m=0.0, y0_m=0.0, node_m=10.0)  # a 100 m tile repeated
+    found = lookalike_grid(repeated, SonarModel(shape=(8, 8), noise_m=0.3), 0.1, radius_m=150.0, work=3e6)
+    # the ring to 150 m holds the 4 repeats at 100 m and the 4 at 141 m: each a chance of 1/2 to win a patch
+    assert np.nanmin(found.snr[-1]) < 1e-6
+    assert np.allclose(found.rivals[-1, 25:45, 25:45], 4.0, atol=0.05)  # where every repeat is on the map
+    rough = lookalike_grid(_rough((70, 70)), SonarModel(shape=(8, 8), noise_m=0.3), 0.1, radius_m=150.0, work=3e6)
+    assert np.nanmax(rough.rivals[-1]) < 0.05
+
+
 def test_the_lock_is_lost_over_look_alike_ground_and_regained_on_informative_terrain():
     rng = np.random.default_rng(4)
     y, x = np.mgrid[0:50, 0:240] * 10.0
@@ -85,7 +96,8 @@ def test_the_lock_is_lost_over_look_alike_ground_and_regained_on_informative_ter
                        acquisitions_per_patch=10.0)
     route = predict_along(accuracy, t, xy, model, lookalike)
     waves, beyond = xy[:, 0] < 1500.0, xy[:, 0] > 1800.0
-    assert route["unlocked"][waves].min() > 0.99  # no lock where every 80 m looks alike
+    # where every 80 m looks alike only the map's 2 cm of noise tells the placements apart: the search goes on
+    assert route["unlocked"][xy[:, 0] < 600.0].min() > 0.99 and route["unlocked"][waves].min() > 0.7
     assert route["unlocked"][beyond][-1] < 0.01 and route["predicted_m"][beyond][-1] < 5.0
     assert route["predicted_m"][waves].min() > 50.0  # the error is the search's, not the bound's
     locked = predict_along(accuracy, t, xy, model)  # without look-alikes: the bound alone, locked from the start
@@ -103,3 +115,24 @@ def test_lost_plan_writes_the_look_alike_layers(tmp_path):
         inner = data["false_lock_probability"].values[10:30, 10:50]
         assert np.all(inner > 0.99) and np.isnan(data["false_lock_probability"].values[:3]).all()
         assert np.nanmin(data["lookalike_distance_m"].values) >= 30.0  # beyond the truth's own two nodes
+
+
+def test_a_search_ends_on_rough_ground_and_a_search_over_a_hole_becomes_a_wrong_lock():
+    from lost.host.plan import accuracy_grid
+
+    grid = _rough((40, 200), seed=7)
+    depth = grid.depth_m.copy()
+    depth[:, 90:110] = np.nan  # an unsurveyed patch across the route
+    grid = Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    sonar = SonarModel(noise_m=0.3)
+    accuracy, lookalike = accuracy_grid(grid, sonar, 0.1), lookalike_grid(grid, sonar, 0.1, radius_m=150.0, work=3e6)
+    model = RouteModel(speed_mps=1.5, interval_s=2.0, initial_sigma_m=100.0, usable_sigma_m=10.0, floor_m=1.0, patch_length_m=100.0)
+    t = np.arange(0.0, 1200.0, 2.0)
+    xy = np.column_stack([60.0 + 1.5 * t, np.full(t.size, 200.0)])
+    route = predict_along(accuracy, t, xy, model, lookalike)
+    before, after = (xy[:, 0] > 300.0) & (xy[:, 0] < 800.0), xy[:, 0] > 1150.0
+    assert route["unlocked"][before].max() < 1e-3  # found within a few patch lengths of rough ground
+    assert route["unlocked"][after].max() < 1e-3  # and held through the hole: no search's tail carried over it
+    started_in_hole = predict_along(accuracy, t[t < 200.0], np.column_stack([950.0 + 0.3 * t[t < 200.0], np.full((t < 200.0).sum(), 200.0)]),
+                                    model, lookalike)
+    assert started_in_hole["unlocked"][-1] > 0.99 and started_in_hole["predicted_m"][-1] > 50.0  # no terrain: a search or a wrong lock
