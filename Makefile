@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live bench-live-memory synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live bench-live-memory bench-live-12h synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -105,6 +105,11 @@ bench-live: setup
 # lost serve's resident memory over the two_hour tow served as fast as possible in one process (build/bench/live_memory.json, about a minute).
 bench-live-memory: setup
 	$(BIN)/python benchmarks/live_memory.py --scenario two_hour
+
+# A real lost serve process fed by lost replay --speed 20 of a 12-hour tow over UDP, its RSS sampled every minute
+# (build/bench/live_12h/memory.json, about 40 minutes of wall time; the server needs a core of its own to keep up).
+bench-live-12h: setup
+	$(BIN)/python benchmarks/live_replay_memory.py --hours 12 --speed 20 --sample-s 60
 
 # The FPGA tools (WebAssembly Yosys and nextpnr from PyPI) are large, so only `make synth` installs them.
 $(FPGA_STAMP): $(STAMP)

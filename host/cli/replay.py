@@ -21,6 +21,7 @@ __all__ = ["register"]
 
 _LARGEST_UDP = 65_507  # a UDP datagram's largest payload over IPv4
 _SMALLEST_PART = 512  # a partition's header, partition and closing length leave room for data
+_USBL_NAMES = {"json": "JSON", "psonlld": "$PSONLLD", "psimssb": "$PSIMSSB"}
 
 
 def _address(text: str) -> tuple[str, int]:
@@ -90,14 +91,15 @@ def _pings(sources: list[str], dvl: str | None, usbl: str | None = None):
     _, crs, pings = simulated_pings(scenario)
     dvl = dvl or "pd6"
     with_usbl = usbl != "none" and scenario.sensors["usbl"].enabled
-    if usbl == "json" and not with_usbl:
-        raise UsageError(f"--usbl json: scenario {scenario.name!r} has no USBL ([sensors.usbl] enabled = false)")
+    if usbl not in (None, "none") and not with_usbl:
+        raise UsageError(f"--usbl {usbl}: scenario {scenario.name!r} has no USBL ([sensors.usbl] enabled = false)")
     if dvl == "none" and not with_usbl:
         return pings, Counter(), f"scenario {scenario.name!r} (simulated pings)", None
     _, records = simulate(scenario)  # the same tow again (its seed): the simulator's DVL, depth and USBL readings
-    sent = ([f"the vehicle's DVL and depth as {dvl.upper()}"] if dvl != "none" else []) + (["its USBL fixes as JSON"] if with_usbl else [])
+    sent = (([f"the vehicle's DVL and depth as {dvl.upper()}"] if dvl != "none" else [])
+            + ([f"its USBL fixes as {_USBL_NAMES[usbl or 'json']}"] if with_usbl else []))
     return (pings, Counter(), f"scenario {scenario.name!r} (simulated pings, {' and '.join(sent)})",
-            vehicle_datagrams(records, crs, dvl_format=dvl, epoch_s=EPOCH_S, usbl=with_usbl))
+            vehicle_datagrams(records, crs, dvl_format=dvl, epoch_s=EPOCH_S, usbl=with_usbl, usbl_format=usbl or "json"))
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
@@ -118,7 +120,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     datagrams = live_datagrams(counting(pings), max_datagram_bytes=args.max_datagram_bytes, vehicle=vehicle)
     started = time.monotonic()
     sent = send_datagrams(with_faults(datagrams, faults, drawn) if faults.any else datagrams, args.to, speed=args.speed)
-    vehicle_sent = f", {sent['pd6 datagrams sent'] + sent['json datagrams sent']} of the vehicle's sensors" if vehicle is not None else ""
+    vehicle_count = sum(sent[f"{kind} datagrams sent"] for kind in ("pd6", "json", "usbl"))
+    vehicle_sent = f", {vehicle_count} of the vehicle's sensors" if vehicle is not None else ""
     print(f"sent {counted['pings']} pings as {sent['kmall datagrams sent']} .kmall and {sent['nmea datagrams sent']} NMEA datagrams{vehicle_sent} "
           f"({sent['bytes sent']:,} bytes) in {time.monotonic() - started:.1f} s")
     if faults.any:
@@ -133,6 +136,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost replay``."""
     from ..io.kmall_write import UDP_PART_BYTES
+    from ..live.stream import USBL_FORMATS
 
     replay = commands.add_parser("replay", parents=parents, help="send a survey or a scenario as live .kmall and NMEA datagrams over UDP")
     replay.add_argument("source", nargs="+", help="survey files (.all, .kmall, GSF) of one format, or a scenario name or SCENARIO.toml")
@@ -146,8 +150,9 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     replay.add_argument("--seed", type=int, default=0, help="seed of the faults' generator (default 0)")
     replay.add_argument("--dvl", choices=("pd6", "json", "none"), default=None,
                         help="a scenario's DVL and depth as Teledyne PD6 (the default) or JSON lines, or not sent (none); survey files have none")
-    replay.add_argument("--usbl", choices=("json", "none"), default=None,
-                        help="a scenario's USBL fixes as JSON lines (the default when it has a USBL) or not sent (none)")
+    replay.add_argument("--usbl", choices=(*USBL_FORMATS, "none"), default=None,
+                        help="a scenario's USBL fixes as JSON lines (json, the default when it has a USBL), as a USBL's own sentences "
+                             "(psonlld: Sonardyne, with the error ellipse; psimssb: Kongsberg, geographic), or not sent (none)")
     replay.add_argument("--max-datagram-bytes", type=_datagram_bytes, default=UDP_PART_BYTES, metavar="B",
                         help=f"an MRZ larger than this is sent in partitions (default {UDP_PART_BYTES})")
     replay.set_defaults(handler=_cmd_replay)

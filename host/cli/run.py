@@ -5,7 +5,7 @@
     lost run SCENARIO.toml|NAME [--out DIR]                                  a simulated tow
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
     lost run --survey FILE... --bathy grid.nc [--dr-bias E,N] [--start-offset E,N] [--record-s S] [--window-s S] [--full-window]
-                                                                             a recorded multibeam survey (.all, .kmall, GSF)
+                                         [--usbl-fixes FILE]                 a recorded multibeam survey (.all, .kmall, GSF)
     lost demo [--out runs/demo]                                              the built-in scenario "demo"
 
 ``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at all.
@@ -232,7 +232,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 #: Options of `lost run` that only a recorded survey (--survey) takes.
-_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "full_window")
+_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "full_window", "usbl_fixes", "usbl_default_sigma_m")
 
 
 def _run_survey(args: argparse.Namespace) -> int:
@@ -241,6 +241,8 @@ def _run_survey(args: argparse.Namespace) -> int:
     from ..io.survey import open_survey
     from ..io.survey_records import DEFAULT_RECORD_S, SurveyRecorder, check_survey_on_map, survey_records
 
+    if args.usbl_default_sigma_m is not None and args.usbl_fixes is None:
+        raise UsageError("--usbl-default-sigma-m is the 1 sigma of --usbl-fixes' sentences without error fields: give --usbl-fixes FILE")
     params = _parameters(args, {})
     files = [Path(f) for f in args.survey]
     names = ", ".join(f.name for f in files)
@@ -256,6 +258,8 @@ def _run_survey(args: argparse.Namespace) -> int:
                                   dr_bias_mps=args.dr_bias or (0.0, 0.0), start_offset_m=args.start_offset or (0.0, 0.0),
                                   patch_centre=args.patch_centre, full_window=bool(args.full_window))
         records = survey_records(survey, recorder)
+        if args.usbl_fixes is not None:
+            records, extra["usbl_fixes"] = _survey_usbl_fixes(args.usbl_fixes, records, recorder.epoch_s, grid.crs, args.usbl_default_sigma_m)
         warnings += check_survey_on_map(records, grid, names)
         skipped = {**dict(survey.skipped), **dict(recorder.skipped)}
         extra["survey"] = {"files": [str(f) for f in files], "format": survey.format, "first_ping_utc_s": recorder.epoch_s,
@@ -268,6 +272,22 @@ def _run_survey(args: argparse.Namespace) -> int:
                             estimators=_estimators(args.estimator), extra=extra)
     _print_summary(summary, out)
     return 0
+
+
+def _survey_usbl_fixes(path: Path, records, epoch_s: float, crs: str, default_sigma_m: float | None):
+    """``--usbl-fixes``: the file's fixes (the lines `lost serve` receives) in the records whose intervals hold them, as served."""
+    from collections import Counter
+
+    from ..io.crs import _transformer
+    from ..live.usbl import place_usbl_fixes, placed_fix, read_usbl_fixes
+
+    fixes, counts = read_usbl_fixes(path, sonar_time_s=epoch_s, default_sigma_m=default_sigma_m)
+    to_map = _transformer("EPSG:4326", crs)
+    placed = Counter()
+    records, used = place_usbl_fixes(records, epoch_s, [placed_fix(fix, to_map) for fix in fixes], placed)
+    print(f"{path.name}: {len(fixes)} USBL fixes, {int(used.sum())} used in {int((used > 0).sum())} records"
+          + "".join(f"\n  {reason}: {n}" for reason, n in sorted(placed.items()) if "not used" in reason or "dropped" in reason))
+    return records, {"file": str(path), "fixes": len(fixes), "read": dict(counts), "placed": dict(placed)}
 
 
 def _save_survey_log(records, folder: Path, epoch_utc_s: float) -> dict:
@@ -343,6 +363,12 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
                      help="--survey: seconds of pings up to a record that make its patch (default --record-s)")
     run.add_argument("--full-window", action="store_true", default=None,
                      help="--survey: no patch until --window-s seconds of pings are in (a window still filling is a strip of the swath)")
+    run.add_argument("--usbl-fixes", type=Path, default=None, metavar="FILE",
+                     help="--survey: USBL fixes, a line each as lost serve receives them (JSON usbl lines, $PSONLLD, $PSIMSSB), "
+                          "each in the record whose interval holds it")
+    run.add_argument("--usbl-default-sigma-m", type=positive_metres, default=None, metavar="METRES",
+                     help="--usbl-fixes: the 1 sigma of a $PSONLLD/$PSIMSSB fix without error fields, as lost serve's "
+                          "usbl_default_sigma_m (default: such fixes refused, counted)")
     run.add_argument("--node-m", type=positive_metres, default=None, metavar="METRES",
                      help="node spacing of the map (and of the sonar patches), metres (default: the grid file's)")
     run.add_argument("--crs", default=None, help="projected CRS to navigate in (default: the grid's own, or its UTM zone)")

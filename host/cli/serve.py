@@ -68,7 +68,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
             with with_fallback(params.backend, retry_s=settings.device_retry_s) if device else contextlib.nullcontext() as fallback:
                 server = LiveServer(receiver, navigator, sender, log, status_s=settings.status_s, idle_stop_s=settings.idle_stop_s,
                                     reorder_lag_s=settings.reorder_lag_s, reorder_hold_s=settings.reorder_hold_s,
-                                    fallback=fallback)
+                                    fallback=fallback, queue_max_values=settings.queue_max_values)
                 summary = server.run()
         finally:
             log.close()

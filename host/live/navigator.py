@@ -32,7 +32,7 @@ from ..nav.mapprep import PreparedMap
 from ..nav.parameters import NavParameters
 from .inputs import DepthReading, DvlVelocity, UsblFix
 from .sensors import VehicleSensors
-from .usbl import PlacedFix, UsblPlacer
+from .usbl import UsblPlacer, placed_fix
 
 __all__ = ["LiveNavigator", "LiveEstimate"]
 
@@ -95,9 +95,7 @@ class LiveNavigator:
     def add_sensor(self, value: DvlVelocity | DepthReading | UsblFix) -> None:
         """Take a DVL velocity, a depth reading or a USBL fix: used by the record of its time (:mod:`lost.host.live.sensors`, ``usbl``)."""
         if isinstance(value, UsblFix):
-            east, north = self._transformer.transform(value.lon_deg, value.lat_deg)
-            covariance = np.array([[value.sxx_m2, value.sxy_m2], [value.sxy_m2, value.syy_m2]])
-            self.usbl.add(PlacedFix(value.time_s, np.array([east, north], dtype=np.float64), covariance))
+            self.usbl.add(placed_fix(value, self._transformer))
         else:
             self.sensors.add(value)
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import pynmea2
 
+from .clock import nmea_clock
 from .inputs import UsblFix
 from .usbl_nmea import HEADING_MODES_USED, usbl_fix
 
@@ -61,8 +62,7 @@ def _bearing(degrees: float) -> str:
 def fix_sentences(time_s: float, lat_deg: float, lon_deg: float, *, heading_deg: float = math.nan, course_deg: float = math.nan,
                   speed_mps: float = math.nan) -> list[str]:
     """The sentences of one fix (see the module), each with its ``$`` and checksum, without line ending; HDT only with a heading, VTG only with a course."""
-    moment = dt.datetime.fromtimestamp(round(time_s, 3), dt.UTC)
-    clock = moment.strftime("%H%M%S.") + f"{moment.microsecond // 1000:03d}"
+    moment, clock = nmea_clock(time_s, 3)
     lat, ns = _angle(lat_deg, 2, "NS")
     lon, ew = _angle(lon_deg, 3, "EW")
     out = [pynmea2.ZDA(_TALKER, "ZDA", (clock, f"{moment.day:02d}", f"{moment.month:02d}", f"{moment.year:04d}", "00", "00")),
@@ -84,6 +84,7 @@ class NmeaDecoder:
         self._date: dt.date | None = None
         self._last_time_s = math.nan
         self._pending: PositionFix | None = None
+        self.sonar_time_s = math.nan  # the latest .kmall datagram's time, set by the receiver: dates a vendor USBL fix when no ZDA has come
 
     def feed(self, line: str) -> list[PositionFix | HeadingFix | UsblFix]:
         """The fixes one sentence completes (a GGA is held until its VTG, or the next GGA, comes; a USBL's at once)."""
@@ -123,7 +124,7 @@ class NmeaDecoder:
     def _proprietary(self, sentence: pynmea2.ProprietarySentence) -> list[UsblFix]:
         kind = f"P{sentence.manufacturer}{sentence.data[0] if sentence.data else ''}"
         if kind in ("PSONLLD", "PSIMSSB"):
-            return usbl_fix(sentence, self._date, self._last_time_s, self.usbl_default_sigma_m, self.counts)
+            return usbl_fix(sentence, self._date, self._last_time_s, self.usbl_default_sigma_m, self.counts, sonar_time_s=self.sonar_time_s)
         self.counts["NMEA proprietary sentence (not used)"] += 1  # one counter: a vendor's names are not a bounded set
         return []
 

@@ -92,7 +92,7 @@ class LiveDecoder:
         return list(self._nmea.flush())
 
     def _kmall(self, payload: bytes) -> list[Ping]:
-        size, kind, *_ = _HEADER.unpack_from(payload)
+        size, kind, _, _, _, time_sec, time_nanosec = _HEADER.unpack_from(payload)
         name = kind.decode("ascii") if kind.decode("ascii") in _KMALL_KINDS else "(other kind)"
         if size != len(payload) or int.from_bytes(payload[-4:], "little") != size:
             self.counts[f"kmall {name} datagram whose length fields disagree with its size (skipped)"] += 1
@@ -101,6 +101,8 @@ class LiveDecoder:
             self.counts["duplicate kmall datagram (skipped)"] += 1
             return []
         self.counts[f"kmall {name} datagrams"] += 1
+        if time_nanosec < 1_000_000_000:  # the sonar's clock: dates a vendor USBL fix when no ZDA has come
+            self.sonar_clock(time_sec + time_nanosec * 1e-9)
         if name == "#SKM":
             self._skm(payload)
             return []
@@ -144,6 +146,10 @@ class LiveDecoder:
         if self._attitude and not np.isfinite(ping.roll_deg):
             self.counts["ping without attitude at its time (its #SKM late or lost)"] += 1
         return [ping]
+
+    def sonar_clock(self, time_s: float) -> None:
+        """Set the sonar's clock (POSIX seconds), as a ``.kmall`` datagram of that time would: it dates vendor USBL fixes until a ZDA comes."""
+        self._nmea.sonar_time_s = time_s
 
     def sequence(self, ping: Ping) -> int | None:
         """The MRZ ping counter of a ping this decoder made (unwrapped past 65,535), among its last 4,096; None if not."""

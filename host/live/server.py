@@ -1,8 +1,9 @@
 """The serving loop of `lost serve`: a receiving thread, the navigation on the main thread, outputs, status, summary.
 
 :class:`UdpReceiver` runs on its own thread and puts each decoded value, with the monotonic time it was
-completed, on a queue (unbounded: a burst while a record is being navigated waits in memory, not in the
-socket's buffer where the kernel would drop it). The main thread takes pings off the queue through the
+completed, on a :class:`~lost.host.live.backlog.Backlog` (a burst while a record is being navigated waits in memory,
+not in the socket's buffer where the kernel would drop it unseen; the queue is bounded, its oldest value dropped and
+counted when it is full, so the receiving thread never waits). The main thread takes pings off the queue through the
 :class:`~lost.host.live.reorder.PingReorder` (back into time order) into the
 :class:`~lost.host.live.navigator.LiveNavigator`, and the vehicle's DVL velocities and depth readings into it as
 they come; each record's estimates go to the :class:`UdpSender` and the :class:`RunLog` as soon as they are made.
@@ -23,7 +24,6 @@ closed, the summary written), or after ``idle_stop_s`` seconds without a value o
 from __future__ import annotations
 
 import math
-import queue
 import sys
 import threading
 import time
@@ -31,6 +31,7 @@ from collections import Counter
 from typing import TextIO
 
 from ..io.survey import Ping
+from .backlog import DEFAULT_MAX_VALUES, Backlog
 from .fallback import FallbackBackend
 from .inputs import DepthReading, DvlVelocity, UsblFix
 from .navigator import LiveEstimate, LiveNavigator
@@ -48,7 +49,7 @@ class LiveServer:
 
     def __init__(self, receiver: UdpReceiver, navigator: LiveNavigator, sender: UdpSender, log: RunLog, *, status_s: float = 5.0,
                  idle_stop_s: float = 0.0, reorder_lag_s: float = 0.5, reorder_hold_s: float = 0.05, status_stream: TextIO | None = None,
-                 fallback: FallbackBackend | None = None) -> None:
+                 fallback: FallbackBackend | None = None, queue_max_values: int = DEFAULT_MAX_VALUES) -> None:
         self.receiver, self.navigator, self.sender, self.log = receiver, navigator, sender, log
         self.status_s, self.idle_stop_s = status_s, idle_stop_s
         self.status_stream = status_stream if status_stream is not None else sys.stderr
@@ -61,7 +62,7 @@ class LiveServer:
         self.served: dict[str, EstimatorStats] = {}
         self.last_refusal = ""
         self.ended = "running"
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._queue = Backlog(queue_max_values)
         self._stop = threading.Event()
         self._started = time.monotonic()
 
@@ -76,15 +77,15 @@ class LiveServer:
         next_status = time.monotonic() + self.status_s
         try:
             while not self._stop.is_set():
-                try:
-                    # Wake for the reorder buffer's next due ping, not later than the status and idle checks need.
-                    received, value = self._queue.get(timeout=min(0.05, max(self.reorder.wait_s(time.monotonic()), 0.001)))
-                except queue.Empty:
+                # Wake for the reorder buffer's next due ping, not later than the status and idle checks need.
+                item = self._queue.get(timeout=min(0.05, max(self.reorder.wait_s(time.monotonic()), 0.001)))
+                if item is None:
                     self._navigate(self.reorder.expire(time.monotonic()))
                     if last_value is not None and self.idle_stop_s and time.monotonic() - last_value > self.idle_stop_s:
                         self.ended = f"no datagram for {self.idle_stop_s:g} s"
                         break
                 else:
+                    received, value = item
                     last_value = received
                     self.take(received, value)
                     self._navigate(self.reorder.expire(time.monotonic()))  # a busy stream: pings due by their hold go too
@@ -97,12 +98,8 @@ class LiveServer:
             self.ended = "interrupted (Ctrl-C or SIGTERM)"
         self.receiver.stop()
         thread.join(5.0)
-        while True:  # what was received before the stop, then the decoder's last values
-            try:
-                received, value = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            self.take(received, value)
+        while (item := self._queue.get(timeout=0.0)) is not None:  # what was received before the stop, then the decoder's last values
+            self.take(*item)
         self._navigate(self.reorder.finish())
         self._serve(self._guarded(self.navigator.finish), None, None)
         print(self.status_line(), file=self.status_stream, flush=True)
@@ -166,6 +163,7 @@ class LiveServer:
     def _drops(self) -> dict[str, int]:
         counts = _copy(self.receiver.decoder.counts)
         drops = {reason: n for reason, n in counts.items() if any(w in reason for w in ("skipped", "lost", "dropped", "missing", "without"))}
+        drops.update(self._queue.counts())
         drops.update({reason: n for reason, n in {**self.navigator.counts, **self.counts, **self.sender.counts}.items()
                       if any(w in reason for w in ("skipped", "refused", "silent", "without", "not sent", "late", "dropped"))})
         return drops
@@ -193,6 +191,7 @@ class LiveServer:
                                "max": latency.max if latency.count else None},
                 "navigation_ms": ({f"p{q}": self.navigation_ms.quantile(q / 100) for q in (50, 90, 99)} | {"max": self.navigation_ms.max}
                                   if self.navigation_ms.count else {}),
+                "queue": {"max_values": self._queue.max_values, "deepest": self._queue.deepest, **self._queue.counts()},
                 "reorder_lag_s": self.reorder.lag_s, "reorder_hold_s": self.reorder.hold_s,
                 "correlator": ({"device": self.fallback.device.name, "serving": self.fallback.serving, **self.fallback.counts,
                                 "last_failure": self.fallback.last_failure or None} if self.fallback is not None else None),

@@ -19,6 +19,7 @@
     reorder_hold_s = 0.05                   # ... or this long in wall-clock time, to put pings back into time order
     device_retry_s = 30.0                   # [navigation] backend fpga or rtl: seconds between tries of a device not answering
     usbl_default_sigma_m = 10.0             # 1 sigma (m) of a $PSONLLD/$PSIMSSB fix without error fields (default none: such fixes refused)
+    queue_max_values = 10000                # decoded values waiting for the navigation at most (full: the oldest dropped, counted)
 
     [navigation]                            # NavParameters, as lost run --config's
 
@@ -41,6 +42,7 @@ from pydantic import Field
 from ..config import ConfigError, NonNegativeFloat, PositiveFloat, build, read_toml
 from ..io.survey_records import DEFAULT_RECORD_S, SURVEY_PATCH_CENTRES
 from ..nav import ESTIMATORS
+from .backlog import DEFAULT_MAX_VALUES
 from .serial import SerialSettings
 
 __all__ = ["ServeSettings", "read_serve_settings", "address"]
@@ -76,6 +78,7 @@ class ServeSettings:
     reorder_hold_s: NonNegativeFloat = 0.05
     device_retry_s: PositiveFloat = 30.0
     usbl_default_sigma_m: PositiveFloat | None = None
+    queue_max_values: Annotated[int, Field(gt=0)] = DEFAULT_MAX_VALUES
     navigation: dict = field(default_factory=dict)
     serial: tuple[SerialSettings, ...] = ()
 

@@ -7,7 +7,7 @@ text, #SKM when the ping has attitude, #MRZ; :func:`lost.host.io.kmall_write.pin
 UDP datagram, an MRZ larger than ``max_datagram_bytes`` split into partitions. The pings of two heads at one
 time share one fix: its sentences, #SPO and #SKM are sent once, with the first. The vehicle's own datagrams of a
 simulated tow (:func:`vehicle_datagrams`: its DVL and depth as a PD6 ensemble or JSON lines, its USBL fixes with their
-covariance as JSON lines) go before the first ping of their time.
+covariance as JSON lines or as a USBL's own ``$PSONLLD`` or ``$PSIMSSB`` sentences) go before the first ping of their time.
 
 Faults (:class:`Faults`, one seeded NumPy generator, drawn per datagram in this order): lost (not sent), duplicated
 (sent twice), reordered (held back and sent after the next one, or the next ``reorder_by``). Each is counted.
@@ -29,11 +29,11 @@ from ..io.kmall_write import UDP_PART_BYTES, HeadIndex, ping_datagrams, split_da
 from ..io.survey import Ping
 from .nmea import fix_sentences
 
-__all__ = ["LiveDatagram", "Faults", "live_datagrams", "vehicle_datagrams", "with_faults", "send_datagrams"]
+__all__ = ["LiveDatagram", "Faults", "live_datagrams", "vehicle_datagrams", "usbl_line", "USBL_FORMATS", "with_faults", "send_datagrams"]
 
 @dataclass(frozen=True)
 class LiveDatagram:
-    """One UDP datagram to send: its time (POSIX s), what it is (``"kmall"``, ``"nmea"``, ``"pd6"``, ``"json"``), its bytes."""
+    """One UDP datagram to send: its time (POSIX s), what it is (``"kmall"``, ``"nmea"``, ``"pd6"``, ``"json"``, ``"usbl"``), its bytes."""
 
     time_s: float
     kind: str
@@ -105,20 +105,50 @@ def live_datagrams(pings: Iterable[Ping], *, max_datagram_bytes: int = UDP_PART_
         waiting = next(pending, None)
 
 
-def vehicle_datagrams(records, crs: str, *, dvl_format: str = "pd6", epoch_s: float = 0.0, usbl: bool = True) -> Iterator[LiveDatagram]:
+#: The layouts a simulated USBL fix is sent in: LOST's JSON line, Sonardyne's $PSONLLD, Kongsberg's $PSIMSSB (geographic).
+USBL_FORMATS = ("json", "psonlld", "psimssb")
+
+
+def usbl_line(fix, usbl_format: str) -> tuple[str, str]:
+    """A :class:`~lost.host.live.inputs.UsblFix` as one line of ``usbl_format`` (see :data:`USBL_FORMATS`), and its datagram
+    kind (``"json"``, or ``"usbl"`` for a USBL's own NMEA-style sentence).
+
+    ``psonlld``: the covariance as its 1-sigma error ellipse (semi-axes the square roots of its eigenvalues, the major
+    axis's direction clockwise from north), to the sentence's 0.01 m and 0.01 degree. ``psimssb``: in geographic radians
+    (``R``), its expected accuracy the larger semi-axis (an isotropic 1 sigma that does not understate the error), to 0.01 m.
+    """
+    from .inputs import json_input_line
+    from .usbl_nmea import psimssb_sentence, psonlld_sentence
+
+    if usbl_format == "json":
+        return json_input_line(fix), "json"
+    variances, axes = np.linalg.eigh(np.array([[fix.sxx_m2, fix.sxy_m2], [fix.sxy_m2, fix.syy_m2]]))
+    major, minor = (float(math.sqrt(max(v, 0.0))) for v in variances[::-1])
+    if usbl_format == "psonlld":
+        direction = float(np.degrees(np.arctan2(axes[0, 1], axes[1, 1])) % 180.0)  # the major axis (east, north) from north
+        return psonlld_sentence(fix, major_m=major, minor_m=minor, direction_deg=direction), "usbl"
+    if usbl_format == "psimssb":
+        return psimssb_sentence(fix, accuracy_m=major), "usbl"
+    raise ValueError(f"usbl_format must be one of {list(USBL_FORMATS)}, got {usbl_format!r}")
+
+
+def vehicle_datagrams(records, crs: str, *, dvl_format: str = "pd6", epoch_s: float = 0.0, usbl: bool = True,
+                      usbl_format: str = "json") -> Iterator[LiveDatagram]:
     """The vehicle's own datagrams of a simulated tow's records (:class:`~lost.host.records.NavRecords`), one per record.
 
     The DVL's velocity (the records' ``vel_x_mps``/``vel_y_mps``: the simulator's own DVL, its noise, bias and dropouts)
     and the depth sensor's (``vehicle_depth_m``) as a PD6 ensemble (``:TS`` and ``:BE`` lines, ``dvl_format="pd6"``)
     or as JSON lines (``"json"``), or not at all (``"none"``); with ``usbl``, the USBL's fixes (``usbl_x_m``/``usbl_y_m``
-    where finite, placed by ``crs``, with their covariance ``usbl_sxx``/``usbl_syy``/``usbl_sxy``) as JSON lines, a
-    datagram each. Times are ``epoch_s`` plus the records' ``t_s``.
+    where finite, placed by ``crs``, with their covariance ``usbl_sxx``/``usbl_syy``/``usbl_sxy``) as lines of
+    ``usbl_format`` (:func:`usbl_line`), a datagram each. Times are ``epoch_s`` plus the records' ``t_s``.
     """
     from ..io.crs import _transformer
     from .inputs import DepthReading, DvlVelocity, UsblFix, json_input_line, pd6_sentences
 
     if dvl_format not in ("pd6", "json", "none"):
         raise ValueError(f"dvl_format must be 'pd6', 'json' or 'none', got {dvl_format!r}")
+    if usbl_format not in USBL_FORMATS:
+        raise ValueError(f"usbl_format must be one of {list(USBL_FORMATS)}, got {usbl_format!r}")
     to_lonlat = _transformer(crs, "EPSG:4326")
     usbl_x, usbl_y = records.usbl_x_m, records.usbl_y_m  # NaN without a USBL (NavRecords fills the optional series)
     for k in range(len(records)):
@@ -136,8 +166,8 @@ def vehicle_datagrams(records, crs: str, *, dvl_format: str = "pd6", epoch_s: fl
         if usbl and math.isfinite(usbl_x[k]) and math.isfinite(usbl_y[k]):
             lon, lat = to_lonlat.transform(usbl_x[k], usbl_y[k])
             covariance = (float(records.usbl_sxx[k]), float(records.usbl_syy[k]), float(records.usbl_sxy[k]))
-            line = json_input_line(UsblFix(t, float(lat), float(lon), depth if math.isfinite(depth) else 0.0, *covariance))
-            yield LiveDatagram(t, "json", (line + "\n").encode("ascii"))
+            line, kind = usbl_line(UsblFix(t, float(lat), float(lon), depth if math.isfinite(depth) else 0.0, *covariance), usbl_format)
+            yield LiveDatagram(t, kind, (line + ("\n" if kind == "json" else "\r\n")).encode("ascii"))
 
 
 def with_faults(datagrams: Iterable[LiveDatagram], faults: Faults, counts: Counter) -> Iterator[LiveDatagram]:

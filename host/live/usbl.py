@@ -15,16 +15,25 @@ The estimators then weigh the record's fix as they weigh a batch record's (``use
 Not used, counted: a fix at or before the first record (the navigation starts there from its own start), and a fix
 whose record was already stepped when it came (late). Bounded: at most :data:`MAX_FIXES` fixes wait for their record
 (the oldest dropped, counted).
+
+The batch survey path (``lost run --survey --usbl-fixes FILE``) reads a file of fixes in the layouts `lost serve`
+receives (:func:`read_usbl_fixes`) and places them in the survey's records by the same placer, fed in time order as
+a stream on time would feed it (:func:`place_usbl_fixes`): the served and the batch records carry the same fixes.
 """
 
 from __future__ import annotations
 
+import math
+import os
 from collections import Counter, deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["UsblPlacer", "PlacedFix", "combine_fixes", "MAX_FIXES"]
+from .inputs import UsblFix
+
+__all__ = ["UsblPlacer", "PlacedFix", "combine_fixes", "MAX_FIXES", "placed_fix", "read_usbl_fixes", "place_usbl_fixes"]
 
 MAX_FIXES = 4096
 
@@ -83,3 +92,65 @@ class UsblPlacer:
         self.counts["USBL fixes used"] += len(mine)
         self.counts["records with a USBL fix"] += 1
         return position, covariance, len(mine)
+
+
+def placed_fix(fix: UsblFix, to_map) -> PlacedFix:
+    """A received fix in the map's frame: latitude and longitude through ``to_map`` (a pyproj Transformer from EPSG:4326,
+    always_xy), as the pings are projected; its covariance taken in the map's axes."""
+    east, north = to_map.transform(fix.lon_deg, fix.lat_deg)
+    covariance = np.array([[fix.sxx_m2, fix.sxy_m2], [fix.sxy_m2, fix.syy_m2]])
+    return PlacedFix(fix.time_s, np.array([east, north], dtype=np.float64), covariance)
+
+
+def read_usbl_fixes(path: str | os.PathLike, *, sonar_time_s: float = math.nan,
+                    default_sigma_m: float | None = None) -> tuple[list[UsblFix], Counter]:
+    """The USBL fixes of a text file of lines as `lost serve` receives them, and the decoder's counts.
+
+    A line each: LOST's JSON ``usbl`` lines, ``$PSONLLD`` or ``$PSIMSSB`` sentences (dated by a ``ZDA`` among the lines,
+    or else by ``sonar_time_s``, the survey's first ping, as the live decoder dates them by the sonar's datagrams), any
+    other line the receiver takes (counted, not used). Decoded by :class:`~lost.host.live.receiver.LiveDecoder`: the same
+    checks, the same values and the same counters as served.
+
+    Raises
+    ------
+    FileNotFoundError
+        No file at ``path``.
+    ValueError
+        The file holds no usable fix (the decoder's counts say why).
+    """
+    from .receiver import LiveDecoder
+
+    path = Path(path)
+    decoder = LiveDecoder(usbl_default_sigma_m=default_sigma_m)
+    decoder.sonar_clock(sonar_time_s)
+    fixes: list[UsblFix] = []
+    with path.open("rb") as lines:
+        for line in lines:
+            if line.strip():
+                fixes += [value for value in decoder.feed(line.strip()) if isinstance(value, UsblFix)]
+    fixes += [value for value in decoder.finish() if isinstance(value, UsblFix)]
+    if not fixes:
+        counted = ", ".join(f"{reason}: {n}" for reason, n in sorted(decoder.counts.items())) or "no line"
+        raise ValueError(f"{path}: no USBL fix in it (JSON usbl lines, $PSONLLD or $PSIMSSB sentences); read: {counted}")
+    return fixes, decoder.counts
+
+
+def place_usbl_fixes(records, epoch_s: float, fixes: list[PlacedFix], counts: Counter):
+    """``records`` (:class:`~lost.host.records.NavRecords` of a survey, times ``epoch_s`` + ``t_s``) with each record's
+    USBL fix series filled by a :class:`UsblPlacer` as the live navigator fills them (fixes given in time order, each
+    before the record whose interval holds it); and the fixes each record's fix was made of (an int array)."""
+    placer = UsblPlacer(counts)
+    waiting = deque(sorted(fixes, key=lambda fix: fix.time_s))
+    series = {name: np.full(len(records), np.nan) for name in ("usbl_x_m", "usbl_y_m", "usbl_sxx", "usbl_syy", "usbl_sxy")}
+    used = np.zeros(len(records), dtype=np.int64)
+    for k in range(len(records)):
+        time_s = epoch_s + records.t_s[k]
+        while waiting and waiting[0].time_s <= time_s:
+            placer.add(waiting.popleft())
+        fix = placer.place(time_s, (records.vel_x_mps[k], records.vel_y_mps[k]))
+        if fix is not None:
+            (series["usbl_x_m"][k], series["usbl_y_m"][k]), covariance, used[k] = fix
+            series["usbl_sxx"][k], series["usbl_syy"][k], series["usbl_sxy"][k] = covariance[0, 0], covariance[1, 1], covariance[0, 1]
+    if waiting:
+        counts["USBL fixes after the last record (not used)"] += len(waiting)
+    return replace(records, **series), used

@@ -23,7 +23,9 @@ isotropic 1 sigma (m). A sentence without error fields (empty, or 0) takes ``def
 and is refused and counted when not.
 
 The time of day is dated by the latest ZDA (the day before or after it when that is nearer the latest GGA's time,
-across midnight); a fix before any ZDA is counted and skipped.
+across midnight). Without a ZDA (no GNSS on any port, or none yet), by the sonar's own clock: the day of the latest
+``.kmall`` datagram's time (its header's epoch seconds), the day before or after when that is nearer it. Each fix
+is counted by what dated it; a fix before any ZDA and any ``.kmall`` datagram is counted and skipped.
 """
 
 from __future__ import annotations
@@ -33,7 +35,9 @@ import math
 from collections import Counter
 
 import pynmea2
+from pynmea2 import nmea_utils
 
+from .clock import nmea_clock
 from .inputs import UsblFix
 
 __all__ = ["THS", "usbl_fix", "psonlld_sentence", "psimssb_sentence", "ellipse_covariance", "HEADING_MODES_USED"]
@@ -72,8 +76,12 @@ def _sigma(text: str) -> float | None:
 
 
 def usbl_fix(sentence: pynmea2.ProprietarySentence, date: dt.date | None, near_s: float, default_sigma_m: float | None,
-             counts: Counter) -> list[UsblFix]:
-    """The fix of one ``$PSONLLD`` or ``$PSIMSSB`` (pynmea2's proprietary sentence, checksum checked); [] and a count otherwise."""
+             counts: Counter, *, sonar_time_s: float = math.nan) -> list[UsblFix]:
+    """The fix of one ``$PSONLLD`` or ``$PSIMSSB`` (pynmea2's proprietary sentence, checksum checked); [] and a count otherwise.
+
+    ``date`` is the latest ZDA's and ``near_s`` the latest GGA's time (NaN: none); ``sonar_time_s`` the latest ``.kmall``
+    datagram's time (NaN: none), which dates the fix when no ZDA has come.
+    """
     name = f"$P{sentence.manufacturer}{sentence.data[0]}"
     data = [*sentence.data[1:], *[""] * 14]
     counts[f"USBL {name} sentences"] += 1
@@ -107,28 +115,32 @@ def usbl_fix(sentence: pynmea2.ProprietarySentence, date: dt.date | None, near_s
             return []
         covariance = (default_sigma_m ** 2, default_sigma_m ** 2, 0.0)
         counts[f"USBL {name} fixes given the default sigma"] += 1
-    if date is None:
-        counts[f"USBL {name} before any ZDA (no date; skipped)"] += 1
+    if date is not None:
+        dated_by = "the ZDA"
+        near_s = near_s if math.isfinite(near_s) else sonar_time_s
+    elif math.isfinite(sonar_time_s):
+        dated_by, near_s = "the sonar's datagram time (no ZDA)", sonar_time_s
+        date = dt.datetime.fromtimestamp(sonar_time_s, dt.UTC).date()
+    else:
+        counts[f"USBL {name} before any ZDA or .kmall datagram (no date; skipped)"] += 1
         return []
     time_s = dt.datetime.combine(date, dt.time(), dt.UTC).timestamp() + seconds
     if math.isfinite(near_s):
-        time_s += round((near_s - time_s) / _DAY_S) * _DAY_S  # the day nearest the latest GGA (a fix just before midnight)
+        time_s += round((near_s - time_s) / _DAY_S) * _DAY_S  # the day nearest the clock's time (a fix just before midnight)
+    counts[f"USBL {name} fixes dated by {dated_by}"] += 1
     return [UsblFix(time_s, lat, lon, depth, *covariance)]
 
 
 def _clock_s(text: str) -> float:
+    """Seconds of the day of an ``hhmmss.s...`` field, read by pynmea2 (to the microsecond); ValueError if it is no time of day."""
     if len(text) < 6 or not text[:6].isdigit():
         raise ValueError(text)
-    hours, minutes, seconds = int(text[:2]), int(text[2:4]), _number(text[4:])
-    if hours > 23 or minutes > 59 or not 0.0 <= seconds < 61.0:
-        raise ValueError(text)
-    return hours * 3600.0 + minutes * 60.0 + seconds
+    clock = nmea_utils.timestamp(text)  # datetime.time: an hour 24 or more, a minute or second 60 or more raise ValueError
+    return clock.hour * 3600.0 + clock.minute * 60.0 + clock.second + clock.microsecond * 1e-6
 
 
 def _clock(time_s: float, decimals: int) -> str:
-    moment = dt.datetime.fromtimestamp(round(time_s, decimals), dt.UTC)
-    fraction = f"{moment.microsecond / 1e6:.{decimals}f}"[1:]
-    return moment.strftime("%H%M%S") + fraction
+    return nmea_clock(time_s, decimals)[1]
 
 
 def psonlld_sentence(fix: UsblFix, beacon: str = "1", *, major_m: float | None = None, minor_m: float | None = None,

@@ -162,3 +162,11 @@ def test_usbl_fixes_asked_of_a_survey_file_or_of_a_scenario_without_a_usbl_are_u
     assert "--usbl json: a survey file has no USBL fixes to send" in capsys.readouterr().err
     assert main(["replay", "short", "--to", "127.0.0.1:9", "--usbl", "json"]) == 2
     assert "--usbl json: scenario 'short' has no USBL" in capsys.readouterr().err
+    for vendor in ("psonlld", "psimssb"):
+        assert main(["replay", str(path), "--to", "127.0.0.1:9", "--usbl", vendor]) == 2
+        assert f"--usbl {vendor}: a survey file has no USBL fixes to send" in capsys.readouterr().err
+        assert main(["replay", "short", "--to", "127.0.0.1:9", "--usbl", vendor]) == 2
+        assert f"--usbl {vendor}: scenario 'short' has no USBL" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as refused:  # no such layout: argparse's own usage error
+        main(["replay", "short", "--to", "127.0.0.1:9", "--usbl", "ptsag"])
+    assert refused.value.code == 2 and "invalid choice: 'ptsag'" in capsys.readouterr().err

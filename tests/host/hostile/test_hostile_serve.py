@@ -46,6 +46,8 @@ def _serve(tmp_path, text: str, capsys) -> tuple[int, str]:
     ('listen = ["127.0.0.1:4001", "here"]\nbathy = "map.npz"', "[serve] listen must be HOST:PORT"),
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nusbl_default_sigma_m = 0.0', "serve.usbl_default_sigma_m"),
     ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nusbl_default_sigma_m = "5"', "serve.usbl_default_sigma_m"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nqueue_max_values = 0', "serve.queue_max_values"),
+    ('listen = "127.0.0.1:0"\nbathy = "map.npz"\nqueue_max_values = 100.5', "serve.queue_max_values"),
 ])
 def test_a_refused_setting_is_named_and_nothing_is_written(tmp_path, map_path, capsys, table, named):
     code, err = _serve(tmp_path, f"[serve]\n{table}\n", capsys)
@@ -208,6 +210,8 @@ def _nmea(body: str) -> bytes:
     ("PSONLLD,120000.00,1,A,north,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,120000.00,1,A,10.0,20.0,nan,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,250000.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,125960.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
+    ("PSONLLD,1200005,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,120000.00,1,A,10.0,20.0,700.0,-3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a field that is no number (skipped)"),
     ("PSONLLD,120000.00,1,A,95.0,20.0,700.0,3.0,2.0,0.0,,,,,", "USBL $PSONLLD with a position off the globe (skipped)"),
     ("PSONLLD,120000.00", "USBL $PSONLLD with a field that is no number (skipped)"),
@@ -230,7 +234,7 @@ def test_a_usbl_sentence_that_cannot_be_used_is_counted_never_raised(body, reaso
     assert decoder.counts["NMEA sentence with a wrong or missing checksum"] == 1
 
 
-def test_a_usbl_sentence_before_any_zda_is_counted():
+def test_a_usbl_sentence_before_any_zda_and_any_kmall_datagram_is_counted():
     decoder = LiveDecoder()
     assert decoder.feed(_nmea("PSONLLD,120000.00,1,A,10.0,20.0,700.0,3.0,2.0,0.0,,,,,")) == []
-    assert decoder.counts["USBL $PSONLLD before any ZDA (no date; skipped)"] == 1
+    assert decoder.counts["USBL $PSONLLD before any ZDA or .kmall datagram (no date; skipped)"] == 1

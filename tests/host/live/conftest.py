@@ -95,6 +95,33 @@ def _serve_replay(tow, tmp_path, replay_options=(), junk: tuple[bytes, ...] = ()
 
 
 
+def batch_survey_run(map_path, pings_path, fixes_path, out) -> tuple[list[dict], dict]:
+    """`lost run --survey` on the pings with the served runs' settings and ``--usbl-fixes fixes_path``: track.csv's rows, the summary."""
+    import csv
+
+    arguments = ["run", "--survey", str(pings_path), "--bathy", str(map_path), "--record-s", "5", "--window-s", "20", "--patch-centre",
+                 "soundings", "--start-offset", "30,-20", "--dr-bias", "0.1,0.05", "--estimator", "all", "--usbl-fixes", str(fixes_path),
+                 "--out", str(out)]
+    assert main(arguments) == 0
+    with open(out / "track.csv") as stream:
+        return list(csv.DictReader(stream)), json.loads((out / "summary.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def usbl_tow(tmp_path_factory):
+    """Two minutes of the deep USBL tow (fixes every 2 s, some lost): scenario file, map, the simulator's records, the ping CRS."""
+    from lost.host.io import write_npz
+    from lost.host.io.simulated import simulated_pings
+    from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
+
+    folder = tmp_path_factory.mktemp("usbl_tow")
+    path = folder / "usbl_tow.toml"
+    path.write_text(builtin_scenario_path("usbl_nav").read_text().replace("duration_s = 1800", "duration_s = 120"))
+    scenario = load_scenario(path)
+    grid, crs, _ = simulated_pings(scenario)
+    return path, write_npz(grid, folder / "map.npz"), simulate(scenario)[1], crs
+
+
 @pytest.fixture
 def serve_replay():
     """``serve_replay(tow, tmp_path, replay_options=(), junk=(), two_ports=False, **settings)``: see :func:`_serve_replay`."""

@@ -57,3 +57,17 @@ def test_the_replay_keeps_the_datagrams_times_divided_by_the_speed():
         receiver.close()
     with pytest.raises(ValueError, match="speed must be 0"):
         send_datagrams(datagrams, ("127.0.0.1", 9), speed=-1.0)
+
+
+@pytest.mark.parametrize(("time_s", "decimals", "clock", "day"), [
+    (1767225600.0 + 17 * 3600 + 4.53, 2, "170004.53", 1),
+    (1767225600.0 + 17 * 3600 + 4.5304, 3, "170004.530", 1),
+    (1767225600.0 + 86_399.9996, 3, "000000.000", 2),  # rounds up past midnight: the next day's date with it
+    (1767225600.0 + 86_399.994, 2, "235959.99", 1),
+    (1767225600.0 + 59.6, 0, "000100", 1),
+])
+def test_the_time_of_day_is_written_rounded_with_the_date_of_the_rounded_moment(time_s, decimals, clock, day):
+    from lost.host.live.clock import nmea_clock
+
+    moment, text = nmea_clock(time_s, decimals)
+    assert text == clock and (moment.year, moment.month, moment.day) == (2026, 1, day)

@@ -8,25 +8,12 @@ from collections import Counter
 from dataclasses import replace
 
 import numpy as np
-import pytest
 
-from lost.host.io import write_npz
 from lost.host.io.simulated import EPOCH_S, simulated_pings
 from lost.host.live.usbl import PlacedFix, UsblPlacer
-from lost.host.scenario import builtin_scenario_path, load_scenario, simulate
+from lost.host.scenario import load_scenario
 
-from .conftest import SETTINGS
-
-
-@pytest.fixture(scope="module")
-def usbl_tow(tmp_path_factory):
-    """Two minutes of the deep USBL tow (fixes every 2 s, some lost): scenario file, map, the simulator's records, the ping CRS."""
-    folder = tmp_path_factory.mktemp("usbl_tow")
-    path = folder / "usbl_tow.toml"
-    path.write_text(builtin_scenario_path("usbl_nav").read_text().replace("duration_s = 1800", "duration_s = 120"))
-    scenario = load_scenario(path)
-    grid, crs, _ = simulated_pings(scenario)
-    return path, write_npz(grid, folder / "map.npz"), simulate(scenario)[1], crs
+from .conftest import SETTINGS, batch_survey_run
 
 
 def _batch(map_path, pings_path, fixes: list[tuple[float, np.ndarray, np.ndarray]]):
@@ -98,10 +85,26 @@ def test_served_usbl_fixes_give_the_batch_navigation_with_the_fixes_in_their_rec
         assert [e["usable"] for e in mine] == list(track.usable)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["server"]["USBL fixes received"] == len(received)
+    _assert_batch_run_with_the_fixes_is_the_served_one(simulated, crs, map_path, tmp_path / "tow.kmall", served, used, tmp_path)
     assert summary["navigation"]["USBL fixes used"] == used.sum() and summary["navigation"]["records with a USBL fix"] == (used > 0).sum()
     # Every estimator weighed fixes (the 20 s windows' patches are too sparse on the 30 m map: the fixes alone correct).
     assert summary["estimator_counts"]["pmf"]["fix_updates"] > 10 and summary["estimator_counts"]["pf"]["fix_updates"] > 10
     assert summary["navigation"]["usbl_fix_recentred"] > 0 and summary["navigation"]["patch_too_sparse"] == len(served) - 1
+
+
+def _assert_batch_run_with_the_fixes_is_the_served_one(simulated, crs, map_path, pings_path, served, used, tmp_path):
+    """`lost run --survey --usbl-fixes` on the pings and a file of the very lines `lost replay` sent: the served run's records."""
+    from lost.host.live.stream import vehicle_datagrams
+
+    from .test_serve import _assert_log_is_the_batch_runs
+
+    fixes_path = tmp_path / "fixes.jsonl"
+    fixes_path.write_bytes(b"".join(d.payload for d in vehicle_datagrams(simulated, crs, dvl_format="none", epoch_s=EPOCH_S)))
+    rows, summary = batch_survey_run(map_path, pings_path, fixes_path, tmp_path / "batch")
+    _assert_log_is_the_batch_runs(served, rows)
+    batch = summary["usbl_fixes"]
+    assert batch["placed"]["USBL fixes used"] == used.sum() and batch["placed"]["records with a USBL fix"] == (used > 0).sum()
+    assert batch["fixes"] == batch["read"]["JSON usbl lines"] == len(fixes_path.read_text().splitlines())
 
 
 def test_fixes_of_an_interval_are_carried_to_the_records_time_and_combined_late_and_first_ones_counted():

@@ -99,3 +99,25 @@ def test_ths_headings_are_decoded_like_hdt_and_a_not_valid_one_counted():
     assert _feed(decoder, "$HETHS,123.45,V*0B") == [] and _feed(decoder, "$HETHS,123.45,A*1D") == []
     assert decoder.counts["NMEA THS sentences"] == 2 and decoder.counts["NMEA THS heading marked not valid (mode not A or E; skipped)"] == 1
     assert decoder.counts["NMEA sentence with a wrong or missing checksum"] == 1
+
+
+def test_without_a_zda_a_fix_is_dated_by_the_sonars_datagram_time_and_counted_by_what_dated_it():
+    from lost.host.io.kmall_write import encode_spo
+
+    decoder = LiveDecoder()  # no GNSS: only the sonar's datagrams
+    assert decoder.feed(encode_spo(DAY + 12 * 3600.0 + 0.25, 0.0, 0.0)) == []
+    (fix,) = _feed(decoder, WHOI_PSONLLD)
+    assert fix.time_s == pytest.approx(DAY + 17 * 3600 + 4.53, abs=1e-6)
+    # Across midnight: the sonar's clock at 00:00:00.5 of the next day, a fix at 23:59:59.9 is the day before's.
+    decoder.feed(encode_spo(DAY + 86_400.0 + 0.5, 0.0, 0.0))
+    late = UsblFix(DAY + 86_399.9, 1.0, 2.0, 100.0, 0.0, 0.0, 0.0)
+    (fix,) = _feed(decoder, psimssb_sentence(late, accuracy_m=2.0))
+    assert fix.time_s == pytest.approx(DAY + 86_399.9, abs=1e-6)
+    assert decoder.counts["USBL $PSONLLD fixes dated by the sonar's datagram time (no ZDA)"] == 1
+    assert decoder.counts["USBL $PSIMSSB fixes dated by the sonar's datagram time (no ZDA)"] == 1
+    # Once a ZDA has come, it dates the fixes, whatever the sonar's clock says.
+    for sentence in fix_sentences(DAY + 2 * 86_400.0 + 12 * 3600.0, 0.0, 0.0):
+        decoder.feed(sentence.encode())
+    (fix,) = _feed(decoder, WHOI_PSONLLD)
+    assert fix.time_s == pytest.approx(DAY + 2 * 86_400.0 + 17 * 3600 + 4.53, abs=1e-6)
+    assert decoder.counts["USBL $PSONLLD fixes dated by the ZDA"] == 1
