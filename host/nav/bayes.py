@@ -253,7 +253,8 @@ class BayesFilter:
             self.counts["range_shorter_than_depth"] += 1
             return
         horizontal = math.sqrt(horizontal_sq)
-        if self._range_innovation_nis(frame, horizontal) > RANGE_GATE:
+        innovation = self._range_innovation_nis(frame, horizontal)
+        if innovation > RANGE_GATE * self._trust.note_range_innovation(innovation):
             self._reject("innovation", terrain=False)
             return
         x, y, _ = self._candidates()
