@@ -198,7 +198,10 @@ class Trust:
         self.settled = False
         self._range_innovations: deque[float] = deque(maxlen=RANGE_MEMORY)
         self.range_scale = 1.0
-        self._corrections: deque[tuple[np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=params.usable_updates)  # shift, prior, posterior
+        # The drift window, one row an accepted terrain update: shift (2), its expected covariance (xx, xy, yy), gain (2).
+        self._corrections = np.zeros((max(int(params.usable_updates), 1), 7))
+        self._n_corrections = 0
+        self._last_post_var = np.zeros(2)
         self.drift = float("nan")
         self.trailing = False
         self.restart_cause = ""  # the last re-initialization's, one of RESTART_CAUSES' values
@@ -281,20 +284,25 @@ class Trust:
         degrees of freedom. A density that trails the truth (an unlearned velocity error) is pulled the same way
         update after update: each shift is modest, their sum is not.
         """
-        self._corrections.append((np.asarray(shift_m, float), np.asarray(prior_cov, float), np.asarray(post_cov, float)))
-        if len(self._corrections) < self._corrections.maxlen:
+        d = np.asarray(shift_m, float)
+        expected = _drift_covariance(prior_cov, post_cov)
+        gain = [1.0 - post_cov[k, k] / max(prior_cov[k, k], 1e-12) for k in (0, 1)]
+        window = self._corrections
+        window[self._n_corrections % len(window)] = (d[0], d[1], expected[0, 0], expected[0, 1], expected[1, 1], gain[0], gain[1])
+        self._n_corrections += 1
+        self._last_post_var = np.array([post_cov[0, 0], post_cov[1, 1]], float)
+        if self._n_corrections < len(window):
             self.drift, self.trailing = float("nan"), False
             return self.drift
-        self.trailing = self._one_way()
-        total = sum(d for d, _, _ in self._corrections)
-        spread = sum(_drift_covariance(p, q) for _, p, q in self._corrections)
-        try:
-            self.drift = float(total @ np.linalg.solve(spread, total))
-        except np.linalg.LinAlgError:
-            self.drift = float("nan")
+        sums = window.sum(axis=0)
+        self.trailing = self._one_way(sums)
+        tx, ty, sxx, sxy, syy = sums[:5]
+        det = sxx * syy - sxy * sxy
+        # The 2 x 2 solve in closed form: this runs at every terrain update of every filter.
+        self.drift = float((syy * tx * tx - 2.0 * sxy * tx * ty + sxx * ty * ty) / det) if det > 0 else float("nan")
         return self.drift
 
-    def _one_way(self) -> bool:
+    def _one_way(self, sums: np.ndarray) -> bool:
         """Whether the drift window's shifts say the density trails the truth (see ``TRAIL_SIGMAS``).
 
         The chi-square test above weighs the shifts by ``P_prior - P_post``, which the floor keeps large (the floor is
@@ -308,16 +316,14 @@ class Trust:
         one sigma), so that a harmless consistent crawl (a velocity-bias filter a little behind a slowly changing
         error, the shifts one way for minutes but the lag within the density) keeps the flag.
         """
-        if len(self._corrections) < TRAIL_WINDOW_MIN:
+        n = len(self._corrections)
+        if n < TRAIL_WINDOW_MIN:
             return False
-        shifts = np.array([d for d, _, _ in self._corrections])
-        prior = np.array([np.diag(p) for _, p, _ in self._corrections])
-        post = np.array([np.diag(q) for _, _, q in self._corrections])
+        shifts = self._corrections[:, :2]
         positive, negative = (shifts > 0).sum(axis=0), (shifts < 0).sum(axis=0)
-        one_way = np.maximum(positive, negative) >= ONE_WAY_SHARE * len(shifts)
-        gain = np.maximum(np.mean(1.0 - post / np.maximum(prior, 1e-12), axis=0), 1e-3)
-        lag = np.abs(shifts.mean(axis=0)) / gain
-        return bool(np.any(one_way & (lag > TRAIL_SIGMAS * np.sqrt(np.maximum(post[-1], 0.0)))))
+        one_way = np.maximum(positive, negative) >= ONE_WAY_SHARE * n
+        lag = np.abs(sums[:2]) / np.maximum(sums[5:7], 1e-3 * n)  # the mean shift over the mean gain
+        return bool(np.any(one_way & (lag > TRAIL_SIGMAS * np.sqrt(np.maximum(self._last_post_var, 0.0)))))
 
     def accepted(self, covariance: np.ndarray) -> None:
         """An update was used: reset growth and tempering, and advance the usable rule."""
@@ -431,7 +437,7 @@ class Trust:
         self._ranges_refused_in_row = 0
         self._fixes_refused_in_row = 0
         self._elsewhere.clear()
-        self._corrections.clear()
+        self._n_corrections = 0
         self.trailing = False
         self.settled = False
         self.counts["reinitializations"] += 1
