@@ -395,7 +395,7 @@ class Trust:
         return on_map_mass < (EDGE_MASS if narrow else WIDE_EDGE_MASS)
 
     def note_range_innovation(self, value: float) -> float:
-        """A slant range's normalized innovation squared joins the running median; the range gate's scale.
+        """A slant range's normalized innovation squared joins the running median; the gate's scale while usable.
 
         The innovation's variance (the density's along the line of sight plus ``slant_range_sigma_m``) is stated for
         the worst case: the density carries its floor, the range sigma its worst geometry. Where the ranges agree
