@@ -35,7 +35,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   consistent, so the sum of the last ``usable_updates`` shifts against the sum of those covariances is
   chi-square with 2 degrees of freedom; above ``drift_gate`` the updates keep pulling one way, the density
   trails the truth (an unlearned velocity error: a towfish lagging the ship whose velocity it is given)
-  and the flag stays down (``corrections_drifting``). Look-alike terrain: a
+  and the flag stays down (``corrections_drifting``); so does the trail test on the same window (most shifts one way
+  along an axis, their steady-state lag beyond two of the density's sigmas: ``corrections_one_way``). Look-alike terrain: a
   density can collapse onto one of several equally good modes (particles by resampling, cells by
   their offsets), so once the covariance is small enough to be usable, each patch is also matched
   over ``lookalike_radius_m`` around the estimate; if a placement beyond three sigma fits within
@@ -54,6 +55,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   (``patch_at_map_edge``) and the filter dead-reckons.
   Off the map or at its edge, the filter is no longer usable once it has had neither a terrain update
   nor a position fix for ``off_map_usable_s`` (``unusable_off_map``): dead reckoning is not a terrain fix.
+- Slant ranges: the range gate of a usable filter is scaled by how far the ranges' innovations fall under their stated
+  variance (``Trust.note_range_innovation``), so that an outlier of a few metres is not taken by a narrow density.
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
