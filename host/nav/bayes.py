@@ -253,7 +253,13 @@ class BayesFilter:
             self.counts["range_shorter_than_depth"] += 1
             return
         horizontal = math.sqrt(horizontal_sq)
-        if self._range_innovation_nis(frame, horizontal) > RANGE_GATE:
+        innovation = self._range_innovation_nis(frame, horizontal)
+        # While usable the stated variance is the floor's and the worst geometry's: the gate takes what the ranges
+        # showed (learned over every range, so that it is there when the flag first rises). While acquiring the
+        # density's own spread is real, and a scaled gate would refuse the ranges that must move it (each refusal
+        # counts toward a re-initialization by ranges).
+        scale = self._trust.note_range_innovation(innovation)
+        if innovation > RANGE_GATE * (scale if self._trust.usable else 1.0):
             self._reject("innovation", terrain=False)
             return
         x, y, _ = self._candidates()

@@ -194,7 +194,9 @@ class NavParameters:
         The drift test of the usable flag: the sum of the last ``usable_updates`` terrain updates' shifts of
         the mean against the sum of their expected covariances (``P_prior - P_post`` each) is chi-square with
         2 degrees of freedom for a consistent filter; above this the density is trailing the truth and the
-        flag stays down (counted ``corrections_drifting``). Default 13.8 (0.999); None: no test.
+        flag stays down (counted ``corrections_drifting``). Default 13.8 (0.999); None: no test, nor the trail test
+        beside it (the same window's shifts one way along an axis, whose steady-state lag exceeds two of the density's
+        sigmas: ``lost.host.nav.trust.Trust._one_way``, counted ``corrections_one_way`` too).
     max_hole_share : float
         A placement may put up to this share of a patch's valid soundings on map holes, which then count
         against the fill (the nearest depth, ``PreparedMap``); beyond it the placement is refused. Holes under

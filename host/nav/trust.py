@@ -35,7 +35,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   consistent, so the sum of the last ``usable_updates`` shifts against the sum of those covariances is
   chi-square with 2 degrees of freedom; above ``drift_gate`` the updates keep pulling one way, the density
   trails the truth (an unlearned velocity error: a towfish lagging the ship whose velocity it is given)
-  and the flag stays down (``corrections_drifting``). Look-alike terrain: a
+  and the flag stays down (``corrections_drifting``); so does the trail test on the same window (most shifts one way
+  along an axis, their steady-state lag beyond two of the density's sigmas: ``corrections_one_way``). Look-alike terrain: a
   density can collapse onto one of several equally good modes (particles by resampling, cells by
   their offsets), so once the covariance is small enough to be usable, each patch is also matched
   over ``lookalike_radius_m`` around the estimate; if a placement beyond three sigma fits within
@@ -54,6 +55,8 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   (``patch_at_map_edge``) and the filter dead-reckons.
   Off the map or at its edge, the filter is no longer usable once it has had neither a terrain update
   nor a position fix for ``off_map_usable_s`` (``unusable_off_map``): dead reckoning is not a terrain fix.
+- Slant ranges: the range gate of a usable filter is scaled by how far the ranges' innovations fall under their stated
+  variance (``Trust.note_range_innovation``), so that an outlier of a few metres is not taken by a narrow density.
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
@@ -80,6 +83,19 @@ SHARE_EVERY = 5
 EDGE_MASS = 0.9
 #: A wide density with less than this share on the map straddles its edge.
 WIDE_EDGE_MASS = 0.5
+#: Slant ranges whose innovations set the range gate's learned scale (``Trust.note_range_innovation``).
+RANGE_MEMORY = 50
+#: The median of chi-square with one degree of freedom: a consistent range innovation's squared, normalized.
+CHI2_1_MEDIAN = 0.454936
+#: The least learned scale of the range gate (see ``Trust.note_range_innovation``).
+RANGE_SCALE_MIN = 0.2
+#: The share of the drift window's shifts one way along an axis that says they trail (25 of 30: a sign test at
+#: p = 1.6e-4 per axis and side for shifts that are equally likely either way).
+ONE_WAY_SHARE = 5.0 / 6.0
+#: The least window (``usable_updates``) over which the sign test has the power to speak (17 of 20 one way: p = 1.3e-3).
+TRAIL_WINDOW_MIN = 20
+#: A density whose steady-state lag behind the truth (``Trust._one_way``) exceeds this many of its sigmas trails it.
+TRAIL_SIGMAS = 2.0
 
 #: Why a filter re-initialized (``Estimate.reinitialized``), by the count that names it.
 RESTART_CAUSES = {
@@ -147,6 +163,12 @@ def nis(prior_mean: np.ndarray, prior_cov: np.ndarray, post_mean: np.ndarray, po
         return float("inf")
 
 
+def _drift_covariance(prior_cov: np.ndarray, post_cov: np.ndarray) -> np.ndarray:
+    """The covariance of a consistent update's shift of the mean, ``P_prior - P_post`` (the prior's where that is not positive)."""
+    expected = prior_cov - post_cov + 1e-6 * np.trace(prior_cov) * np.eye(2)
+    return expected if eigenvalues_2x2(expected)[0] > 0 else prior_cov
+
+
 class Trust:
     """A filter's bookkeeping of error growth, tempering, the usable flag and recovery.
 
@@ -177,8 +199,14 @@ class Trust:
         self.independent_share = 1.0
         self._narrow_patches = 0
         self.settled = False
-        self._corrections: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=params.usable_updates)
+        self._range_innovations: deque[float] = deque(maxlen=RANGE_MEMORY)
+        self.range_scale = 1.0
+        # The drift window, one row an accepted terrain update: shift (2), its expected covariance (xx, xy, yy), gain (2).
+        self._corrections = np.zeros((max(int(params.usable_updates), 1), 7))
+        self._n_corrections = 0
+        self._last_post_var = np.zeros(2)
         self.drift = float("nan")
+        self.trailing = False
         self.restart_cause = ""  # the last re-initialization's, one of RESTART_CAUSES' values
 
     def misfit_refused(self, misfit: float) -> bool:
@@ -259,20 +287,46 @@ class Trust:
         degrees of freedom. A density that trails the truth (an unlearned velocity error) is pulled the same way
         update after update: each shift is modest, their sum is not.
         """
-        expected = prior_cov - post_cov + 1e-6 * np.trace(prior_cov) * np.eye(2)
-        if eigenvalues_2x2(expected)[0] <= 0:
-            expected = prior_cov
-        self._corrections.append((np.asarray(shift_m, float), expected))
-        if len(self._corrections) < self._corrections.maxlen:
-            self.drift = float("nan")
+        d = np.asarray(shift_m, float)
+        expected = _drift_covariance(prior_cov, post_cov)
+        gain = [1.0 - post_cov[k, k] / max(prior_cov[k, k], 1e-12) for k in (0, 1)]
+        window = self._corrections
+        window[self._n_corrections % len(window)] = (d[0], d[1], expected[0, 0], expected[0, 1], expected[1, 1], gain[0], gain[1])
+        self._n_corrections += 1
+        self._last_post_var = np.array([post_cov[0, 0], post_cov[1, 1]], float)
+        if self._n_corrections < len(window):
+            self.drift, self.trailing = float("nan"), False
             return self.drift
-        total = sum(d for d, _ in self._corrections)
-        spread = sum(c for _, c in self._corrections)
-        try:
-            self.drift = float(total @ np.linalg.solve(spread, total))
-        except np.linalg.LinAlgError:
-            self.drift = float("nan")
+        sums = window.sum(axis=0)
+        self.trailing = self._one_way(sums)
+        tx, ty, sxx, sxy, syy = sums[:5]
+        det = sxx * syy - sxy * sxy
+        # The 2 x 2 solve in closed form: this runs at every terrain update of every filter.
+        self.drift = float((syy * tx * tx - 2.0 * sxy * tx * ty + sxx * ty * ty) / det) if det > 0 else float("nan")
         return self.drift
+
+    def _one_way(self, sums: np.ndarray) -> bool:
+        """Whether the drift window's shifts say the density trails the truth (see ``TRAIL_SIGMAS``).
+
+        The chi-square test above weighs the shifts by ``P_prior - P_post``, which the floor keeps large (the floor is
+        process noise: under the filter's own model the truth may walk that far each update), and which a particle
+        cloud measures with noise; a density trailing a lagging towfish by 0.7-1 m an update stays under its gate
+        (``short``, seed 5: the PF became usable 18 m off with a 4.5 m sigma, the statistic at 3-5). Two things
+        say it instead, per axis. The shifts of a consistent filter are independent and as likely one way as the
+        other: a sign test sees their direction alone. And a filter of gain k per update that is pulled a mean d
+        each update, by a prediction that drifts, lags by d / k in the steady state: that lag is measured in the
+        density's own sigma (on that tow's PF 16.4 m measured for an error of 16.4 m, 3.8 sigma; afterwards under
+        one sigma), so that a harmless consistent crawl (a velocity-bias filter a little behind a slowly changing
+        error, the shifts one way for minutes but the lag within the density) keeps the flag.
+        """
+        n = len(self._corrections)
+        if n < TRAIL_WINDOW_MIN:
+            return False
+        shifts = self._corrections[:, :2]
+        positive, negative = (shifts > 0).sum(axis=0), (shifts < 0).sum(axis=0)
+        one_way = np.maximum(positive, negative) >= ONE_WAY_SHARE * n
+        lag = np.abs(sums[:2]) / np.maximum(sums[5:7], 1e-3 * n)  # the mean shift over the mean gain
+        return bool(np.any(one_way & (lag > TRAIL_SIGMAS * np.sqrt(np.maximum(self._last_post_var, 0.0)))))
 
     def accepted(self, covariance: np.ndarray) -> None:
         """An update was used: reset growth and tempering, and advance the usable rule."""
@@ -280,9 +334,11 @@ class Trust:
         self.travelled_m = 0.0
         self.outcomes.append(False)
         sigma = largest_sigma(covariance)
-        drifting = self._p.drift_gate is not None and self.drift > self._p.drift_gate
+        drifting = self._p.drift_gate is not None and (self.drift > self._p.drift_gate or self.trailing)
         if drifting:
             self.counts["corrections_drifting"] += 1
+            if self.trailing:
+                self.counts["corrections_one_way"] += 1
         if sigma <= self._p.usable_sigma_nodes * self._node_m and not drifting:
             self.good_in_row += 1
         else:
@@ -341,6 +397,25 @@ class Trust:
         narrow = self.sigma_max(covariance) <= 2.0 * self._p.usable_sigma_nodes * self._node_m
         return on_map_mass < (EDGE_MASS if narrow else WIDE_EDGE_MASS)
 
+    def note_range_innovation(self, value: float) -> float:
+        """A slant range's normalized innovation squared joins the running median; the gate's scale while usable.
+
+        The innovation's variance (the density's along the line of sight plus ``slant_range_sigma_m``) is stated for
+        the worst case: the density carries its floor, the range sigma its worst geometry. Where the ranges agree
+        with the density far better than that, a range a few metres off (an outlier of the sonar's own size) passes a
+        gate set for the stated variance and pulls a narrow density with it for a record: on ``seamount_ridges``
+        (seeds 2, 3, 8, 9) a 14 m outlier in a median NIS of 0.14 took both filters 10-16 m off while usable. The
+        median of the last ``RANGE_MEMORY`` values (refused ones too, so that the scale does not feed on its own
+        gate; a median, so that the outliers themselves hardly move it) over chi-square's median is how far the
+        stated variance overstates the real one; the gate is scaled by it, between ``RANGE_SCALE_MIN`` and 1
+        (never looser than stated).
+        """
+        if math.isfinite(value):
+            self._range_innovations.append(value)
+            if len(self._range_innovations) == self._range_innovations.maxlen:
+                self.range_scale = float(np.clip(np.median(self._range_innovations) / CHI2_1_MEDIAN, RANGE_SCALE_MIN, 1.0))
+        return self.range_scale
+
     def range_outcome(self, refused: bool) -> bool:
         """A slant range was used or refused; several refused lower the usable flag. True: re-initialize now.
 
@@ -365,7 +440,8 @@ class Trust:
         self._ranges_refused_in_row = 0
         self._fixes_refused_in_row = 0
         self._elsewhere.clear()
-        self._corrections.clear()
+        self._n_corrections = 0
+        self.trailing = False
         self.settled = False
         self.counts["reinitializations"] += 1
         if reason:

@@ -53,3 +53,73 @@ def test_the_test_waits_for_a_full_window_and_a_restart_empties_it():
     assert abs(trust.note_correction(np.array([3.0, 0.0]), PRIOR, POST) - 15.0**2 / 45.0) < 1e-3
     trust._restart(None)
     assert np.isnan(trust.note_correction(np.array([3.0, 0.0]), PRIOR, POST))
+
+
+# The trail test (``Trust._one_way``): a gain of 1 - 16/25 = 0.36 an update, so a mean shift d says a lag of d / 0.36,
+# against the posterior's 4 m sigma per axis.
+
+def _noted(trust, shifts):
+    for shift in shifts:
+        trust.note_correction(np.asarray(shift, float), PRIOR, POST)
+        trust.accepted(POST)
+    return trust
+
+
+def test_shifts_one_way_whose_lag_exceeds_two_sigmas_trail_and_keep_the_flag_down():
+    """A towfish lagging the ship it is reckoned by: each shift small and noisy, all one way. The chi-square's bar is set out
+    of reach (a particle cloud's noisy P_prior - P_post kept it at 3-5 on such a tow): the trail test alone lowers the flag."""
+    rng = np.random.default_rng(4)
+    shifts = np.column_stack([3.6 + rng.normal(0.0, 1.0, 40), rng.normal(0.0, 1.0, 40)])  # lag 10 m = 2.5 sigma
+    trust = _noted(_trust(usable_updates=30, drift_gate=1e9), shifts)
+    assert trust.trailing and not trust.usable
+    assert trust.counts["corrections_one_way"] == trust.counts["corrections_drifting"] == 40 - 29
+    # A lag under two sigmas (7 m), as one way, keeps the flag.
+    trust = _noted(_trust(usable_updates=30, drift_gate=1e9), shifts * (7.0 / 10.0))
+    assert not trust.trailing and trust.usable
+
+
+def test_a_crawl_one_way_within_the_density_or_shifts_either_way_do_not_trail():
+    rng = np.random.default_rng(5)
+    crawl = np.column_stack([np.full(40, 0.5), rng.normal(0.0, 0.5, 40)])  # all one way, but a lag of 1.4 m = 0.35 sigma
+    trust = _noted(_trust(usable_updates=30), crawl)
+    assert not trust.trailing and trust.usable
+    # As large a mean, but the signs mixed (a consistent filter's shifts, one large pull among them): no sign test passes.
+    mixed = np.column_stack([np.tile([3.0, -2.0], 20), np.zeros(40)])
+    mixed[-1, 0] = 60.0
+    trust = _noted(_trust(usable_updates=30), mixed)
+    assert not trust.trailing
+
+
+def test_the_trail_test_needs_a_window_of_twenty_and_a_restart_clears_it():
+    shifts = np.tile([4.0, 0.0], (12, 1))
+    trust = _noted(_trust(usable_updates=12, drift_gate=1e9), shifts)
+    assert not trust.trailing and trust.usable  # 12 of 12 one way is no evidence the test is built to weigh
+    trust = _noted(_trust(usable_updates=20, drift_gate=1e9), np.tile([4.0, 0.0], (20, 1)))
+    assert trust.trailing and not trust.usable  # drift_gate only raises the chi-square's bar; the trail test stands
+    trust._restart(None)
+    assert not trust.trailing
+
+
+def test_the_range_gate_learns_how_far_the_stated_innovation_variance_overstates_the_real_one():
+    from lost.host.nav.trust import CHI2_1_MEDIAN, RANGE_MEMORY, RANGE_SCALE_MIN
+
+    rng = np.random.default_rng(6)
+    trust = _trust()
+    honest = rng.chisquare(1, RANGE_MEMORY)
+    for value in honest[:-1]:
+        assert trust.note_range_innovation(value) == 1.0  # unlearned until the window is full
+    assert trust.note_range_innovation(honest[-1]) == 1.0 or abs(trust.range_scale - np.median(honest) / CHI2_1_MEDIAN) < 1e-9
+    # Ranges four times as good as stated, with 1 % far outliers among them: the scale is about a quarter.
+    trust = _trust()
+    for value in np.where(rng.random(200) < 0.01, 1e4, 0.25 * rng.chisquare(1, 200)):
+        trust.note_range_innovation(value)
+    assert 0.2 <= trust.range_scale < 0.35
+    # Never looser than stated, never tighter than the least scale; a NaN is not counted.
+    trust = _trust()
+    for _ in range(RANGE_MEMORY):
+        trust.note_range_innovation(5.0)
+    assert trust.range_scale == 1.0
+    for _ in range(RANGE_MEMORY):
+        trust.note_range_innovation(1e-6)
+    trust.note_range_innovation(float("nan"))
+    assert trust.range_scale == RANGE_SCALE_MIN
