@@ -68,6 +68,7 @@ These rules are shared by the point-mass and the particle filter, and kept as na
 from __future__ import annotations
 
 import math
+import statistics
 from collections import Counter, deque
 
 import numpy as np
@@ -217,7 +218,7 @@ class Trust:
         """An accepted patch's misfit joins the running level."""
         if math.isfinite(misfit):
             self._misfits.append(misfit)
-            self.misfit_level = float(np.clip(np.median(self._misfits), 0.5, 4.0))
+            self.misfit_level = min(max(statistics.median(self._misfits), 0.5), 4.0)  # statistics: a few values, every record
 
     def note_independence(self, likelihood, mean: np.ndarray, covariance: np.ndarray, patch) -> None:
         """An accepted patch's independent share at the estimate joins the running median, while the density is narrow."""
@@ -229,7 +230,7 @@ class Trust:
         share = likelihood.independent_share(mean, patch)
         if math.isfinite(share):
             self._shares.append(share)
-            self.independent_share = float(np.median(self._shares))
+            self.independent_share = float(statistics.median(self._shares))
 
     def growth_variance(self, dt_s: float) -> float:
         """Variance (m**2, per axis) the position error gains over one step of ``dt_s``."""
@@ -413,7 +414,7 @@ class Trust:
         if math.isfinite(value):
             self._range_innovations.append(value)
             if len(self._range_innovations) == self._range_innovations.maxlen:
-                self.range_scale = float(np.clip(np.median(self._range_innovations) / CHI2_1_MEDIAN, RANGE_SCALE_MIN, 1.0))
+                self.range_scale = min(max(statistics.median(self._range_innovations) / CHI2_1_MEDIAN, RANGE_SCALE_MIN), 1.0)
         return self.range_scale
 
     def range_outcome(self, refused: bool) -> bool:
