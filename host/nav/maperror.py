@@ -25,7 +25,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["node_variance", "check_node_sigma", "window_variance"]
+__all__ = ["node_terms", "node_variance", "check_node_sigma", "window_variance"]
 
 
 def check_node_sigma(node_sigma_m: np.ndarray, depth_m: np.ndarray) -> np.ndarray:
@@ -59,8 +59,9 @@ def check_node_sigma(node_sigma_m: np.ndarray, depth_m: np.ndarray) -> np.ndarra
     return np.where(has_depth, sigma, 0.0)
 
 
-def node_variance(depth_m: np.ndarray, node_m: float, survey_sigma_m: float | np.ndarray) -> np.ndarray:
-    """Each node's map error variance, m**2 (see the module docstring); holes get the median of the rest."""
+def node_terms(depth_m: np.ndarray, node_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two terms of each node's map error the map itself gives, m**2: the slope the node cannot place and the relief
+    it cannot show (see the module docstring); and the map's holes, where the nearest depth stands in."""
     depth = np.asarray(depth_m, np.float64)
     holes = ~np.isfinite(depth)
     if holes.any():
@@ -73,10 +74,14 @@ def node_variance(depth_m: np.ndarray, node_m: float, survey_sigma_m: float | np
         laplacian = np.gradient(grad_x, node_m, axis=1) + np.gradient(grad_y, node_m, axis=0)
     else:
         grad_y = grad_x = laplacian = np.zeros_like(depth)
-    slope_var = (grad_x**2 + grad_y**2) * node_m**2 / 12.0
-    relief_var = (laplacian * node_m**2 / 16.0) ** 2
+    return (grad_x**2 + grad_y**2) * node_m**2 / 12.0, (laplacian * node_m**2 / 16.0) ** 2, holes
+
+
+def node_variance(depth_m: np.ndarray, node_m: float, survey_sigma_m: float | np.ndarray) -> np.ndarray:
+    """Each node's map error variance, m**2 (see the module docstring); holes get the median of the rest."""
+    slope_var, relief_var, holes = node_terms(depth_m, node_m)
     variance = np.asarray(survey_sigma_m, np.float64) ** 2 + slope_var + relief_var
-    variance = np.broadcast_to(variance, depth.shape).copy()
+    variance = np.broadcast_to(variance, holes.shape).copy()
     if holes.any() and (~holes).any():
         variance[holes] = float(np.median(variance[~holes]))
     return variance

@@ -64,26 +64,15 @@ def held_sigma(grid: Grid, sonar: SonarModel, survey_sigma_m: float | np.ndarray
     through the cell does not explain (the mean of a plane's soundings is its centre's depth), with the relief the node
     cannot show. A map without a layer: the survey's one sigma (:func:`survey_sigma`) and the relief.
     """
+    from ..nav.maperror import node_terms
+
     survey = np.asarray(survey_sigma(grid, survey_sigma_m), np.float64)
-    relief = _relief_variance(grid)
+    plane, relief, _ = node_terms(grid.depth_m, grid.node_m)
     if getattr(grid, "sigma_m", None) is None:
         return np.sqrt(survey**2 + relief)
     if not sonar.binned:
         return np.broadcast_to(survey, grid.shape).copy()
-    from ..nav.maperror import node_variance
-
-    plane = node_variance(grid.depth_m, grid.node_m, 0.0) - relief
     return np.sqrt(np.maximum(survey**2 - plane, 0.0) + relief)
-
-
-def _relief_variance(grid: Grid) -> np.ndarray:
-    """The relief term of ``lost.host.nav.maperror``: (|laplacian| L^2 / 16)^2, from the map's own second differences."""
-    depth = np.where(np.isfinite(grid.depth_m), grid.depth_m, np.nanmean(grid.depth_m) if np.isfinite(grid.depth_m).any() else 0.0)
-    if min(depth.shape) < 3:
-        return np.zeros(depth.shape)
-    grad_y, grad_x = np.gradient(depth, grid.node_m)
-    laplacian = np.gradient(grad_x, grid.node_m, axis=1) + np.gradient(grad_y, grid.node_m, axis=0)
-    return (laplacian * grid.node_m**2 / 16.0) ** 2
 
 
 def map_sigma(grid: Grid, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray:
