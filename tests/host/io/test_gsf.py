@@ -27,6 +27,8 @@ from lost.host.io.survey import open_survey
 from lost.host.io.survey_records import SurveyRecorder, survey_records
 from lost.host.scenario import builtin_scenario_path, load_scenario
 
+from .records_compare import assert_records_agree
+
 REAL = Path(__file__).resolve().parents[3] / ".." / "shared" / "data" / "real_survey"
 EX1604 = REAL / "noaa_okeanos_ex1604_gsf" / "0029_20160323_185603_EX1604_MB.gsf"
 REAL_FILES = [REAL / "ga4430_em122_all" / "0243_P007_MBES_EM122_20150207_044356_Supporter_GA4430.all", EX1604,
@@ -162,23 +164,7 @@ def test_a_simulated_tow_as_gsf_gives_the_all_routes_records(tmp_path):
         recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=(10, 10), interval_s=2.0, window_s=20.0, patch_centre="soundings")
         return survey_records(open_survey(path, crs=crs), recorder)
 
-    a, b = records(allfile), records(gsf)
-    assert len(a.t_s) == len(b.t_s) == 100
-    np.testing.assert_allclose(b.t_s, a.t_s, atol=2e-3)  # .all keeps milliseconds
-    for name in ("ship_x_m", "ship_y_m", "truth_x_m", "truth_y_m"):
-        np.testing.assert_allclose(getattr(b, name), getattr(a, name), atol=0.02)  # 1/20,000,000 degree (.all), 1e-7 degree (GSF)
-    np.testing.assert_allclose(b.ship_heading_deg, a.ship_heading_deg, atol=0.01)
-    nodes = moved = 0
-    for pa, pb in zip(a.sonar, b.sonar, strict=True):
-        assert (pa is None) == (pb is None)
-        if pa is None:
-            continue
-        both = ~np.isnan(pa.depth_m) & ~np.isnan(pb.depth_m)
-        difference = np.abs(pa.depth_m[both] - pb.depth_m[both])
-        one_only = int((np.isnan(pa.depth_m) != np.isnan(pb.depth_m)).sum())
-        nodes, moved = nodes + int(both.sum()) + one_only, moved + int((difference > 1e-3).sum()) + one_only
-        assert np.max(difference, initial=0) < 1.0
-    assert nodes > 1000 and moved / nodes < 0.02, (moved, nodes)  # a node differs only where a rounding moved a beam over its edge
+    assert_records_agree(records(allfile), records(gsf), 100)
 
 
 def test_lost_run_survey_on_a_gsf_export_converges_like_the_all_export(tmp_path, capsys):
