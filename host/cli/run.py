@@ -278,11 +278,11 @@ def _survey_usbl_fixes(path: Path, records, epoch_s: float, crs: str, default_si
     """``--usbl-fixes``: the file's fixes (the lines `lost serve` receives) in the records whose intervals hold them, as served."""
     from collections import Counter
 
-    from ..io.crs import _transformer
+    from ..io.crs import transformer
     from ..live.usbl import place_usbl_fixes, placed_fix, read_usbl_fixes
 
     fixes, counts = read_usbl_fixes(path, sonar_time_s=epoch_s, default_sigma_m=default_sigma_m)
-    to_map = _transformer("EPSG:4326", crs)
+    to_map = transformer("EPSG:4326", crs)
     placed = Counter()
     records, used = place_usbl_fixes(records, epoch_s, [placed_fix(fix, to_map) for fix in fixes], placed)
     print(f"{path.name}: {len(fixes)} USBL fixes, {int(used.sum())} used in {int((used > 0).sum())} records"

@@ -72,7 +72,7 @@ def _agree(path: Path, file_crs: str | None, source_crs: str | None) -> str | No
     return _crs(source_crs).to_string()
 
 
-def _transformer(src, dst):
+def transformer(src, dst):
     from pyproj import Transformer
 
     return Transformer.from_crs(_crs(src), _crs(dst), always_xy=True)

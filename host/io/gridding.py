@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..grid import Grid
-from .crs import _crs, _same_crs, _target_crs, _transformer
+from .crs import _crs, _same_crs, _target_crs, transformer
 
 # Above this many nodes a grid is almost surely a mistaken node_m (1e8 float64 nodes are 800 MB).
 _MAX_NODES = 100_000_000
@@ -35,15 +35,15 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m, sigma=None) -> Gr
             return Grid(depth_m=values, x0_m=float(xs[0]), y0_m=float(ys[0]), node_m=node, crs=target, sigma_m=sigma)
         node_m = node_m or min(dx, dy)
         x_lo, x_hi, y_lo, y_hi = xs[0], xs[-1], ys[0], ys[-1]
-        transformer = None
+        to_target = None
     else:
-        transformer = _transformer(file_crs, target)
+        to_target = transformer(file_crs, target)
         if node_m is None:
             # The file's finer spacing, measured in metres at its centre.
             xc, yc = xs[xs.size // 2], ys[ys.size // 2]
-            px, py = transformer.transform([xc, xc + dx, xc], [yc, yc, yc + dy])
+            px, py = to_target.transform([xc, xc + dx, xc], [yc, yc, yc + dy])
             node_m = min(math.hypot(px[1] - px[0], py[1] - py[0]), math.hypot(px[2] - px[0], py[2] - py[0]))
-        x_lo, y_lo, x_hi, y_hi = transformer.transform_bounds(xs[0], ys[0], xs[-1], ys[-1], densify_pts=101)
+        x_lo, y_lo, x_hi, y_hi = to_target.transform_bounds(xs[0], ys[0], xs[-1], ys[-1], densify_pts=101)
     x0 = math.ceil(x_lo / node_m - 1e-9) * node_m
     y0 = math.ceil(y_lo / node_m - 1e-9) * node_m
     cols = math.floor((x_hi - x0) / node_m + 1e-9) + 1
@@ -55,10 +55,10 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m, sigma=None) -> Gr
     node_x = x0 + np.arange(cols) * node_m
     node_y = y0 + np.arange(rows) * node_m
     qx, qy = np.meshgrid(node_x, node_y)
-    if transformer is not None:
+    if to_target is not None:
         from pyproj.enums import TransformDirection
 
-        qx, qy = transformer.transform(qx, qy, direction=TransformDirection.INVERSE)
+        qx, qy = to_target.transform(qx, qy, direction=TransformDirection.INVERSE)
         if _crs(file_crs).is_geographic:
             # PROJ answers longitudes in [-180, 180); a file may run 0 to 360.
             qx = xs[0] + np.mod(np.asarray(qx) - xs[0], 360.0)

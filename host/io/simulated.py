@@ -53,7 +53,7 @@ def simulated_pings(scenario, *, head: int = SIMULATED_HEAD) -> tuple[object, st
 
     from ..scenario import scenario_floor, simulate
     from ..scenario.floor import floor_depth
-    from .crs import _transformer
+    from .crs import transformer
 
     grid, records = simulate(scenario)
     if not records.has_truth:
@@ -69,10 +69,10 @@ def simulated_pings(scenario, *, head: int = SIMULATED_HEAD) -> tuple[object, st
     velocity = np.gradient(truth, dt, axis=0) if len(truth) > 1 else np.zeros_like(truth)
     heading = np.where(np.hypot(velocity[:, 0], velocity[:, 1]) > 1e-6, np.degrees(np.arctan2(velocity[:, 0], velocity[:, 1])), 0.0)
     depth = _filled(records.vehicle_depth_m)
-    to_lonlat = _transformer(crs, "EPSG:4326")
+    to_lonlat = transformer(crs, "EPSG:4326")
     lon, lat = to_lonlat.transform(truth[:, 0], truth[:, 1])
     # True north's grid bearing at each ping (the meridian convergence), so that the heading the file gives is true.
-    east, north = _transformer("EPSG:4326", crs).transform(np.concatenate([lon, lon]), np.concatenate([lat, np.minimum(lat + 1e-5, 90.0)]))
+    east, north = transformer("EPSG:4326", crs).transform(np.concatenate([lon, lon]), np.concatenate([lat, np.minimum(lat + 1e-5, 90.0)]))
     n = len(truth)
     convergence = np.degrees(np.arctan2(east[n:] - east[:n], north[n:] - north[:n]))
     rng = np.random.default_rng(scenario.seed + PING_SEED_OFFSET)

@@ -41,9 +41,9 @@ def summarize_survey(paths: str | os.PathLike | Iterable[str | os.PathLike], *, 
         if not ping.valid.any():
             continue
         if to_geographic is None:
-            from .crs import _transformer
+            from .crs import transformer
 
-            to_geographic = _transformer(survey.crs, "EPSG:4326")
+            to_geographic = transformer(survey.crs, "EPSG:4326")
         lon, lat = to_geographic.transform(ping.beam_east_m[ping.valid], ping.beam_north_m[ping.valid])
         lo = np.minimum(lo, [np.min(lon), np.min(lat)])
         hi = np.maximum(hi, [np.max(lon), np.max(lat)])

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import Grid
-from .crs import GEOGRAPHIC_NAMES, X_NAMES, Y_NAMES, _crs, _same_crs, _target_crs, _transformer
+from .crs import GEOGRAPHIC_NAMES, X_NAMES, Y_NAMES, _crs, _same_crs, _target_crs, transformer
 from .depthsign import _sign_from_metadata, _to_depth
 from .gridding import _grid_soundings, _lattice, _regular_to_grid
 
@@ -89,7 +89,7 @@ def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bound
 
     target = _target_crs(file_crs, crs, x, y)
     if file_crs is not None and target is not None and not _same_crs(file_crs, target):
-        x, y = _transformer(file_crs, target).transform(x, y)
+        x, y = transformer(file_crs, target).transform(x, y)
         x, y = np.asarray(x), np.asarray(y)
     return _grid_soundings(x, y, z, node_m=node_m, max_gap_m=max_gap_m, crs=target, name=path.name)
 

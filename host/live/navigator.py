@@ -76,13 +76,13 @@ class LiveNavigator:
     """Pings in (raw, as :class:`~lost.host.live.receiver.LiveDecoder` yields them), estimates out (see the module)."""
 
     def __init__(self, grid: Grid, params: NavParameters, estimators: tuple[str, ...], recorder: SurveyRecorder) -> None:
-        from ..io.crs import _crs, _transformer
+        from ..io.crs import _crs, transformer
 
         if grid.crs is None or not _crs(grid.crs).is_projected:
             raise ValueError(f"the map's CRS must be a projected (metric) one to place received pings on it, got {grid.crs!r}")
         self.grid, self.recorder = grid, recorder
         self.counts: Counter[str] = Counter()
-        self._transformer = _transformer("EPSG:4326", grid.crs)
+        self._transformer = transformer("EPSG:4326", grid.crs)
         self.prepared = PreparedMap.for_navigation(grid, params)
         self._bank = EstimatorBank(estimators, self.prepared, params, self.counts).estimators
         self._loop = StreamLoop(params, self._bank, self.counts)

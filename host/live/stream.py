@@ -142,14 +142,14 @@ def vehicle_datagrams(records, crs: str, *, dvl_format: str = "pd6", epoch_s: fl
     where finite, placed by ``crs``, with their covariance ``usbl_sxx``/``usbl_syy``/``usbl_sxy``) as lines of
     ``usbl_format`` (:func:`usbl_line`), a datagram each. Times are ``epoch_s`` plus the records' ``t_s``.
     """
-    from ..io.crs import _transformer
+    from ..io.crs import transformer
     from .inputs import DepthReading, DvlVelocity, UsblFix, json_input_line, pd6_sentences
 
     if dvl_format not in ("pd6", "json", "none"):
         raise ValueError(f"dvl_format must be 'pd6', 'json' or 'none', got {dvl_format!r}")
     if usbl_format not in USBL_FORMATS:
         raise ValueError(f"usbl_format must be one of {list(USBL_FORMATS)}, got {usbl_format!r}")
-    to_lonlat = _transformer(crs, "EPSG:4326")
+    to_lonlat = transformer(crs, "EPSG:4326")
     usbl_x, usbl_y = records.usbl_x_m, records.usbl_y_m  # NaN without a USBL (NavRecords fills the optional series)
     for k in range(len(records)):
         t = epoch_s + float(records.t_s[k])

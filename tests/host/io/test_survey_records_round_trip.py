@@ -17,7 +17,7 @@ import pytest
 
 from lost.host.cli import main
 from lost.host.io import write_npz
-from lost.host.io.crs import _transformer
+from lost.host.io.crs import transformer
 from lost.host.io.kongsberg_all import write_all_pings
 from lost.host.io.simulated import simulated_pings
 from lost.host.io.survey import open_survey, project_ping
@@ -41,7 +41,7 @@ def tow(tmp_path_factory):
     grid, crs, pings = simulated_pings(scenario)
     memory = list(pings)
     path = write_all_pings(iter(memory), folder / "short.all")
-    to_map = _transformer("EPSG:4326", crs)
+    to_map = transformer("EPSG:4326", crs)
     memory = [project_ping(ping, to_map) for ping in memory]  # what open_survey does to a ping it reads
     return scenario, records, loop.dead_reckoning, memory, list(open_survey(path, crs=crs)), grid, path, write_npz(grid, folder / "map.npz")
 

@@ -50,7 +50,7 @@ def _batch(map_path, pings_path, fixes: list[tuple[float, np.ndarray, np.ndarray
 def test_served_usbl_fixes_give_the_batch_navigation_with_the_fixes_in_their_records(usbl_tow, serve_replay, tmp_path, capsys):
     from itertools import islice
 
-    from lost.host.io.crs import _transformer
+    from lost.host.io.crs import transformer
     from lost.host.io.kmall_write import write_kmall_pings
 
     path, map_path, simulated, crs = usbl_tow
@@ -64,7 +64,7 @@ def test_served_usbl_fixes_give_the_batch_navigation_with_the_fixes_in_their_rec
     served = [line for line in log if "record" in line]
 
     # The batch reference: the fixes as sent (latitude, longitude: the scenario's frame there and back into the map's).
-    to_lonlat, to_map = _transformer(crs, "EPSG:4326"), _transformer("EPSG:4326", crs)
+    to_lonlat, to_map = transformer(crs, "EPSG:4326"), transformer("EPSG:4326", crs)
     fixes = []
     for k in np.flatnonzero(sent):
         lon, lat = to_lonlat.transform(simulated.usbl_x_m[k], simulated.usbl_y_m[k])
@@ -134,7 +134,7 @@ def test_served_usbl_sentences_over_udp_and_a_serial_port_are_the_fixes_they_car
     `$PSIMSSB` on a serial pty (geographic, radians; no accuracy: the configured default); `lost serve` logs and weighs each."""
     import os
 
-    from lost.host.io.crs import _transformer
+    from lost.host.io.crs import transformer
     from lost.host.live.inputs import UsblFix
     from lost.host.live.nmea import fix_sentences
     from lost.host.live.receiver import LiveDecoder
@@ -143,7 +143,7 @@ def test_served_usbl_sentences_over_udp_and_a_serial_port_are_the_fixes_they_car
     from .test_serial import _pty, _wait_configured
 
     path, map_path, simulated, crs = usbl_tow
-    to_lonlat = _transformer(crs, "EPSG:4326")
+    to_lonlat = transformer(crs, "EPSG:4326")
     zda = (fix_sentences(EPOCH_S, 0.0, 0.0)[0] + "\r\n").encode()
     udp, serial = [zda], [zda]
     for n, k in enumerate(np.flatnonzero(np.isfinite(simulated.usbl_x_m))):
