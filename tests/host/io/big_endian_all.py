@@ -1,4 +1,4 @@
-"""A little-endian Kongsberg .all file re-written big-endian, field by field, with ``struct`` (a test helper).
+"""A little-endian Kongsberg .all file re-written big-endian, field by field, with ``struct`` (shared by the tests of the big-endian reader).
 
 No real big-endian ``.all`` is at hand: older processing units wrote them, and none is published that could be
 used. This writes real pings in that byte order by the format's layouts (Kongsberg's EM Series datagram
