@@ -1,12 +1,12 @@
 """A simulated tow exported as Kongsberg .all (or GSF) and navigated as a recorded survey, against the scenario's own run, over seeds.
 
-    python benchmarks/read_survey_nav.py [--scenario demo] [--seeds 10] [--format all|gsf] [--full-window] [--out FILE.json]
+    python benchmarks/read_survey_nav.py [--scenario short_exact_map] [--seeds 10] [--duration-s S] [--format all|gsf] [--full-window] [--out FILE.json]
     python benchmarks/read_survey_nav.py --table build/bench/read_survey_nav.json      the table of a run again
 
 Per seed (the scenario's ``seed`` set to 1..N) the tow's pings (``lost.host.io.simulated``) are written as ``.all``
 (or GSF, ``--format gsf``), read back through ``open_survey``, and navigated several ways.
 
-A scenario whose sonar is a ``"swath"`` (``demo``, the default): the file holds the scenario's own soundings, and the
+A scenario whose sonar is a ``"swath"`` (``--scenario demo``): the file holds the scenario's own soundings, and the
 survey route's recorder takes the scenario's real-time rule (``patch_rule="behind"``, 1 s records, ``window_s`` the
 sonar's ``max_window_s``), all with the scenario's ``[navigation]``:
 
@@ -18,7 +18,7 @@ sonar's ``max_window_s``), all with the scenario's ``[navigation]``:
    with ``--start-offset 30,-20``: the file's positions differenced, no velocity bias;
 5. ``survey_bias``: 4 with ``--dr-bias 0.1,0.05`` as well.
 
-A scenario whose sonar is ``"gridded"`` (``short_exact_map``: patches of map nodes, no pings to agree with), six steps,
+A scenario whose sonar is ``"gridded"`` (``short_exact_map``, the default: patches of map nodes, no pings to agree with), six steps,
 each one from the survey run toward the scenario's own run, so that each step's change of the error is one factor's share:
 
 1. ``survey``: the records ``lost run --survey`` makes (``lost.host.io.survey_records``: 2 s records, patches of the
@@ -208,7 +208,7 @@ def main() -> None:
     from lost.host.scenario import builtin_scenario_path, load_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", default="demo")
+    parser.add_argument("--scenario", default="short_exact_map")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--format", choices=("all", "gsf"), default="all", help="the file the tow is exported as")
     parser.add_argument("--full-window", action="store_true", help="a gridded-sonar scenario's survey route: patches only once 60 s of pings are in")
