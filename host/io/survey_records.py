@@ -142,6 +142,7 @@ class SurveyRecorder:
         self._interval: int | None = None  # the index of the interval being filled
         self._recent: deque[Ping] = deque()  # the pings of the last window_s, the interval's included
         self._held: dict[int, tuple[Ping, tuple | None]] = {}  # each held ping's valid beams (the ping kept: its id stays its own)
+        self._errors: dict[int, np.ndarray] = {}  # each held ping's dead-reckoning error, made once (it is fixed once a record closed)
         self._heads: set[int] | None = None
         self._last: tuple[float, np.ndarray, np.ndarray] | None = None  # the last record: time, truth, dead reckoning
         self._first_s = 0.0  # the first record's time: a constant bias counts from it
@@ -176,7 +177,9 @@ class SurveyRecorder:
         # The "behind" rule's centre may be window_s back, and its pings window_s before that.
         oldest = last.time_s - (self.window_s if self.patch_rule == "window" else 2 * self.window_s + _TIME_TOLERANCE_S)
         while self._recent[0].time_s <= oldest:
-            self._held.pop(id(self._recent.popleft()), None)
+            gone = id(self._recent.popleft())
+            self._held.pop(gone, None)
+            self._errors.pop(gone, None)
         pings = list(self._recent)
         if self._heads is None:
             self._heads = {p.head for p in pings}
@@ -230,8 +233,16 @@ class SurveyRecorder:
     def _move(self, ping: Ping, last: Ping) -> tuple[float, float, float]:
         """Where the navigation places ``ping`` from the record's vehicle (east, north: the true displacement plus the dead
         reckoning's error over its age, backwards), and its age."""
-        drift = self._error(ping.time_s - self.epoch_s) - self._error(last.time_s - self.epoch_s)
+        drift = self._ping_error(ping) - self._ping_error(last)
         return ping.east_m - last.east_m + drift[0], ping.north_m - last.north_m + drift[1], last.time_s - ping.time_s
+
+    def _ping_error(self, ping: Ping) -> np.ndarray:
+        """The dead reckoning's error at ``ping``, made once for every record whose window holds it (the first record has closed:
+        a constant bias counts from its time, which no longer moves)."""
+        key = id(ping)
+        if key not in self._errors:
+            self._errors[key] = self._error(ping.time_s - self.epoch_s)
+        return self._errors[key]
 
     def _behind(self, moves: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
         """The "behind" rule (see the module): the pings (indices into ``moves``) of the patch, and its centre from the vehicle."""
