@@ -168,8 +168,8 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
         if usbl.enabled and params.reference_depth_m != usbl.transducer_depth_m:
             warnings.append(f"[navigation] reference_depth_m ({params.reference_depth_m:g} m) is not the USBL transducer's depth "
                             f"([sensors.usbl] transducer_depth_m = {usbl.transducer_depth_m:g} m): the rays start at the wrong depth")
-        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator),
-                            profile=profile, profile_source=source)
+        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=scenario.name, out=folder, warnings=warnings,
+                            estimators=_estimators(args.estimator), profile=profile, profile_source=source)
     _print_summary(summary, out)
     return 0
 
