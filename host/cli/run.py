@@ -5,7 +5,7 @@
     lost run SCENARIO.toml|NAME [--out DIR]                                  a simulated tow
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
     lost run --survey FILE... --bathy grid.nc [--dr-bias E,N] [--start-offset E,N] [--record-s S] [--window-s S] [--full-window]
-                                         [--patch-rule window|behind] [--usbl-fixes FILE]                 a recorded multibeam survey (.all, .kmall, GSF)
+                                         [--patch-rule window|behind] [--usbl-fixes FILE]    a recorded multibeam survey (.all, .kmall, GSF)
     lost demo [--out runs/demo]                                              the built-in scenario "demo"
 
 ``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at all
@@ -271,7 +271,8 @@ def _run_survey(args: argparse.Namespace) -> int:
                            "dr_bias_mps": list(recorder.bias),
                            "start_offset_m": list(recorder.start_offset), "skipped": skipped, "notes": dict(survey.notes)}
         extra["survey"]["log"] = _save_survey_log(records, folder, recorder.epoch_s)
-        print(f"{names}: {len(records)} records of {interval:g} s, patches of the last {recorder.window_s:g} s of pings"
+        chosen = f"of the last {recorder.window_s:g} s of pings" if recorder.patch_rule == "window" else f"behind, of pings up to {recorder.window_s:g} s back"
+        print(f"{names}: {len(records)} records of {interval:g} s, patches {chosen}"
               + "".join(f"\n  skipped: {n} {reason}" for reason, n in skipped.items()))
         summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=files[0].stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), extra=extra)
