@@ -5,7 +5,7 @@
     lost run SCENARIO.toml|NAME [--out DIR]                                  a simulated tow
     lost run --log nav.csv --bathy grid.nc [--sonar soundings.csv] [--svp CAST.csv] [--out DIR]
     lost run --survey FILE... --bathy grid.nc [--dr-bias E,N] [--start-offset E,N] [--record-s S] [--window-s S] [--full-window]
-                                         [--usbl-fixes FILE]                 a recorded multibeam survey (.all, .kmall, GSF)
+                                         [--patch-rule window|behind] [--usbl-fixes FILE]    a recorded multibeam survey (.all, .kmall, GSF)
     lost demo [--out runs/demo]                                              the built-in scenario "demo"
 
 ``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at all
@@ -26,6 +26,7 @@ from ..correlator import BACKENDS
 from ..errors import UsageError
 from ..grid import Grid
 from ..io.navlog import PATCH_CENTRES
+from ..io.survey_records import SURVEY_PATCH_RULES
 from ..nav import ESTIMATORS, NavParameters, navigate
 from ..records import NavRecords
 from ..runfolder import run_folder, write_summary
@@ -235,7 +236,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 #: Options of `lost run` that only a recorded survey (--survey) takes.
-_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "full_window", "usbl_fixes", "usbl_default_sigma_m")
+_SURVEY_ONLY = ("dr_bias", "start_offset", "record_s", "window_s", "full_window", "patch_rule", "usbl_fixes", "usbl_default_sigma_m")
 
 
 def _run_survey(args: argparse.Namespace) -> int:
@@ -259,17 +260,19 @@ def _run_survey(args: argparse.Namespace) -> int:
         interval = args.record_s if args.record_s is not None else DEFAULT_RECORD_S
         recorder = SurveyRecorder(node_m=grid.node_m, patch_shape=args.patch_shape, interval_s=interval, window_s=args.window_s,
                                   dr_bias_mps=args.dr_bias or (0.0, 0.0), start_offset_m=args.start_offset or (0.0, 0.0),
-                                  patch_centre=args.patch_centre, full_window=bool(args.full_window))
+                                  patch_centre=args.patch_centre, full_window=bool(args.full_window), patch_rule=args.patch_rule or "window")
         records = survey_records(survey, recorder)
         if args.usbl_fixes is not None:
             records, extra["usbl_fixes"] = _survey_usbl_fixes(args.usbl_fixes, records, recorder.epoch_s, grid.crs, args.usbl_default_sigma_m)
         warnings += check_survey_on_map(records, grid, names)
         skipped = {**dict(survey.skipped), **dict(recorder.skipped)}
         extra["survey"] = {"files": [str(f) for f in files], "format": survey.format, "first_ping_utc_s": recorder.epoch_s,
-                           "record_s": interval, "window_s": recorder.window_s, "full_window": recorder.full_window, "dr_bias_mps": list(recorder.bias),
+                           "record_s": interval, "window_s": recorder.window_s, "full_window": recorder.full_window, "patch_rule": recorder.patch_rule,
+                           "dr_bias_mps": list(recorder.bias),
                            "start_offset_m": list(recorder.start_offset), "skipped": skipped, "notes": dict(survey.notes)}
         extra["survey"]["log"] = _save_survey_log(records, folder, recorder.epoch_s)
-        print(f"{names}: {len(records)} records of {interval:g} s, patches of the last {recorder.window_s:g} s of pings"
+        chosen = f"of the last {recorder.window_s:g} s of pings" if recorder.patch_rule == "window" else f"behind, of pings up to {recorder.window_s:g} s back"
+        print(f"{names}: {len(records)} records of {interval:g} s, patches {chosen}"
               + "".join(f"\n  skipped: {n} {reason}" for reason, n in skipped.items()))
         summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=files[0].stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), extra=extra)
@@ -366,6 +369,10 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
                      help="--survey: seconds of pings up to a record that make its patch (default --record-s)")
     run.add_argument("--full-window", action="store_true", default=None,
                      help="--survey: no patch until --window-s seconds of pings are in (a window still filling is a strip of the swath)")
+    run.add_argument("--patch-rule", choices=SURVEY_PATCH_RULES, default=None,
+                     help="--survey: the pings of a record's patch: the last --window-s seconds (window, the default) or a swath "
+                          "scenario's real-time rule (behind: centred on the latest ping half a patch diagonal behind, looked for "
+                          "at most --window-s back)")
     run.add_argument("--usbl-fixes", type=Path, default=None, metavar="FILE",
                      help="--survey: USBL fixes, a line each as lost serve receives them (JSON usbl lines, $PSONLLD, $PSIMSSB), "
                           "each in the record whose interval holds it")

@@ -10,8 +10,11 @@ Kongsberg ``.all`` file and ``lost run --survey`` navigates it like any recorded
   values: ``beams``, and ``swath_width_m`` or the patch's larger side), each sounding the true floor
   (:func:`lost.host.scenario.floor.floor_depth`: bilinear in the scenario's fine floor) with the sonar's bias,
   noise and outliers; a beam without a return (``missing_beam_rate``) or off the floor is flagged invalid;
-- soundings drawn from their own random stream (the scenario's seed plus :data:`PING_SEED_OFFSET`): the same
-  sonar model as the scenario's own swath, other draws;
+- a scenario whose sonar is a ``"swath"``: its own soundings, the very depths its records' patches were gridded
+  from (:func:`lost.host.scenario.tow.simulate_with_swath`), so that the file's pings are the patches' pings;
+  :func:`swath_dead_reckoning_error` gives the dead reckoning that placed them. Another sonar (``"gridded"``: a
+  patch of map nodes, no pings): soundings drawn from their own random stream (the scenario's seed plus
+  :data:`PING_SEED_OFFSET`), the same sonar model as a swath's;
 - positions as WGS 84 latitude/longitude: a scenario's local frame (no CRS) is placed by
   :data:`LOCAL_FRAME_CRS`, a transverse Mercator whose origin is 0 N 0 E (grid and true north agree there to
   0.0001 degree over a 10 km tow); a scenario with a projected CRS keeps its own;
@@ -22,13 +25,13 @@ Kongsberg ``.all`` file and ``lost run --survey`` navigates it like any recorded
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
 from .survey import Ping
 
-__all__ = ["simulated_pings", "LOCAL_FRAME_CRS", "EPOCH_S", "PING_SEED_OFFSET"]
+__all__ = ["simulated_pings", "swath_dead_reckoning_error", "LOCAL_FRAME_CRS", "EPOCH_S", "PING_SEED_OFFSET"]
 
 #: Where a scenario's local metric frame is placed on the Earth to give its pings a latitude and longitude.
 LOCAL_FRAME_CRS = "+proj=tmerc +lat_0=0 +lon_0=0 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs +type=crs"
@@ -51,11 +54,12 @@ def simulated_pings(scenario, *, head: int = SIMULATED_HEAD) -> tuple[object, st
     """
     from dataclasses import replace
 
-    from ..scenario import scenario_floor, simulate
+    from ..scenario import scenario_floor
     from ..scenario.floor import floor_depth
+    from ..scenario.tow import simulate_with_swath
     from .crs import transformer
 
-    grid, records = simulate(scenario)
+    grid, records, swath = simulate_with_swath(scenario)
     if not records.has_truth:
         raise ValueError(f"scenario {scenario.name!r} has no true track to place pings on")
     crs = grid.crs or LOCAL_FRAME_CRS
@@ -63,7 +67,7 @@ def simulated_pings(scenario, *, head: int = SIMULATED_HEAD) -> tuple[object, st
     spec = scenario.sensors["sonar"]
     h, w = spec.shape
     width = spec.swath_width_m if spec.swath_width_m is not None else max(h, w) * grid.node_m
-    across = np.linspace(-width / 2, width / 2, spec.beams)
+    across = np.linspace(-width / 2, width / 2, spec.beams) if swath is None else swath.across_m
     truth = np.column_stack([records.truth_x_m, records.truth_y_m])
     dt = 1.0 / scenario.rate_hz
     velocity = np.gradient(truth, dt, axis=0) if len(truth) > 1 else np.zeros_like(truth)
@@ -77,21 +81,43 @@ def simulated_pings(scenario, *, head: int = SIMULATED_HEAD) -> tuple[object, st
     convergence = np.degrees(np.arctan2(east[n:] - east[:n], north[n:] - north[:n]))
     rng = np.random.default_rng(scenario.seed + PING_SEED_OFFSET)
 
+    def drawn(k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Ping k's soundings and which of them have a return, drawn from the pings' own stream."""
+        g = math.radians(heading[k])
+        spots_e = truth[k, 0] + across * math.cos(g)
+        spots_n = truth[k, 1] - across * math.sin(g)
+        sounded = floor_depth(floor, spots_e, spots_n) + spec.bias + rng.normal(0.0, spec.noise, across.size)
+        outliers = rng.random(across.size) < spec.outlier_rate
+        sounded[outliers] += rng.uniform(-spec.outlier, spec.outlier, int(outliers.sum()))
+        return sounded, np.isfinite(sounded) & ~(rng.random(across.size) < spec.missing_beam_rate)
+
     def pings() -> Iterator[Ping]:
         for k in range(n):
-            g = math.radians(heading[k])
-            spots_e = truth[k, 0] + across * math.cos(g)
-            spots_n = truth[k, 1] - across * math.sin(g)
-            sounded = floor_depth(floor, spots_e, spots_n) + spec.bias + rng.normal(0.0, spec.noise, across.size)
-            outliers = rng.random(across.size) < spec.outlier_rate
-            sounded[outliers] += rng.uniform(-spec.outlier, spec.outlier, int(outliers.sum()))
-            valid = np.isfinite(sounded) & ~(rng.random(across.size) < spec.missing_beam_rate)
+            if swath is None:
+                sounded, valid = drawn(k)
+            else:
+                sounded = swath.depth_m[k]
+                valid = np.isfinite(sounded)
             yield Ping(time_s=EPOCH_S + float(records.t_s[k]), lat_deg=float(lat[k]), lon_deg=float(lon[k]),
                        heading_deg=float((heading[k] - convergence[k]) % 360.0), roll_deg=math.nan, pitch_deg=math.nan, heave_m=math.nan,
                        sound_speed_mps=math.nan, along_m=np.zeros(across.size), across_m=across.copy(),
                        depth_m=np.where(np.isfinite(sounded), sounded, depth[k]), valid=valid, head=head, origin_depth_m=float(depth[k]))
 
     return replace(grid, crs=crs), crs, pings()
+
+
+def swath_dead_reckoning_error(records, swath) -> Callable[[float], np.ndarray]:
+    """The dead reckoning a ``"swath"`` scenario placed its pings by, as
+    :class:`~lost.host.io.survey_records.SurveyRecorder`'s ``dead_reckoning_error``: ``t`` seconds after the first ping
+    to the reckoned position less the true one (east, north), linear between pings.
+
+    ``records`` and ``swath`` are :func:`~lost.host.scenario.tow.simulate_with_swath`'s. The reckoning starts at the true
+    first position: only its changes place a beam.
+    """
+    truth = np.column_stack([records.truth_x_m, records.truth_y_m])
+    error = swath.reckoned_m - (truth - truth[0])
+    t = np.asarray(records.t_s, dtype=np.float64) - float(records.t_s[0])
+    return lambda at: np.array([np.interp(at, t, error[:, 0]), np.interp(at, t, error[:, 1])])
 
 
 def _filled(series: np.ndarray) -> np.ndarray:

@@ -20,6 +20,13 @@ the record over the ping's age (the true displacement plus the dead reckoning's 
 velocity bias times the age, as a dead-reckoned vehicle would place it), with the patch's ``age_s`` the soundings' mean age. The patch is
 centred on the vehicle (``patch_centre="vehicle"``) or on the middle of the soundings (``"soundings"``).
 
+That is the ``"window"`` rule (``patch_rule``). The ``"behind"`` rule is a ``"swath"`` scenario's real-time rule
+(:mod:`lost.host.scenario.swath`), so that a simulated tow's file gives the scenario's own patches: of the pings of the
+last ``window_s`` seconds (here the longest look back, the scenario's ``max_window_s``), the latest whose placed
+position lies at least half a patch diagonal from the vehicle's is the centre (without one, the earliest); the patch
+is centred on that ping and holds the pings up to the record, at most ``window_s`` seconds older than the centre,
+placed within half a patch diagonal of it.
+
 :class:`SurveyRecorder` is streaming: :meth:`~SurveyRecorder.add` takes one ping and returns the
 records that ping closed; :meth:`~SurveyRecorder.finish` closes the last. :func:`survey_records` runs it
 over a :class:`~lost.host.io.survey.Survey` into :class:`~lost.host.records.NavRecords`, the same value the
@@ -47,9 +54,14 @@ from .errors import DifferentShipsError, NoPingsError, SurveyOffMapError
 from .sonar import grid_soundings, soundings_centre
 from .survey import Ping, Survey
 
-__all__ = ["SurveyRecord", "SurveyRecorder", "survey_records", "nav_records", "check_survey_on_map", "SURVEY_PATCH_CENTRES", "DEFAULT_RECORD_S"]
+__all__ = ["SurveyRecord", "SurveyRecorder", "survey_records", "nav_records", "check_survey_on_map", "SURVEY_PATCH_CENTRES", "SURVEY_PATCH_RULES",
+           "DEFAULT_RECORD_S"]
 
 SURVEY_PATCH_CENTRES = ("vehicle", "soundings")
+#: Which pings make a record's patch: the last ``window_s`` seconds, or a swath scenario's real-time rule (see the module).
+SURVEY_PATCH_RULES = ("window", "behind")
+#: Ping times are compared to this, seconds: a format's millisecond, and a float's rounding of it.
+_TIME_TOLERANCE_S = 2e-3
 #: Seconds of pings per record when the caller names none (``lost run --survey``'s ``--record-s``).
 DEFAULT_RECORD_S = 5.0
 
@@ -96,20 +108,27 @@ class SurveyRecorder:
         The records' track is the truth plus it, their velocity that track differenced, and each beam is placed
         by its difference between the ping and the record.
     patch_centre : {"vehicle", "soundings"}
-        Where each record's patch is centred.
+        Where each record's patch is centred (``"window"`` rule; the ``"behind"`` rule centres it on its centre ping).
+    patch_rule : {"window", "behind"}
+        Which pings make a record's patch (see the module); with ``"behind"``, ``window_s`` is the longest look back.
     full_window : bool
         No patch for the records of the first ``window_s`` seconds (their window is still filling).
     """
 
     def __init__(self, *, node_m: float, patch_shape: tuple[int, int], interval_s: float, window_s: float | None = None,
                  dr_bias_mps=(0.0, 0.0), start_offset_m=(0.0, 0.0), dead_reckoning_error: Callable[[float], object] | None = None,
-                 patch_centre: str = "vehicle", full_window: bool = False) -> None:
+                 patch_centre: str = "vehicle", full_window: bool = False, patch_rule: str = "window") -> None:
         window_s = interval_s if window_s is None else window_s
         for name, value in (("interval_s", interval_s), ("window_s", window_s)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
         if patch_centre not in SURVEY_PATCH_CENTRES:
             raise ValueError(f"patch_centre must be one of {SURVEY_PATCH_CENTRES}, got {patch_centre!r}")
+        if patch_rule not in SURVEY_PATCH_RULES:
+            raise ValueError(f"patch_rule must be one of {SURVEY_PATCH_RULES}, got {patch_rule!r}")
+        if patch_rule == "behind" and patch_centre != "vehicle":
+            raise ValueError(f"patch_rule 'behind' centres each patch on its centre ping; patch_centre {patch_centre!r} cannot be given with it")
+        self.patch_rule = patch_rule
         self.node_m, self.patch_shape, self.patch_centre = float(node_m), tuple(patch_shape), patch_centre
         self.interval_s, self.window_s = float(interval_s), float(window_s)
         self.bias = _pair(dr_bias_mps, "dr_bias_mps")
@@ -123,6 +142,7 @@ class SurveyRecorder:
         self._interval: int | None = None  # the index of the interval being filled
         self._recent: deque[Ping] = deque()  # the pings of the last window_s, the interval's included
         self._held: dict[int, tuple[Ping, tuple | None]] = {}  # each held ping's valid beams (the ping kept: its id stays its own)
+        self._errors: dict[int, np.ndarray] = {}  # each held ping's dead-reckoning error, made once (it is fixed once a record closed)
         self._heads: set[int] | None = None
         self._last: tuple[float, np.ndarray, np.ndarray] | None = None  # the last record: time, truth, dead reckoning
         self._first_s = 0.0  # the first record's time: a constant bias counts from it
@@ -154,8 +174,12 @@ class SurveyRecorder:
     def _close(self) -> list[SurveyRecord]:
         self._interval = None
         last = max(self._recent, key=lambda p: p.time_s)
-        while self._recent[0].time_s <= last.time_s - self.window_s:
-            self._held.pop(id(self._recent.popleft()), None)
+        # The "behind" rule's centre may be window_s back, and its pings window_s before that.
+        oldest = last.time_s - (self.window_s if self.patch_rule == "window" else 2 * self.window_s + _TIME_TOLERANCE_S)
+        while self._recent[0].time_s <= oldest:
+            gone = id(self._recent.popleft())
+            self._held.pop(gone, None)
+            self._errors.pop(gone, None)
         pings = list(self._recent)
         if self._heads is None:
             self._heads = {p.head for p in pings}
@@ -182,21 +206,21 @@ class SurveyRecorder:
                              truth_x_m=float(truth[0]), truth_y_m=float(truth[1]), sonar=patch, pings=len(pings), soundings=soundings)]
 
     def _patch(self, pings: list[Ping], last: Ping) -> tuple[SonarPatch | None, int]:
-        beams, moves = [], []
-        for p in pings:
-            held = self._beams(p)
-            if held is None:
-                continue
-            # Where the navigation places the ping: the true displacement plus the dead reckoning's error over its age, backwards.
-            drift = self._error(p.time_s - self.epoch_s) - self._error(last.time_s - self.epoch_s)
-            beams.append(held)
-            moves.append((p.east_m - last.east_m + drift[0], p.north_m - last.north_m + drift[1], last.time_s - p.time_s))
+        moves = np.array([self._move(p, last) for p in pings])
+        chosen, centre = self._behind(moves) if self.patch_rule == "behind" else (range(len(pings)), None)
+        beams, kept = [], []
+        for i in chosen:
+            held = self._beams(pings[i])
+            if held is not None:
+                beams.append(held)
+                kept.append(i)
         if not beams:
             self.skipped["record interval with no valid beam (kept without a patch)"] += 1
             return None, 0
-        soundings = _WindowSoundings(tuple(beams), np.array(moves))
+        soundings = _WindowSoundings(tuple(beams), moves[kept])
         east, north, depth, age = soundings.arrays()
-        centre = soundings_centre(east, north) if self.patch_centre == "soundings" else (0.0, 0.0)
+        if centre is None:
+            centre = soundings_centre(east, north) if self.patch_centre == "soundings" else (0.0, 0.0)
         gridded = grid_soundings(east, north, depth, patch_shape=self.patch_shape, node_m=self.node_m, centre_m=centre, age_s=age,
                                  soundings=soundings)
         if gridded.outside:
@@ -205,6 +229,30 @@ class SurveyRecorder:
             self.skipped["record interval with no valid beam in the patch (kept without a patch)"] += 1
             return None, 0
         return gridded.patch, gridded.used
+
+    def _move(self, ping: Ping, last: Ping) -> tuple[float, float, float]:
+        """Where the navigation places ``ping`` from the record's vehicle (east, north: the true displacement plus the dead
+        reckoning's error over its age, backwards), and its age."""
+        drift = self._ping_error(ping) - self._ping_error(last)
+        return ping.east_m - last.east_m + drift[0], ping.north_m - last.north_m + drift[1], last.time_s - ping.time_s
+
+    def _ping_error(self, ping: Ping) -> np.ndarray:
+        """The dead reckoning's error at ``ping``, made once for every record whose window holds it (the first record has closed:
+        a constant bias counts from its time, which no longer moves)."""
+        key = id(ping)
+        if key not in self._errors:
+            self._errors[key] = self._error(ping.time_s - self.epoch_s)
+        return self._errors[key]
+
+    def _behind(self, moves: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+        """The "behind" rule (see the module): the pings (indices into ``moves``) of the patch, and its centre from the vehicle."""
+        half_diagonal = math.hypot(*self.patch_shape) * self.node_m / 2
+        age, reach = moves[:, 2], self.window_s + _TIME_TOLERANCE_S
+        earlier = np.flatnonzero(age <= reach)
+        behind = earlier[np.hypot(moves[earlier, 0], moves[earlier, 1]) >= half_diagonal]
+        c = behind[np.argmin(age[behind])] if behind.size else earlier[np.argmax(age[earlier])]
+        near = np.hypot(moves[:, 0] - moves[c, 0], moves[:, 1] - moves[c, 1]) <= half_diagonal
+        return np.flatnonzero(near & (age <= age[c] + reach)), (float(moves[c, 0]), float(moves[c, 1]))
 
     def _beams(self, ping: Ping) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The ping's valid beams (east and north offsets from the ping, depth), made once and shared by every record whose

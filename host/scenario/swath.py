@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -11,20 +12,44 @@ from ..records import SonarPatch
 from .floor import cell_mean_depth, floor_depth
 from .spec import SonarSpec
 
-__all__ = ["sonar_patches"]
+__all__ = ["sonar_patches", "SwathSoundings"]
+
+
+@dataclass(frozen=True)
+class SwathSoundings:
+    """What a ``"swath"`` sonar sounded, ping by ping (one ping per record of the tow), and the dead reckoning that placed it.
+
+    Attributes
+    ----------
+    depth_m : (pings, beams)
+        Each beam's sounding of the true floor with the sonar's bias, noise and outliers; NaN for a beam without a return.
+    across_m : (beams,)
+        Each beam's offset to starboard of the vehicle's motion, metres (a vehicle at rest looks north).
+    reckoned_m : (pings, 2)
+        The position, east and north, the patches placed each ping at: the measured velocity integrated from zero
+        at the first ping, a dropped reading holding the last one. Only its differences mean anything.
+    """
+
+    depth_m: np.ndarray
+    across_m: np.ndarray
+    reckoned_m: np.ndarray
 
 
 def sonar_patches(
-    rng: np.random.Generator, floor: Grid, node_m: float, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float
+    rng: np.random.Generator, floor: Grid, node_m: float, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float,
+    sounded: list[SwathSoundings] | None = None,
 ) -> tuple:
-    """Patches on the map's nodes (``node_m``) of soundings of the true ``floor``."""
+    """Patches on the map's nodes (``node_m``) of soundings of the true ``floor``.
+
+    A ``"swath"`` sonar appends its :class:`SwathSoundings` to ``sounded`` when given one (the draws are the same either way).
+    """
     if not spec.enabled:
         return ()
     every = max(int(round(spec.interval_s * rate_hz)), 1)
     at = np.arange(0, truth.shape[0], every)
     patches: list[SonarPatch | None] = [None] * truth.shape[0]
     if spec.mode == "swath":
-        for n, patch in zip(at, _swath_patches(rng, floor, node_m, truth, measured_velocity, spec, rate_hz, at)):
+        for n, patch in zip(at, _swath_patches(rng, floor, node_m, truth, measured_velocity, spec, rate_hz, at, sounded)):
             patches[n] = patch
         return tuple(patches)
     h, w = spec.shape
@@ -50,7 +75,7 @@ def _sound(rng: np.random.Generator, true_depth: np.ndarray, spec: SonarSpec) ->
 
 def _swath_patches(
     rng: np.random.Generator, floor: Grid, node_m: float, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float,
-    at: np.ndarray,
+    at: np.ndarray, sounded: list[SwathSoundings] | None,
 ) -> list[SonarPatch | None]:
     from ..io.sonar import grid_soundings
 
@@ -74,6 +99,8 @@ def _swath_patches(
             held[n] = held[n - 1]
     held[np.isnan(held)] = 0.0
     reckoned = np.vstack([np.zeros(2), np.cumsum(held[:-1] * dt, axis=0)])
+    if sounded is not None:
+        sounded.append(SwathSoundings(depth_m=depth, across_m=across, reckoned_m=reckoned))
     # The pings whose reckoned position lies within half a patch diagonal of the vehicle's, looked
     # for at most max_window_s away: a slow vehicle gathers pings for longer.
     half_diagonal = math.hypot(h, w) * node_m / 2

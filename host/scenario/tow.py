@@ -12,9 +12,9 @@ from .floor import floor_depth, scenario_floor
 from .map import check_before_simulating, check_patch_fits, planned_map_shape, survey_map
 from .sensors import read, usbl_pings
 from .spec import KNOT_MPS, Scenario
-from .swath import sonar_patches
+from .swath import SwathSoundings, sonar_patches
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "simulate_with_swath"]
 
 
 def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
@@ -23,6 +23,21 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
     The vehicle, its altimeter and its sonar see the true floor (:func:`scenario_floor`); the map
     returned is the survey of it that ``[map]`` describes.
     """
+    return _simulate(scenario, None)
+
+
+def simulate_with_swath(scenario: Scenario) -> tuple[Grid, NavRecords, SwathSoundings | None]:
+    """:func:`simulate`, and the soundings its ``"swath"`` sonar gridded into the records' patches (None for another sonar).
+
+    The map and records are :func:`simulate`'s, bit for bit: the soundings are handed out, not drawn again. An exporter
+    writes them (:func:`lost.host.io.simulated.simulated_pings`) so that a file's pings are the very pings of the patches.
+    """
+    sounded: list[SwathSoundings] = []
+    grid, records = _simulate(scenario, sounded)
+    return grid, records, sounded[0] if sounded else None
+
+
+def _simulate(scenario: Scenario, sounded: list[SwathSoundings] | None) -> tuple[Grid, NavRecords]:
     check_before_simulating(scenario)
     floor = scenario_floor(scenario)
     check_patch_fits(scenario, planned_map_shape(scenario, floor.shape, floor.node_m))
@@ -31,7 +46,7 @@ def simulate(scenario: Scenario) -> tuple[Grid, NavRecords]:
     t = np.arange(int(round(scenario.duration_s * scenario.rate_hz))) / scenario.rate_hz
     ship_x, ship_y, heading = _ship_track(scenario, t)
     truth, depths = _vehicle_track(scenario, floor, ship_x, ship_y, heading)
-    return grid, _records(scenario, rng, floor, grid.node_m, t, np.column_stack([ship_x, ship_y]), heading, truth, depths)
+    return grid, _records(scenario, rng, floor, grid.node_m, t, np.column_stack([ship_x, ship_y]), heading, truth, depths, sounded)
 
 
 def _vehicle_track(scenario: Scenario, floor: Grid, ship_x: np.ndarray, ship_y: np.ndarray,
@@ -74,7 +89,7 @@ def _vehicle_track(scenario: Scenario, floor: Grid, ship_x: np.ndarray, ship_y: 
 
 
 def _records(scenario: Scenario, rng: np.random.Generator, floor: Grid, node_m: float, t: np.ndarray, ship: np.ndarray,
-             heading: np.ndarray, truth: np.ndarray, depths: np.ndarray) -> NavRecords:
+             heading: np.ndarray, truth: np.ndarray, depths: np.ndarray, sounded: list[SwathSoundings] | None = None) -> NavRecords:
     """What the sensors record of the tow (their draws from ``rng`` in a fixed order: a seed gives one tow)."""
     dt = 1.0 / scenario.rate_hz
     floor_below = floor_depth(floor, truth[:, 0], truth[:, 1])
@@ -111,7 +126,7 @@ def _records(scenario: Scenario, rng: np.random.Generator, floor: Grid, node_m: 
         vel_y_mps=measured_velocity[:, 1],
         slant_range_m=slant,
         cable_out_m=np.full(t.size, scenario.cable.out_m),
-        sonar=sonar_patches(rng, floor, node_m, truth, measured_velocity, sensors["sonar"], scenario.rate_hz),
+        sonar=sonar_patches(rng, floor, node_m, truth, measured_velocity, sensors["sonar"], scenario.rate_hz, sounded),
         truth_x_m=truth[:, 0],
         truth_y_m=truth[:, 1],
         **usbl,
