@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-live bench-live-memory bench-live-12h synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-read-survey-swath bench-live bench-live-memory bench-live-12h synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -93,6 +93,10 @@ bench-read: setup
 # A simulated tow exported as .all and navigated with lost run --survey, against the scenario's run, over 10 seeds (a few minutes).
 bench-read-survey: setup
 	$(BIN)/python benchmarks/read_survey_nav.py --full-window
+
+# The round trip on a swath scenario: demo's own soundings through .all, ten seeds of 900 s (about 12 minutes).
+bench-read-survey-swath: setup
+	$(BIN)/python benchmarks/read_survey_nav.py --scenario demo --seeds 10 --duration-s 900 --out build/bench/read_survey_nav_demo.json
 
 # lost serve: the navigation on a stream with 5 % loss, reordering and duplication against the clean one over 10 seeds
 # (build/bench/live_faults.json, under a minute), and the latency of lost replay into lost serve on localhost, 150 s of
