@@ -62,12 +62,13 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
   Not on a return to the map: after ``off_map_usable_s`` without terrain (off the map, at its edge,
   over holes, without patches) a density that has taken terrain since its (re)start is dead reckoning's,
-  shaped by no terrain since, and a refused
-  update there says the terrain and the dead reckoning disagree, not that a lock went wrong. Until the
-  first accepted terrain update (``returned_after_refusals``) such refusals are counted (``refused_on_return``)
-  and lower the usable flag, but re-initialize nothing: the density keeps widening by dead reckoning
-  until the terrain's correction lies within it (a density that left the map wrong comes back wide
-  enough to take the correction).
+  shaped by no terrain since, and a refused update says the terrain and the dead reckoning disagree,
+  not that a lock went wrong. Until the next accepted terrain update (``returned_after_refusals``) such
+  refusals are counted (``refused_on_return``) and lower the usable flag, but re-initialize nothing:
+  the density keeps widening by dead reckoning until the terrain's correction passes the gate (a
+  density that left the map wrong comes back wide enough to take it). On ``two_hour`` (seed 0) ten
+  refusals of a right density, back from 583 s beside a hole, re-initialized it around a lay-back
+  1.8 km off in the ship's turn.
   So does ``2 reinit_after`` slant ranges refused in a row: the terrain holds the density where
   every range says it is not (``reinitialized_by_ranges``); and ``2 reinit_after`` USBL fixes refused in a
   row (``reinitialized_by_fixes``): a density locked narrow on a wrong place gates out every fix.
@@ -469,7 +470,7 @@ class Trust:
         self.restart_cause = RESTART_CAUSES[reason]
 
     def rejected(self, reason: str) -> bool:
-        """A terrain update was refused; True when the filter should re-initialize now."""
+        """A terrain update was refused; True when the filter should re-initialize now (never on a return to the map)."""
         self.counts[f"rejected_{reason}"] += 1
         self.settled = False
         self.good_in_row = 0
