@@ -22,10 +22,11 @@ $(STAMP): pyproject.toml host/_sad.c
 demo: setup
 	$(BIN)/lost demo
 
-# The linter first (seconds), then every test, on both cores (pytest-xdist; the Verilator builds lock their folders).
+# The linter first (seconds), then every test, on both cores (pytest-xdist; the Verilator builds lock their folders);
+# the 25 slowest listed at the end, to keep the whole within its 15 minutes.
 test: setup
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -n 2
+	$(BIN)/python -m pytest -n 2 --durations=25
 
 # The quick tier while working (under 3 minutes here): the linter, then every test that needs neither Verilator
 # nor the FPGA tools, on both cores. `make test` stays everything, and is what CI runs.

@@ -9,10 +9,33 @@ reading is NaN, never a made-up value.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from typing import Protocol
 
 import numpy as np
 
-__all__ = ["NavRecords", "SonarPatch", "USBL_FIELDS"]
+__all__ = ["NavRecords", "PatchSoundings", "SonarPatch", "SoundingArrays", "USBL_FIELDS"]
+
+
+class PatchSoundings(Protocol):
+    """The soundings a patch was gridded from, so that it can be gridded again with each placed otherwise."""
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Each sounding's (east, north) offset from the vehicle at the record as reckoned (metres), its depth
+        (metres, positive down) and its age (seconds before the record)."""
+        ...
+
+
+@dataclass(frozen=True)
+class SoundingArrays:
+    """:class:`PatchSoundings` held as four arrays of one length."""
+
+    east_m: np.ndarray
+    north_m: np.ndarray
+    depth_m: np.ndarray
+    age_s: np.ndarray
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return self.east_m, self.north_m, self.depth_m, self.age_s
 
 
 @dataclass(frozen=True)
@@ -27,13 +50,16 @@ class SonarPatch:
     built in real time from the pings already received. ``age_s`` is how long before the record its
     soundings were taken, on average: their offsets were reckoned back over that time with the measured
     velocity, so a velocity bias b misplaces the patch by b times its age (0 for a snapshot; negative
-    for a post-processed patch of soundings taken after the record).
+    for a post-processed patch of soundings taken after the record). ``soundings``, when the patch was gridded
+    from pings, are those pings' soundings: the navigation grids them again with each placed by its own age
+    (:mod:`lost.host.nav.motion`); a patch without them (a snapshot, a patch read from a file) is used as it is.
     """
 
     depth_m: np.ndarray
     node_m: float
     centre_offset_m: tuple[float, float] = (0.0, 0.0)
     age_s: float = 0.0
+    soundings: PatchSoundings | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         offset = tuple(float(v) for v in np.asarray(self.centre_offset_m, dtype=np.float64).ravel())

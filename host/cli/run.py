@@ -8,7 +8,8 @@
                                          [--usbl-fixes FILE]                 a recorded multibeam survey (.all, .kmall, GSF)
     lost demo [--out runs/demo]                                              the built-in scenario "demo"
 
-``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at all.
+``run`` writes ``track.csv``, ``summary.json``, ``map.png`` and ``error.png`` into ``--out``, whole or not at all
+(``--no-plots``: the two figures not drawn, for batch runs).
 """
 
 from __future__ import annotations
@@ -50,7 +51,8 @@ def _estimators(choice: str) -> tuple[str, ...]:
 
 
 def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: str, out: Path, warnings: list[str],
-              estimators: tuple[str, ...] = ESTIMATORS, profile=None, profile_source: str | None = None, extra: dict | None = None) -> dict:
+              estimators: tuple[str, ...] = ESTIMATORS, profile=None, profile_source: str | None = None, extra: dict | None = None,
+              plots: bool = True) -> dict:
     from ..plotting import draw_plots
     from ..report import run_plots, summarize, write_track_csv
 
@@ -64,7 +66,8 @@ def _navigate(records: NavRecords, grid: Grid, params: NavParameters, *, name: s
     summary["sound_speed_profile"] = profile_source
     summary.update(extra or {})
     write_track_csv(out / "track.csv", result)
-    draw_plots(out, run_plots(result, grid, summary), warnings)
+    if plots:
+        draw_plots(out, run_plots(result, grid, summary), warnings)
     summary["warnings"] = list(warnings)
     write_summary(out / "summary.json", summary)
     return summary
@@ -165,8 +168,8 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
         if usbl.enabled and params.reference_depth_m != usbl.transducer_depth_m:
             warnings.append(f"[navigation] reference_depth_m ({params.reference_depth_m:g} m) is not the USBL transducer's depth "
                             f"([sensors.usbl] transducer_depth_m = {usbl.transducer_depth_m:g} m): the rays start at the wrong depth")
-        summary = _navigate(records, grid, params, name=scenario.name, out=folder, warnings=warnings, estimators=_estimators(args.estimator),
-                            profile=profile, profile_source=source)
+        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=scenario.name, out=folder, warnings=warnings,
+                            estimators=_estimators(args.estimator), profile=profile, profile_source=source)
     _print_summary(summary, out)
     return 0
 
@@ -222,7 +225,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                       patch_shape=args.patch_shape, patch_centre=args.patch_centre)
         print(report.summary())
         warnings += [*report.warnings, *check_against_map(records, grid)]
-        summary = _navigate(records, grid, params, name=Path(args.log).stem, out=folder, warnings=warnings,
+        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=Path(args.log).stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), profile=profile, profile_source=None if args.svp is None else str(args.svp),
                             extra=extra)
     _print_summary(summary, out)
@@ -268,7 +271,7 @@ def _run_survey(args: argparse.Namespace) -> int:
         extra["survey"]["log"] = _save_survey_log(records, folder, recorder.epoch_s)
         print(f"{names}: {len(records)} records of {interval:g} s, patches of the last {recorder.window_s:g} s of pings"
               + "".join(f"\n  skipped: {n} {reason}" for reason, n in skipped.items()))
-        summary = _navigate(records, grid, params, name=files[0].stem, out=folder, warnings=warnings,
+        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=files[0].stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), extra=extra)
     _print_summary(summary, out)
     return 0
@@ -387,5 +390,6 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     run.add_argument("--svp", type=Path, default=None, metavar="CAST.csv",
                      help="sound-speed cast (lost.host.usbl.sound's CSV): the log's usbl_travel_time_s is ray-traced into the "
                           "slant range, which wins over slant_range_m; with a scenario, over its [sensors.usbl] cast")
+    run.add_argument("--no-plots", action="store_true", help="write the track and the summary only: no map.png, no error.png")
     navigation_options(run)
     run.set_defaults(handler=_cmd_run)

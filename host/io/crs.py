@@ -49,7 +49,8 @@ def utm_crs(lon_deg: float, lat_deg: float) -> str:
     return f"EPSG:{codes[0]}"
 
 # --------------------------------------------------------------------------------------------
-def _crs(value):
+def as_crs(value):
+    """``value`` (an EPSG code, WKT, PROJ string or pyproj CRS) as a pyproj CRS; a ValueError naming it when pyproj cannot read it."""
     from pyproj import CRS
 
     try:
@@ -61,7 +62,7 @@ def _crs(value):
 def _same_crs(a, b) -> bool:
     if a is None or b is None:
         return a is b
-    return _crs(a) == _crs(b)
+    return as_crs(a) == as_crs(b)
 
 
 def _agree(path: Path, file_crs: str | None, source_crs: str | None) -> str | None:
@@ -69,18 +70,18 @@ def _agree(path: Path, file_crs: str | None, source_crs: str | None) -> str | No
         return file_crs
     if file_crs is not None and not _same_crs(file_crs, source_crs):
         raise ValueError(f"{path.name} declares {file_crs}; source_crs={source_crs!r} contradicts it")
-    return _crs(source_crs).to_string()
+    return as_crs(source_crs).to_string()
 
 
 def transformer(src, dst):
     from pyproj import Transformer
 
-    return Transformer.from_crs(_crs(src), _crs(dst), always_xy=True)
+    return Transformer.from_crs(as_crs(src), as_crs(dst), always_xy=True)
 
 
 def _target_crs(file_crs: str | None, crs: str | None, xs: np.ndarray, ys: np.ndarray) -> str | None:
     if crs is not None:
-        target = _crs(crs)
+        target = as_crs(crs)
         if not target.is_projected:
             raise ValueError(f"crs must be a projected (metric) CRS, got {crs!r}")
         if file_crs is None:
@@ -88,7 +89,7 @@ def _target_crs(file_crs: str | None, crs: str | None, xs: np.ndarray, ys: np.nd
         return crs if isinstance(crs, str) else target.to_string()
     if file_crs is None:
         return None
-    if _crs(file_crs).is_geographic:
+    if as_crs(file_crs).is_geographic:
         lon_c = (float(np.min(xs)) + float(np.max(xs))) / 2
         lat_c = (float(np.min(ys)) + float(np.max(ys))) / 2
         return utm_crs(lon_c, lat_c)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..grid import Grid
-from .crs import _crs, _same_crs, _target_crs, transformer
+from .crs import _same_crs, _target_crs, as_crs, transformer
 
 # Above this many nodes a grid is almost surely a mistaken node_m (1e8 float64 nodes are 800 MB).
 _MAX_NODES = 100_000_000
@@ -59,7 +59,7 @@ def _regular_to_grid(values, xs, ys, file_crs, *, crs, node_m, sigma=None) -> Gr
         from pyproj.enums import TransformDirection
 
         qx, qy = to_target.transform(qx, qy, direction=TransformDirection.INVERSE)
-        if _crs(file_crs).is_geographic:
+        if as_crs(file_crs).is_geographic:
             # PROJ answers longitudes in [-180, 180); a file may run 0 to 360.
             qx = xs[0] + np.mod(np.asarray(qx) - xs[0], 360.0)
     depth = _interpolate_keeping_holes(values, xs, ys, np.asarray(qx), np.asarray(qy))

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .bounds import _window
-from .crs import GEOGRAPHIC_NAMES, X_NAMES, Y_NAMES, _agree, _crs
+from .crs import GEOGRAPHIC_NAMES, X_NAMES, Y_NAMES, _agree, as_crs
 from .depthsign import _ascending, _sign_from_metadata, _to_depth
 from .errors import UncertaintyLayerError
 from .uncertainty import check_sigma_layer, check_units, sigma_variable
@@ -24,7 +24,7 @@ def _read_netcdf(path: Path, *, variable: str | None, positive: str | None, sour
         # netCDF4/HDF5 report a damaged file as "NetCDF: HDF error" and the like: name the file and say what it means.
         raise ValueError(f"{path.name} cannot be read as NetCDF, it is truncated or damaged ({type(error).__name__}: {error})") from None
     if geographic:
-        if file_crs is not None and not _crs(file_crs).is_geographic:
+        if file_crs is not None and not as_crs(file_crs).is_geographic:
             raise ValueError(f"{path.name}: coordinates are in degrees but the grid mapping says {file_crs}")
         file_crs = file_crs or "EPSG:4326"
     file_crs = _agree(path, file_crs, source_crs)
@@ -143,7 +143,7 @@ def _netcdf_crs(ds, da) -> str | None:
             attrs = ds[name].attrs
             for key in ("crs_wkt", "spatial_ref"):
                 if key in attrs:
-                    return _crs(attrs[key]).to_string()
+                    return as_crs(attrs[key]).to_string()
             if attrs.get("epsg_code"):
                 return str(attrs["epsg_code"])
     return None

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..records import SonarPatch
+from ..records import PatchSoundings, SonarPatch
 
 __all__ = ["GriddedSoundings", "grid_soundings", "soundings_centre"]
 
@@ -53,6 +53,7 @@ def grid_soundings(
     node_m: float,
     centre_m: tuple[float, float] = (0.0, 0.0),
     age_s: float | np.ndarray = 0.0,
+    soundings: PatchSoundings | None = None,
 ) -> GriddedSoundings:
     """Bin soundings (offsets from the vehicle) into a patch around ``centre_m``, mean per node.
 
@@ -71,6 +72,9 @@ def grid_soundings(
     age_s : float or (n,) array
         How long before the record each sounding was taken, seconds (negative: after it); the patch's
         ``age_s`` is the mean over the soundings it uses.
+    soundings : PatchSoundings, optional
+        These soundings (all of them, with their ages) for the patch to carry, so that the navigation can grid
+        them again with each placed by its own age (:mod:`lost.host.nav.motion`).
 
     Returns
     -------
@@ -109,7 +113,7 @@ def grid_soundings(
         mean = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
     return GriddedSoundings(
         patch=SonarPatch(depth_m=mean.reshape(h, w), node_m=float(node_m), centre_offset_m=(float(centre[0]), float(centre[1])),
-                         age_s=patch_age),
+                         age_s=patch_age, soundings=soundings),
         used=int(inside.sum()),
         outside=int((~inside).sum()),
     )

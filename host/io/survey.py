@@ -177,11 +177,11 @@ class Survey:
 
     def _projected(self, ping: Ping) -> Ping:
         if self._transformer is None:
-            from .crs import _crs, transformer, utm_crs
+            from .crs import as_crs, transformer, utm_crs
 
             if self.crs is None:
                 self.crs = utm_crs(ping.lon_deg, ping.lat_deg)
-            elif not _crs(self.crs).is_projected:
+            elif not as_crs(self.crs).is_projected:
                 raise ValueError(f"crs must be a projected (metric) CRS, got {self.crs!r}")
             self._transformer = transformer("EPSG:4326", self.crs)
         return project_ping(ping, self._transformer)

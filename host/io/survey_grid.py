@@ -89,14 +89,14 @@ def write_survey_grid(result: SurveyGrid, path: str | os.PathLike, *, history: s
     """Write the gridded soundings as CF NetCDF (see the module); returns the path. Written whole, then renamed into place."""
     import xarray as xr
 
-    from .crs import _crs
+    from .crs import as_crs
 
     path = Path(path)
     grid = result.grid
     rows, cols = grid.shape
     x = grid.x0_m + np.arange(cols) * grid.node_m
     y = grid.y0_m + np.arange(rows) * grid.node_m
-    crs = _crs(grid.crs)
+    crs = as_crs(grid.crs)
     coords = {
         "x": ("x", x, {"units": "m", "standard_name": "projection_x_coordinate", "long_name": "easting", "axis": "X"}),
         "y": ("y", y, {"units": "m", "standard_name": "projection_y_coordinate", "long_name": "northing", "axis": "Y"}),

@@ -122,6 +122,7 @@ class SurveyRecorder:
         self.epoch_s: float | None = None  # the first ping's time: record times count from it
         self._interval: int | None = None  # the index of the interval being filled
         self._recent: deque[Ping] = deque()  # the pings of the last window_s, the interval's included
+        self._held: dict[int, tuple[Ping, tuple | None]] = {}  # each held ping's valid beams (the ping kept: its id stays its own)
         self._heads: set[int] | None = None
         self._last: tuple[float, np.ndarray, np.ndarray] | None = None  # the last record: time, truth, dead reckoning
         self._first_s = 0.0  # the first record's time: a constant bias counts from it
@@ -154,7 +155,7 @@ class SurveyRecorder:
         self._interval = None
         last = max(self._recent, key=lambda p: p.time_s)
         while self._recent[0].time_s <= last.time_s - self.window_s:
-            self._recent.popleft()
+            self._held.pop(id(self._recent.popleft()), None)
         pings = list(self._recent)
         if self._heads is None:
             self._heads = {p.head for p in pings}
@@ -181,26 +182,23 @@ class SurveyRecorder:
                              truth_x_m=float(truth[0]), truth_y_m=float(truth[1]), sonar=patch, pings=len(pings), soundings=soundings)]
 
     def _patch(self, pings: list[Ping], last: Ping) -> tuple[SonarPatch | None, int]:
-        east, north, depth, age = [], [], [], []
+        beams, moves = [], []
         for p in pings:
-            if not p.valid.any():
+            held = self._beams(p)
+            if held is None:
                 continue
-            ping_age = last.time_s - p.time_s
             # Where the navigation places the ping: the true displacement plus the dead reckoning's error over its age, backwards.
             drift = self._error(p.time_s - self.epoch_s) - self._error(last.time_s - self.epoch_s)
-            dx = p.east_m - last.east_m + drift[0]
-            dy = p.north_m - last.north_m + drift[1]
-            v = p.valid & np.isfinite(p.depth_m)
-            east.append(p.beam_east_m[v] - p.east_m + dx)
-            north.append(p.beam_north_m[v] - p.north_m + dy)
-            depth.append(p.depth_m[v])
-            age.append(np.full(int(v.sum()), ping_age))
-        if not east:
+            beams.append(held)
+            moves.append((p.east_m - last.east_m + drift[0], p.north_m - last.north_m + drift[1], last.time_s - p.time_s))
+        if not beams:
             self.skipped["record interval with no valid beam (kept without a patch)"] += 1
             return None, 0
-        east, north, depth, age = (np.concatenate(a) for a in (east, north, depth, age))
+        soundings = _WindowSoundings(tuple(beams), np.array(moves))
+        east, north, depth, age = soundings.arrays()
         centre = soundings_centre(east, north) if self.patch_centre == "soundings" else (0.0, 0.0)
-        gridded = grid_soundings(east, north, depth, patch_shape=self.patch_shape, node_m=self.node_m, centre_m=centre, age_s=age)
+        gridded = grid_soundings(east, north, depth, patch_shape=self.patch_shape, node_m=self.node_m, centre_m=centre, age_s=age,
+                                 soundings=soundings)
         if gridded.outside:
             self.skipped["valid beams beyond the patch"] += gridded.outside
         if not gridded.used:
@@ -208,6 +206,15 @@ class SurveyRecorder:
             return None, 0
         return gridded.patch, gridded.used
 
+    def _beams(self, ping: Ping) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The ping's valid beams (east and north offsets from the ping, depth), made once and shared by every record whose
+        window holds the ping; None without one."""
+        key = id(ping)
+        if key not in self._held:
+            v = ping.valid & np.isfinite(ping.depth_m)
+            self._held[key] = (ping, (ping.beam_east_m[v] - ping.east_m, ping.beam_north_m[v] - ping.north_m, ping.depth_m[v])
+                               if v.any() else None)
+        return self._held[key][1]
 
     def _error(self, t: float) -> np.ndarray:
         """The dead-reckoned position less the truth at ``t`` seconds from the first ping."""
@@ -215,6 +222,20 @@ class SurveyRecorder:
             return _pair(self._scripted(t), "dead_reckoning_error(t)")
         first = t if self._last is None else self._first_s
         return self.start_offset + self.bias * (t - first)
+
+
+class _WindowSoundings:
+    """A record's soundings (:class:`~lost.host.records.PatchSoundings`) as its pings' beams, shared with the records
+    around it, and each ping's move to the record: the window's beams are held once, not once per record."""
+
+    def __init__(self, beams: tuple, moves: np.ndarray) -> None:
+        self._beams, self._moves = beams, moves  # moves: (pings, 3) east and north of the ping from the record, its age
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        counts = [b[2].size for b in self._beams]
+        east = np.concatenate([b[0] for b in self._beams]) + np.repeat(self._moves[:, 0], counts)
+        north = np.concatenate([b[1] for b in self._beams]) + np.repeat(self._moves[:, 1], counts)
+        return east, north, np.concatenate([b[2] for b in self._beams]), np.repeat(self._moves[:, 2], counts)
 
 
 def _nadir_depth(ping: Ping) -> float:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import Grid
-from .crs import GEOGRAPHIC_NAMES, X_NAMES, Y_NAMES, _crs, _same_crs, _target_crs, transformer
+from .crs import GEOGRAPHIC_NAMES, X_NAMES, Y_NAMES, _same_crs, _target_crs, as_crs, transformer
 from .depthsign import _sign_from_metadata, _to_depth
 from .gridding import _grid_soundings, _lattice, _regular_to_grid
 
@@ -66,9 +66,9 @@ def _read_xyz(path: Path, *, crs, node_m, source_crs, positive, max_gap_m, bound
         raise ValueError(f"{path.name}: {z.size} sounding(s) with a depth; gridding needs at least 3")
 
     if source_crs is not None:
-        if geographic is not None and geographic != _crs(source_crs).is_geographic:
+        if geographic is not None and geographic != as_crs(source_crs).is_geographic:
             raise ValueError(f"{path.name}: the column names say {'lon/lat' if geographic else 'x/y'}, source_crs says {source_crs}")
-        file_crs = _crs(source_crs).to_string()
+        file_crs = as_crs(source_crs).to_string()
     elif geographic:
         file_crs = "EPSG:4326"
     elif geographic is None and np.all(np.abs(x) <= 360) and np.all(np.abs(y) <= 90):

@@ -76,9 +76,9 @@ class LiveNavigator:
     """Pings in (raw, as :class:`~lost.host.live.receiver.LiveDecoder` yields them), estimates out (see the module)."""
 
     def __init__(self, grid: Grid, params: NavParameters, estimators: tuple[str, ...], recorder: SurveyRecorder) -> None:
-        from ..io.crs import _crs, transformer
+        from ..io.crs import as_crs, transformer
 
-        if grid.crs is None or not _crs(grid.crs).is_projected:
+        if grid.crs is None or not as_crs(grid.crs).is_projected:
             raise ValueError(f"the map's CRS must be a projected (metric) one to place received pings on it, got {grid.crs!r}")
         self.grid, self.recorder = grid, recorder
         self.counts: Counter[str] = Counter()

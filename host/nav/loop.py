@@ -20,6 +20,7 @@ import numpy as np
 from ..records import NavRecords
 from .estimator import Estimator, Motion, Observation
 from .guard import DeadReckoningGuard
+from .motion import compensated, record_bias
 from .parameters import NavParameters
 from .results import FilterTrack, NavResult
 from .stages import TrackFrame, layback_position, state_update
@@ -60,6 +61,8 @@ class RecordLoop:
         self._velocity = np.zeros(2)
         self._last_depth = float("nan")
         self._dead: np.ndarray | None = None
+        self._bias = np.zeros(2)  # the velocity bias the record's soundings are placed by (the record before's)
+        self._answers: list = []
         self.layback, self.dead_reckoning = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
         self.tracks = {e.name: FilterTrack.empty(n) for e in estimators}
         self._guards = {e.name: DeadReckoningGuard(params) for e in estimators}
@@ -83,7 +86,7 @@ class RecordLoop:
         if frame is not None and np.isfinite(distance):
             self.layback[n] = layback_position(frame, distance)
         fix = records.usbl_fix(n)
-        observation = Observation(t_s=float(records.t_s[n]), frame=frame, patch=self._plausible_patch(n),
+        observation = Observation(t_s=float(records.t_s[n]), frame=frame, patch=self._placed_patch(n),
                                   ocean_depth_m=depth + float(records.altitude_m[n]), vehicle_depth_m=self._last_depth,
                                   slant_range_m=self._slant_range(n), fix_position_m=None if fix is None else fix[0],
                                   fix_covariance_m2=None if fix is None else fix[1],
@@ -95,19 +98,33 @@ class RecordLoop:
                 return
             self._dead = start = self.layback[n] + np.array(self._p.initial_offset_m)
             self.dead_reckoning[n] = start
+            self._answers = []
             for estimator in self._estimators:
                 estimator.start(observation.t_s, start, observation)
                 self._guards[estimator.name].start(start)
                 self._record(n, estimator, 0.0)
+            self._bias = record_bias(self._answers)
             return
         motion = Motion(dt_s=observation.t_s - float(records.t_s[n - 1]), velocity_mps=self._velocity, held=held)
         self.dead_reckoning[n] = self._dead = state_update(self._dead, self._velocity, motion.dt_s)
+        self._answers = []
         for estimator in self._estimators:
             begin = time.perf_counter()
             estimator.predict(motion)
             estimator.update(observation)
             self._guards[estimator.name].predict(self._velocity, motion.dt_s)
             self._record(n, estimator, (time.perf_counter() - begin) * 1e3)
+        self._bias = record_bias(self._answers)
+
+    def _placed_patch(self, n: int):
+        """The record's plausible patch, its soundings placed by the velocity bias of the record before (``compensate_patch_motion``)."""
+        patch = self._plausible_patch(n)
+        if patch is None or not self._p.compensate_patch_motion or patch.soundings is None:
+            return patch
+        placed = compensated(patch, self._bias)
+        if placed is not patch:
+            self.counts["patches_placed_by_age"] += 1
+        return placed
 
     def _plausible_patch(self, n: int):
         """The record's sonar patch, unless its age is not a plausible one (see ``NavParameters.max_patch_age_s``)."""
@@ -143,6 +160,7 @@ class RecordLoop:
     def _record(self, n: int, estimator: Estimator, ms: float) -> None:
         guard = self._guards[estimator.name]
         answer = guard.shown(estimator.estimate())
+        self._answers.append(answer)
         track = self.tracks[estimator.name]
         track.held[n], track.reinitialized[n] = guard.held, answer.reinitialized
         if guard.held:
@@ -213,8 +231,8 @@ class StreamLoop(RecordLoop):
             raise ValueError(f"a stream's window is the first record alone or the record before and the new one, got {len(window)} rows")
         super().__init__(window, *self._stream_args)
         if self._carried is not None:
-            self._velocity, self._last_depth, self._dead, self._guards = self._carried
+            self._velocity, self._last_depth, self._dead, self._guards, self._bias = self._carried
         row = len(window) - 1
         self.step(row)
-        self._carried = (self._velocity, self._last_depth, self._dead, self._guards)
+        self._carried = (self._velocity, self._last_depth, self._dead, self._guards, self._bias)
         return row

@@ -127,6 +127,10 @@ class NavParameters:
         Default 5. Once usable (30) was too late on ``short``, whose towfish lags the ship it is
         reckoned by (0.1-0.2 m/s): its patches were misplaced by up to 8 m through the first minute
         (RMS 2.70 m; 2.20 m with 5; 2.35 with 10). 3: ``short``'s NEES in band 0.90, under its 0.92.
+    compensate_patch_motion : bool
+        Grid a patch that carries its soundings again with each sounding placed by its own age and the
+        velocity bias of the record before (:mod:`lost.host.nav.motion`): the dead reckoning inside a patch
+        gathered over tens of seconds undone. Default True.
     velocity_bias_sigma_mps, velocity_bias_walk_mps : float
         The prior on the velocity bias (1-sigma, m/s) and its random walk (m/s per square-root second),
         for both filters: the particles' bias state and the point-mass filter's bias filter.
@@ -257,6 +261,7 @@ class NavParameters:
     accel_bias_mps2: float = 10e-6 * 9.81
     estimate_velocity_bias: bool = True
     bias_learning_updates: int = 5
+    compensate_patch_motion: bool = True
     velocity_bias_sigma_mps: float = 0.05
     velocity_bias_walk_mps: float = 0.0005
     depth_bias_sigma_m: float = 3.0

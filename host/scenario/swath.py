@@ -89,12 +89,27 @@ def _swath_patches(
             centre = int(behind.max()) if behind.size else int(earlier[0])
         nearby = np.arange(max(centre - window, 0), min(centre + window, n if spec.realtime else truth.shape[0] - 1) + 1)
         pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[centre]).T) <= half_diagonal]
-        east, north, sounded_depth, ping = soundings.of(pings)
+        placed = _PatchPings(soundings, reckoned, pings, int(n), dt)
+        east, north, sounded_depth, age = placed.arrays()
         patches.append(grid_soundings(
-            east + (reckoned[ping, 0] - reckoned[n, 0]), north + (reckoned[ping, 1] - reckoned[n, 1]), sounded_depth,
-            patch_shape=(h, w), node_m=node_m, centre_m=tuple(reckoned[centre] - reckoned[n]), age_s=(n - ping) * dt,
+            east, north, sounded_depth, patch_shape=(h, w), node_m=node_m, centre_m=tuple(reckoned[centre] - reckoned[n]), age_s=age,
+            soundings=placed,
         ).patch)
     return patches
+
+
+class _PatchPings:
+    """One patch's soundings (:class:`~lost.host.records.PatchSoundings`), made when asked from the tow's shared arrays:
+    a patch keeps a few numbers, not its thousands of soundings, for every record of a long tow."""
+
+    def __init__(self, soundings: _SoundedBeams, reckoned: np.ndarray, pings: np.ndarray, record: int, dt_s: float) -> None:
+        self._soundings, self._reckoned, self._pings, self._record, self._dt = soundings, reckoned, pings, record, dt_s
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        east, north, depth, ping = self._soundings.of(self._pings)
+        here = self._reckoned[self._record]
+        return (east + (self._reckoned[ping, 0] - here[0]), north + (self._reckoned[ping, 1] - here[1]), depth,
+                (self._record - ping) * self._dt)
 
 
 class _SoundedBeams:

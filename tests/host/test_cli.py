@@ -33,7 +33,8 @@ def test_run_a_scenario_writes_the_track_summary_and_plots(tmp_path, capsys):
 
 def test_one_estimator_writes_its_track_with_covariance(tmp_path, capsys):
     out = tmp_path / "pmf"
-    assert main(["run", "short_exact_map", "--estimator", "pmf", "--out", str(out)]) == 0
+    assert main(["run", "short_exact_map", "--estimator", "pmf", "--out", str(out), "--no-plots"]) == 0
+    assert {p.name for p in out.iterdir()} == {"track.csv", "summary.json", "lost-run.json"}  # --no-plots: no figure drawn
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["methods"]) == {"layback", "dead_reckoning", "pmf"} and summary["convergence"]["estimator"] == "pmf"
     with open(out / "track.csv", newline="") as stream:
@@ -44,7 +45,8 @@ def test_one_estimator_writes_its_track_with_covariance(tmp_path, capsys):
     late = [r for r in rows if r["pmf_stage"] == "tracking"][-1]
     assert float(late["pmf_sxx"]) > 0 and float(late["pmf_syy"]) > 0 and late["pmf_usable"] == "1"
     assert float(late["pmf_error_m"]) < 3.0 * math.sqrt(float(late["pmf_sxx"]) + float(late["pmf_syy"]))
-    assert "pmf converged after" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "pmf converged after" in printed and "wrote" in printed and ".png" not in printed
     assert {r["pmf_depth_bias_m"] for r in rows} == {""}  # the patch form has no depth bias to report
     # The velocity bias it learned, with its 1-sigma (wide on this tow: its "bias" is the towfish's lag, walking fast).
     bias, sigma = summary["methods"]["pmf"]["velocity_bias_mps"], summary["methods"]["pmf"]["velocity_bias_sigma_mps"]
@@ -54,7 +56,7 @@ def test_one_estimator_writes_its_track_with_covariance(tmp_path, capsys):
 
 def test_run_by_builtin_name_with_backend_and_matching(tmp_path):
     out = tmp_path / "point"
-    assert main(["run", "short", "--out", str(out), "--backend", "model", "--matching", "point"]) == 0
+    assert main(["run", "short", "--out", str(out), "--backend", "model", "--matching", "point", "--no-plots"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["parameters"]["backend"] == "model" and summary["parameters"]["matching"] == "point"
 
@@ -62,7 +64,7 @@ def test_run_by_builtin_name_with_backend_and_matching(tmp_path):
 def test_set_overrides_the_scenarios_navigation_parameters(tmp_path, capsys):
     out = tmp_path / "patent"
     args = ["run", "short", "--out", str(out), "--set", "cross_damping_per_s=none", "--set", "initial_offset_m=[10, -20]",
-            "--set", "layback_model=cable"]
+            "--set", "layback_model=cable", "--no-plots"]
     assert main(args) == 0
     parameters = json.loads((out / "summary.json").read_text())["parameters"]
     # The shipped scenario damps the tracker; `none` restores the patent's (1 - u).

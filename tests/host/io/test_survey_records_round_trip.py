@@ -20,6 +20,7 @@ from lost.host.io import write_npz
 from lost.host.io.crs import transformer
 from lost.host.io.kongsberg_all import write_all_pings
 from lost.host.io.simulated import simulated_pings
+from lost.host.io.sonar import grid_soundings
 from lost.host.io.survey import open_survey, project_ping
 from lost.host.io.survey_records import SurveyRecorder, survey_records
 from lost.host.nav import navigation_parameters
@@ -123,3 +124,17 @@ def test_a_scripted_dead_reckoning_is_refused_beside_a_bias_or_when_it_gives_no_
         _recorder(grid, dead_reckoning_error=lambda t: (0.0, 0.0), dr_bias_mps=(0.1, 0.0))
     with pytest.raises(ValueError, match=r"dead_reckoning_error\(t\) must be two finite numbers"):
         survey_records(iter(read_back[:5]), _recorder(grid, dead_reckoning_error=lambda t: (float("nan"), 0.0)))
+
+
+def test_each_patch_carries_the_soundings_it_was_gridded_from_placed_as_the_dead_reckoning_placed_them(tow):
+    _, records, reckoned, _, read_back, grid, _, _ = tow
+    survey = survey_records(iter(read_back), _recorder(grid, dead_reckoning_error=_scripted(records, reckoned)))
+    checked = 0
+    for patch in survey.sonar[60::20]:
+        east, north, depth, age = patch.soundings.arrays()
+        assert east.size == north.size == depth.size == age.size > 1000 and 0 <= age.min() and age.max() < 60.0
+        again = grid_soundings(east, north, depth, patch_shape=(10, 10), node_m=grid.node_m, centre_m=patch.centre_offset_m, age_s=age)
+        np.testing.assert_array_equal(again.patch.depth_m, patch.depth_m)
+        assert again.patch.age_s == patch.age_s
+        checked += 1
+    assert checked == 7

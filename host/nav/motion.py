@@ -1,0 +1,63 @@
+"""A patch gridded again with each sounding placed by its own age: the dead reckoning inside a patch undone.
+
+A patch's soundings were placed by dead reckoning from each ping to the record: a measured velocity that runs
+ahead of the truth by b places a sounding of age a by b * a short of where it lies (see
+:class:`~lost.host.records.SonarPatch`). The filters move a patch as a whole by their own bias estimate times its
+mean age; what they cannot undo is the spread of ages inside it: a minute of pings reckoned with b = 0.1 m/s is a
+patch stretched or sheared by 6 m along the track, and a filter that fits it rigidly holds the error of its
+misfit. :func:`compensated` moves each sounding by b (a - mean age) and grids the patch again (same shape, node and
+centre): the patch a true velocity would have made, still its mean age old, so each filter's own whole-patch
+shift stays its own.
+
+One bias serves the record, so that every estimator correlates the same patch once (the resident correlator
+keys on the patch): :func:`record_bias` takes it from the estimators' answers at the record before, the usable
+one whose bias is known best; none usable, none applied (the patch as reckoned).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from ..io.sonar import grid_soundings
+from ..records import SonarPatch
+from .estimator import Estimate
+
+__all__ = ["compensated", "record_bias", "MIN_SHIFT_NODES"]
+
+#: Below this largest move (in nodes) a patch is used as reckoned: gridding again would change no node's soundings.
+MIN_SHIFT_NODES = 0.02
+
+
+def compensated(patch: SonarPatch, bias_mps: np.ndarray) -> SonarPatch:
+    """``patch`` gridded again with each sounding moved by ``bias_mps`` times its age less the patch's mean age.
+
+    A patch without its soundings, or whose largest move is under :data:`MIN_SHIFT_NODES` of a node, comes back
+    as it is.
+    """
+    bias = np.asarray(bias_mps, dtype=np.float64)
+    if patch.soundings is None or not np.all(np.isfinite(bias)) or not bias.any():
+        return patch
+    east, north, depth, age = patch.soundings.arrays()
+    if age.size == 0:
+        return patch
+    spread = np.asarray(age, dtype=np.float64) - patch.age_s
+    if float(np.abs(bias).max()) * float(np.abs(spread).max()) < MIN_SHIFT_NODES * patch.node_m:
+        return patch
+    gridded = grid_soundings(east + bias[0] * spread, north + bias[1] * spread, depth, patch_shape=patch.depth_m.shape,
+                             node_m=patch.node_m, centre_m=patch.centre_offset_m, age_s=age, soundings=patch.soundings)
+    return gridded.patch
+
+
+def record_bias(answers: Iterable[Estimate]) -> np.ndarray:
+    """The velocity bias (east, north, m/s) to place a record's soundings by: the usable answer's whose bias has the
+    smallest sigma; zero when no usable answer carries one."""
+    best, best_sigma = np.zeros(2), np.inf
+    for answer in answers:
+        bias, sigma = np.asarray(answer.velocity_bias_mps, float), np.asarray(answer.velocity_bias_sigma_mps, float)
+        if not (answer.usable and np.all(np.isfinite(bias)) and np.all(np.isfinite(sigma))):
+            continue
+        if float(sigma.max()) < best_sigma:
+            best, best_sigma = bias, float(sigma.max())
+    return best
