@@ -60,6 +60,15 @@ These rules are shared by the point-mass and the particle filter, and kept as na
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
+  Not on a return to the map: after ``off_map_usable_s`` without terrain (off the map, at its edge,
+  over holes, without patches) a density that has taken terrain since its (re)start is dead reckoning's,
+  shaped by no terrain since, and a refused update says the terrain and the dead reckoning disagree,
+  not that a lock went wrong. Until the next accepted terrain update (``returned_after_refusals``) such
+  refusals are counted (``refused_on_return``) and lower the usable flag, but re-initialize nothing:
+  the density keeps widening by dead reckoning until the terrain's correction passes the gate (a
+  density that left the map wrong comes back wide enough to take it). On ``two_hour`` (seed 0) ten
+  refusals of a right density, back from 583 s beside a hole, re-initialized it around a lay-back
+  1.8 km off in the ship's turn.
   So does ``2 reinit_after`` slant ranges refused in a row: the terrain holds the density where
   every range says it is not (``reinitialized_by_ranges``); and ``2 reinit_after`` USBL fixes refused in a
   row (``reinitialized_by_fixes``): a density locked narrow on a wrong place gates out every fix.
@@ -209,6 +218,9 @@ class Trust:
         self.drift = float("nan")
         self.trailing = False
         self.restart_cause = ""  # the last re-initialization's, one of RESTART_CAUSES' values
+        self.since_terrain_s = 0.0  # since the last terrain update taken or refused
+        self._took_terrain = False  # a terrain update was taken since the (re)start
+        self.returning = False  # a refusal came after off_map_usable_s without terrain; no terrain update taken since
 
     def misfit_refused(self, misfit: float) -> bool:
         """Whether a patch's misfit is too large for the running residual level."""
@@ -241,6 +253,7 @@ class Trust:
 
     def moved(self, dt_s: float, distance_m: float) -> None:
         self.since_update_s += dt_s
+        self.since_terrain_s += dt_s
         self.travelled_m += distance_m
 
     def patch_weight(self, patch_length_m: float, covariance: np.ndarray) -> float:
@@ -331,7 +344,12 @@ class Trust:
 
     def accepted(self, covariance: np.ndarray) -> None:
         """An update was used: reset growth and tempering, and advance the usable rule."""
+        if self.returning:
+            self.returning = False
+            self.counts["returned_after_refusals"] += 1
         self.since_update_s = 0.0
+        self.since_terrain_s = 0.0
+        self._took_terrain = True
         self.travelled_m = 0.0
         self.outcomes.append(False)
         sigma = largest_sigma(covariance)
@@ -444,18 +462,25 @@ class Trust:
         self._n_corrections = 0
         self.trailing = False
         self.settled = False
+        self.returning = False
+        self._took_terrain = False
         self.counts["reinitializations"] += 1
         if reason:
             self.counts[reason] += 1
         self.restart_cause = RESTART_CAUSES[reason]
 
     def rejected(self, reason: str) -> bool:
-        """A terrain update was refused; True when the filter should re-initialize now."""
+        """A terrain update was refused; True when the filter should re-initialize now (never on a return to the map)."""
         self.counts[f"rejected_{reason}"] += 1
         self.settled = False
-        self.outcomes.append(True)
         self.good_in_row = 0
         self.usable = False
+        self.returning = self.returning or (self._took_terrain and self.since_terrain_s > self._p.off_map_usable_s)
+        self.since_terrain_s = 0.0
+        if self.returning:
+            self.counts["refused_on_return"] += 1  # dead reckoning's density against the terrain: no lock to undo
+            return False
+        self.outcomes.append(True)
         if sum(self.outcomes) >= self._p.reinit_after:
             self._restart(None)
             return True
