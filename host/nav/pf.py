@@ -28,6 +28,8 @@ from .trust import eigenvalues_2x2, moments
 __all__ = ["ParticleFilter", "systematic_resample"]
 
 ROUGHENING_K = 0.2
+#: A resampled cloud narrower than this along an axis (metres) has collapsed onto one particle.
+COLLAPSED_M = 1e-6
 
 
 def systematic_resample(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -142,7 +144,13 @@ class ParticleFilter(BayesFilter):
         index = systematic_resample(self._w, self._rng)
         # Positions are roughened; the bias only walks: jitter on a weakly observed state adds up to a drift.
         xy = np.column_stack([self._x[index], self._y[index]])
-        jitter = ROUGHENING_K * (xy.max(axis=0) - xy.min(axis=0)) * self._n ** (-1.0 / 2)
+        spread = xy.max(axis=0) - xy.min(axis=0)
+        jitter = ROUGHENING_K * spread * self._n ** (-1.0 / 2)
+        # A cloud resampled onto one particle (one weight took everything) has no spread to roughen by: it would report a
+        # zero covariance (an infinite NEES) until the next prediction. Such an axis is spread by the floor's width.
+        if np.any(spread < COLLAPSED_M):
+            jitter = np.where(spread < COLLAPSED_M, math.sqrt(self._floor_var), jitter)
+            self.counts["resampled_collapsed"] += 1
         xy += self._rng.standard_normal(xy.shape) * jitter
         self._x, self._y, self._b = xy[:, 0].copy(), xy[:, 1].copy(), self._b[:, index]
         self._acquiring = self._acquiring and not self._trust.usable

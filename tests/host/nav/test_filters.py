@@ -438,3 +438,17 @@ def test_each_filter_reports_its_velocity_bias_with_its_sigma():
     blind = PointMassFilter(likelihood, _quiet(estimate_velocity_bias=False), grid=grid)
     blind.start(0.0, np.array([400.0, 400.0]), _observation())
     assert np.isnan(blind.estimate().velocity_bias_sigma_mps).all()
+
+
+def test_a_cloud_resampled_onto_one_particle_reports_the_floors_width_not_a_zero_covariance():
+    grid = _map()
+    pf = ParticleFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), _quiet(pf_particles=500), grid=grid, seed=2)
+    pf.start(0.0, np.array([400.0, 400.0]), _observation())
+    one = np.zeros(500)
+    one[17] = 1.0  # one particle took all the weight
+    pf._accept(one, np.zeros((2, 2)), np.zeros(2), terrain=True)
+    _, cov = pf._moments()
+    floor = pf._floor_var
+    assert np.linalg.eigvalsh(cov).min() > 0.5 * floor and np.all(np.diag(cov) < 2.0 * floor)
+    assert np.all(np.isfinite(pf.estimate().covariance)) and np.linalg.det(pf.estimate().covariance) > 0
+    assert pf.counts["resampled_collapsed"] == 1
