@@ -247,6 +247,8 @@ def _run_survey(args: argparse.Namespace) -> int:
 
     if args.usbl_default_sigma_m is not None and args.usbl_fixes is None:
         raise UsageError("--usbl-default-sigma-m is the 1 sigma of --usbl-fixes' sentences without error fields: give --usbl-fixes FILE")
+    if args.patch_rule == "behind" and args.patch_centre == "soundings":
+        raise UsageError("--patch-rule behind centres each patch on its centre ping: --patch-centre soundings cannot be given with it")
     params = _parameters(args, {})
     files = [Path(f) for f in args.survey]
     names = ", ".join(f.name for f in files)

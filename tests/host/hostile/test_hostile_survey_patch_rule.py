@@ -25,9 +25,9 @@ def test_the_behind_rule_with_a_patch_centre_is_refused_and_nothing_is_written(s
     out = tmp_path / "run"
     code = main(["run", "--survey", str(path), "--bathy", str(map_path), "--patch-rule", "behind", "--patch-centre", "soundings",
                  "--out", str(out)])
-    assert code == 1
+    assert code == 2  # a usage error, as the flags' other misuses are
     err = capsys.readouterr().err
-    assert "patch_rule 'behind' centres each patch on its centre ping; patch_centre 'soundings' cannot be given with it" in err
+    assert "--patch-rule behind centres each patch on its centre ping: --patch-centre soundings cannot be given with it" in err
     assert err.count("\n") == 1 and not out.exists()
 
 
