@@ -141,8 +141,8 @@ class SurveyRecorder:
         self.epoch_s: float | None = None  # the first ping's time: record times count from it
         self._interval: int | None = None  # the index of the interval being filled
         self._recent: deque[Ping] = deque()  # the pings of the last window_s, the interval's included
-        self._held: dict[int, tuple[Ping, tuple | None]] = {}  # each held ping's valid beams (the ping kept: its id stays its own)
-        self._errors: dict[int, np.ndarray] = {}  # each held ping's dead-reckoning error, made once (it is fixed once a record closed)
+        # Per ping of _recent (which keeps it, so its id stays its own): its valid beams and its dead-reckoning error, each made once.
+        self._held: dict[int, dict[str, object]] = {}
         self._heads: set[int] | None = None
         self._last: tuple[float, np.ndarray, np.ndarray] | None = None  # the last record: time, truth, dead reckoning
         self._first_s = 0.0  # the first record's time: a constant bias counts from it
@@ -177,9 +177,7 @@ class SurveyRecorder:
         # The "behind" rule's centre may be window_s back, and its pings window_s before that.
         oldest = last.time_s - (self.window_s if self.patch_rule == "window" else 2 * self.window_s + _TIME_TOLERANCE_S)
         while self._recent[0].time_s <= oldest:
-            gone = id(self._recent.popleft())
-            self._held.pop(gone, None)
-            self._errors.pop(gone, None)
+            self._held.pop(id(self._recent.popleft()), None)
         pings = list(self._recent)
         if self._heads is None:
             self._heads = {p.head for p in pings}
@@ -239,10 +237,10 @@ class SurveyRecorder:
     def _ping_error(self, ping: Ping) -> np.ndarray:
         """The dead reckoning's error at ``ping``, made once for every record whose window holds it (the first record has closed:
         a constant bias counts from its time, which no longer moves)."""
-        key = id(ping)
-        if key not in self._errors:
-            self._errors[key] = self._error(ping.time_s - self.epoch_s)
-        return self._errors[key]
+        made = self._held.setdefault(id(ping), {})
+        if "error" not in made:
+            made["error"] = self._error(ping.time_s - self.epoch_s)
+        return made["error"]
 
     def _behind(self, moves: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
         """The "behind" rule (see the module): the pings (indices into ``moves``) of the patch, and its centre from the vehicle."""
@@ -257,12 +255,11 @@ class SurveyRecorder:
     def _beams(self, ping: Ping) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The ping's valid beams (east and north offsets from the ping, depth), made once and shared by every record whose
         window holds the ping; None without one."""
-        key = id(ping)
-        if key not in self._held:
+        made = self._held.setdefault(id(ping), {})
+        if "beams" not in made:
             v = ping.valid & np.isfinite(ping.depth_m)
-            self._held[key] = (ping, (ping.beam_east_m[v] - ping.east_m, ping.beam_north_m[v] - ping.north_m, ping.depth_m[v])
-                               if v.any() else None)
-        return self._held[key][1]
+            made["beams"] = (ping.beam_east_m[v] - ping.east_m, ping.beam_north_m[v] - ping.north_m, ping.depth_m[v]) if v.any() else None
+        return made["beams"]
 
     def _error(self, t: float) -> np.ndarray:
         """The dead-reckoned position less the truth at ``t`` seconds from the first ping."""

@@ -119,7 +119,7 @@ class RecordLoop:
     def _placed_patch(self, n: int):
         """The record's plausible patch, its soundings placed by the velocity bias of the record before (``compensate_patch_motion``)."""
         patch = self._plausible_patch(n)
-        if patch is None or not self._p.compensate_patch_motion or patch.soundings is None:
+        if patch is None or not self._p.compensate_patch_motion:
             return patch
         placed = compensated(patch, self._bias)
         if placed is not patch:

@@ -28,6 +28,7 @@ from lost.host.io.survey_records import SurveyRecorder, survey_records
 from lost.host.scenario import builtin_scenario_path, load_scenario
 
 from .records_compare import assert_records_agree
+from .survey_run import survey_run_summary
 
 REAL = Path(__file__).resolve().parents[3] / ".." / "shared" / "data" / "real_survey"
 EX1604 = REAL / "noaa_okeanos_ex1604_gsf" / "0029_20160323_185603_EX1604_MB.gsf"
@@ -168,18 +169,14 @@ def test_a_simulated_tow_as_gsf_gives_the_all_routes_records(tmp_path):
 
 
 def test_lost_run_survey_on_a_gsf_export_converges_like_the_all_export(tmp_path, capsys):
-    from lost.host.cli import main
     from lost.host.io import write_npz
 
     scenario = load_scenario(builtin_scenario_path("short_exact_map"))
     grid, _, pings = simulated_pings(scenario)
     path, map_path = write_gsf_pings(pings, tmp_path / "short.gsf"), write_npz(grid, tmp_path / "short_map.npz")
     out = tmp_path / "run"
-    code = main(["run", "--survey", str(path), "--bathy", str(map_path), "--start-offset", "30,-20", "--dr-bias", "0.1,0.05",
-                 "--record-s", "2", "--window-s", "60", "--patch-centre", "soundings", "--estimator", "pmf", "--out", str(out)])
-    assert code == 0
+    summary = survey_run_summary(path, map_path, out)
     capsys.readouterr()
-    summary = json.loads((out / "summary.json").read_text())
     pmf, dead = summary["methods"]["pmf"], summary["methods"]["dead_reckoning"]
     # The thresholds of the .all export's run (tests/host/io/test_simulated_export.py): its records are the .all route's (above).
     assert summary["convergence"]["converged"]
