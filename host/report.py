@@ -214,7 +214,9 @@ def write_track_csv(path: Path, result: NavResult) -> None:
     ``<name>_stage``, ``<name>_rejected``, ``<name>_error_m``, ``<name>_depth_bias_m`` (the
     single-depth form's depth-bias estimate, measured minus map; empty for the patch form) and the
     velocity-bias estimate with its 1-sigma, m/s (``<name>_velocity_bias_e_mps``, ``_n_mps``,
-    ``<name>_velocity_bias_sigma_e_mps``, ``_sigma_n_mps``).
+    ``<name>_velocity_bias_sigma_e_mps``, ``_sigma_n_mps``), ``<name>_held`` (0/1: the estimate held within dead
+    reckoning's 3 sigma, :mod:`lost.host.nav.guard`) and ``<name>_reinitialized`` (the cause of a re-initialization
+    at that record, empty when none).
     """
     started = np.flatnonzero(np.isfinite(result.estimate[:, 0]))
     first = int(started[0]) if started.size else -1
@@ -229,7 +231,7 @@ def write_track_csv(path: Path, result: NavResult) -> None:
     for name in filters:
         header += [f"{name}_{column}" for column in ("x_m", "y_m", "sxx", "syy", "sxy", "usable", "nis", "stage", "rejected", "error_m",
                                                        "depth_bias_m", "velocity_bias_e_mps", "velocity_bias_n_mps",
-                                                       "velocity_bias_sigma_e_mps", "velocity_bias_sigma_n_mps")]
+                                                       "velocity_bias_sigma_e_mps", "velocity_bias_sigma_n_mps", "held", "reinitialized")]
     filter_errors = {name: horizontal_error(track.position, truth) for name, track in filters.items()}
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
@@ -257,7 +259,8 @@ def _filter_cells(track: FilterTrack, n: int, error: float) -> list[str]:
     c = track.covariance[n]
     return [*map(_fmt, track.position[n]), _fmt(c[0, 0]), _fmt(c[1, 1]), _fmt(c[0, 1]), str(int(track.usable[n])), _fmt(track.nis[n]),
             str(track.stage[n]), str(track.rejected[n]), _fmt(error), _fmt(track.depth_bias_m[n]),
-            *(_fmt(v, 4) for v in (*track.velocity_bias_mps[n], *track.velocity_bias_sigma_mps[n]))]
+            *(_fmt(v, 4) for v in (*track.velocity_bias_mps[n], *track.velocity_bias_sigma_mps[n])),
+            "" if track.held is None else str(int(track.held[n])), "" if track.reinitialized is None else str(track.reinitialized[n])]
 
 
 #: Colour and line style of each method in the plots.

@@ -54,6 +54,18 @@ def test_summary_and_files(tmp_path):
     assert float(rows[2]["error_m"]) == 5.0 and rows[2]["mle_x_m"] == "" and float(rows[2]["layback_error_m"]) == 50.0
 
 
+def test_the_track_csv_carries_each_filters_hold_and_reinitialization_cause(tmp_path):
+    track = FilterTrack.empty(6)
+    track.held[2:4] = True
+    track.reinitialized[4] = "lookalike"
+    result = NavResult(**{**_result().__dict__, "tracks": {"pmf": track}})
+    write_track_csv(tmp_path / "track.csv", result)
+    with open(tmp_path / "track.csv", newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [r["pmf_held"] for r in rows] == ["0", "0", "1", "1", "0", "0"]
+    assert [r["pmf_reinitialized"] for r in rows] == ["", "", "", "", "lookalike", ""]
+
+
 def test_summary_without_truth_has_no_errors():
     result = _result()
     result = NavResult(**{**result.__dict__, "truth": None})
