@@ -27,6 +27,10 @@ the ring's rivals, one per basin of the misfit) move the probability between the
   ``Phi(-sqrt(evidence) / 2)`` (:func:`_still_searching`). Rough ground ends it within a patch length, repeated
   terrain never; a hole adds nothing, and a search over a hole narrows (a patch length of such updates) into a wrong
   lock: the filter updates on the patch's valid nodes, where the truth's placement is neutral and the others are not.
+  The wrong place is where the search's density reaches beyond the nearest look-alike as good as the truth (a ring's
+  best with rivals of at least one half, at ``r0``): as a Bayesian filter with a flat likelihood over look-alikes
+  spread evenly beyond ``r0`` would hold it, at a mean square distance ``r0^2 + 2 initial_sigma_m^2``
+  (:func:`_wrong_place_ms`); without such a look-alike, anywhere in the search's density.
 - A lock slips onto a ring's best look-alike with the probability a new patch prefers it against the locked density's
   own odds, ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``), summed over
   the rings beyond three sigma, per new patch.
@@ -176,6 +180,7 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     searching, search_ms = (1.0, 2.0 * model.initial_sigma_m**2) if lookalike is not None else (0.0, 0.0)
     slipped, slip_ms = 0.0, 0.0
     evidence = np.zeros(len(lookalike.ring_edges_m)) if lookalike is not None else None  # per ring, against its best look-alike
+    nearest_m = 0.0  # the nearest look-alike as good as the truth, last seen (none: 0)
     for n, time_s in enumerate(t):
         since = time_s - last_fix
         step = model.interval_s if previous is None else max(time_s - previous, 0.0)
@@ -189,12 +194,15 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
             p_fix, last_fix, fixed = p, time_s, True
         else:
             fixed = False
+        if rings is not None and np.isfinite(rings[2][:, n]).any():
+            nearest_m = _nearest_lookalike(rings[1][:, n], rings[2][:, n])
         if rings is not None and on_map[n] and np.isnan(rings[0][:, n]).all() and searching > 0.0:
             # a search over a hole of the map: the filter still updates on the patch's valid nodes, where the truth's
             # placement is neutral and the others are not, and narrows onto a wrong place (a false lock, not a search)
-            # as a patch's length of such updates accumulates
+            # as a patch's length of such updates accumulates; the place is one the search's density reaches beyond the
+            # nearest look-alike as good as the truth (:func:`_wrong_place_ms`)
             narrowed = searching * share
-            slip_ms = (slipped * slip_ms + narrowed * search_ms) / (slipped + narrowed)
+            slip_ms = (slipped * slip_ms + narrowed * _wrong_place_ms(search_ms, nearest_m)) / (slipped + narrowed)
             slipped, searching = slipped + narrowed, searching - narrowed
         if rings is not None:
             evidence += share * np.nan_to_num(rings[0][:, n], nan=0.0, posinf=0.0)  # the filters temper every patch, the first too
@@ -261,6 +269,24 @@ def _still_searching(separation: np.ndarray, rivals: np.ndarray, evidence: np.nd
     best = ndtr(-np.sqrt(separation[ok] / scale) / 2.0)
     count = rivals[ok] / np.maximum(best, 1e-300)
     return float(min(1.0, np.sum(count * ndtr(-np.sqrt(evidence[ok]) / 2.0))))
+
+
+def _nearest_lookalike(distance_m: np.ndarray, rivals: np.ndarray) -> float:
+    """The distance of the nearest ring's best look-alike that is as good as the truth (its ring's rivals at least one
+    half: an indistinguishable placement wins a patch with even odds), metres; 0 where no ring holds one."""
+    alike = np.isfinite(rivals) & (rivals >= 0.5)
+    return float(distance_m[alike][0]) if alike.any() else 0.0
+
+
+def _wrong_place_ms(search_ms: float, nearest_m: float) -> float:
+    """The mean square distance of the wrong place a search narrows onto when the truth's own placement drops out.
+
+    A Bayesian filter with a flat likelihood over the look-alikes keeps the search's density, a Gaussian of
+    ``search_ms / 2`` per axis about the truth, on them; look-alikes spread evenly over the plane from the nearest
+    one's distance ``r0`` outward take it in proportion to that density. The squared distance of a 2D Gaussian is
+    exponential (memoryless), so beyond ``r0`` its mean is ``r0^2 + search_ms``. Without a look-alike as good as the
+    truth (``r0`` 0) the wrong place is anywhere in the search's density: ``search_ms``."""
+    return nearest_m**2 + search_ms
 
 
 def _acquisition(rivals: np.ndarray, lost_ms: float, edges_m: np.ndarray) -> float:
