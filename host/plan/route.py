@@ -10,11 +10,14 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
   error keeps growing. The filters keep
   their density at least ``floor_m`` wide, so no update takes ``P`` below it. ``P`` is the density's width, which sets
-  the lock's odds against its look-alikes; the error of the position held is another thing (``held``): the bound of one
-  patch with the map's error against the sonar's patch alone (:func:`lost.host.plan.accuracy.held_sigma`: no slope
-  allowance, no density floor), not averaged along the track, since the map's errors and the relief a node cannot show
-  are the same on every pass over a place and the patches of one stretch share them. Where there is no fix it grows as
-  the density does from the last one.
+  the lock's odds against its look-alikes; the error of the position held is another thing (``held``): the error of
+  one patch's fit with the map's error against the sonar's patch alone (:func:`lost.host.plan.accuracy.held_sigma`: no
+  slope allowance, no density floor) weighed as the filters weigh the patch's nodes (their allowance included:
+  :func:`lost.host.plan.accuracy.held_grid`), not averaged along the track, since the map's errors and the relief a node
+  cannot show are the same on every pass over a place and the patches of one stretch share them. Where there is no fix
+  it grows as the density does from the last one.
+
+The map is read where the patch lies: ``patch_lag_m`` behind the vehicle along the track for a real-time patch.
 - Not holding it (probability ``unlocked``): still searching (a mean square distance that starts at the initial
   search's, ``2 initial_sigma_m^2``), or holding a wrong place (a look-alike's distance); both drift with the dead
   reckoning.
@@ -64,7 +67,9 @@ class RouteModel:
     """The motion, dead reckoning and filter assumptions of a route prediction (module docstring).
 
     ``patch_length_m`` is a patch's extent along the track (the share of it new at each update is the filters'
-    tempering); ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the four shipped floors
+    tempering); ``patch_lag_m`` how far behind the vehicle along the track its patch is centred (a real-time patch of
+    the pings received so far: :attr:`lost.host.plan.accuracy.SonarModel.lag_m`), where the map's bound and look-alikes
+    are taken; ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the four shipped floors
     with the look-alikes' ``evidence_scale`` (``benchmarks/plan_fit.py``, which also scores each floor held out of the
     fit; ``docs/campaign.md``).
     """
@@ -79,12 +84,13 @@ class RouteModel:
     floor_m: float = 0.0
     patch_length_m: float = 100.0
     acquisitions_per_patch: float = 100.0
+    patch_lag_m: float = 0.0
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
         """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m`` with a patch of
         ``patch_nodes`` a side: its initial search, dead reckoning's noise and biases, usable threshold and density's floor;
-        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m)."""
+        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m and patch_lag_m)."""
         return cls(**{"initial_sigma_m": params.initial_sigma_m, **motion}, velocity_noise_mps=params.velocity_noise_mps,
                    gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2, usable_sigma_m=params.usable_sigma_nodes * node_m,
                    floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m)
@@ -94,6 +100,8 @@ class RouteModel:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not (np.isfinite(self.patch_lag_m) and self.patch_lag_m >= 0):
+            raise ValueError(f"patch_lag_m must be a non-negative number of metres, got {self.patch_lag_m!r}")
 
 
 def read_route(path: Path) -> np.ndarray:
@@ -137,6 +145,16 @@ def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel, look
     return predict_along(accuracy, t, xy, model, lookalike, held)
 
 
+def _behind(xy: np.ndarray, lag_m: float) -> np.ndarray:
+    """The positions ``lag_m`` back along the track from each of ``xy`` (the track's first position where it has not
+    gone that far: a real-time patch then lies about its first pings)."""
+    if lag_m <= 0 or len(xy) < 2:
+        return xy
+    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    back = np.maximum(along - lag_m, 0.0)
+    return np.column_stack([np.interp(back, along, xy[:, 0]), np.interp(back, along, xy[:, 1])])
+
+
 def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The nearest node of each position, and which positions are on the map."""
     row, col = accuracy.row_col(xy[:, 0], xy[:, 1])
@@ -153,12 +171,12 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     Without ``lookalike`` the filter is taken to hold the true position from the start (the bound and the growth
     only); with it, the lock is acquired, lost and regained as the module docstring says, and the result also
     carries ``unlocked`` (the probability of not holding the true position) and ``locked_m`` (the error when holding it).
-    With ``held`` (one patch's bound with the survey's error alone, :func:`lost.host.plan.accuracy.held_sigma`) the error holding the lock is that
+    With ``held`` (one patch's error with the survey's error alone, :func:`lost.host.plan.accuracy.held_grid`) the error holding the lock is that
     bound where there is one, growing as the density does between (module docstring); without it, the density's own.
     """
     from ..nav.trust import ins_position_sigma
 
-    r, c, on_map = _sample(accuracy, xy)
+    r, c, on_map = _sample(accuracy, _behind(np.asarray(xy, np.float64), model.patch_lag_m))
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
     held_bound = np.full(len(t), np.inf)
