@@ -3,9 +3,12 @@
 The vehicle follows the waypoints at a constant speed and correlates a patch every ``interval_s``. The prediction is a
 mixture of two states, as a Monte Carlo of the filters shows them:
 
-- Holding the lock: a Gaussian error (per axis variance ``P``). Between updates it grows as the dead reckoning's does:
-  the velocity noise as a random walk (``velocity_noise_mps``) and a free INS's bias terms (Nygren eq. 6.2,
-  ``lost.host.nav.trust.ins_position_sigma``) from the last update. An update whose bound (:mod:`lost.host.plan.accuracy`)
+- Holding the lock: a Gaussian error (per axis variance ``P``). Between updates it grows as the filters' density does:
+  the velocity noise as a random walk (``velocity_noise_mps``), a free INS's bias terms (Nygren eq. 6.2,
+  ``lost.host.nav.trust.ins_position_sigma``) from the last update, and what is not yet known of the velocity bias (its
+  sigma times the time since the fix), the bias learned as the filters learn it (their Kalman filter,
+  ``lost.host.nav.velocity_bias``, on every fix once ``bias_learning_updates`` have come in a row: slowly early in a tow,
+  well after a long informative stretch). An update whose bound (:mod:`lost.host.plan.accuracy`)
   is within ``usable_sigma_m`` fuses as a Gaussian measurement of the share of its patch that is new (the filters
   temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
   error keeps growing. The filters keep
@@ -85,6 +88,9 @@ class RouteModel:
     patch_length_m: float = 100.0
     acquisitions_per_patch: float = 100.0
     patch_lag_m: float = 0.0
+    velocity_bias_sigma_mps: float = 0.0
+    velocity_bias_walk_mps: float = 0.0
+    bias_learning_updates: int = 5
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
@@ -93,15 +99,19 @@ class RouteModel:
         ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m and patch_lag_m)."""
         return cls(**{"initial_sigma_m": params.initial_sigma_m, **motion}, velocity_noise_mps=params.velocity_noise_mps,
                    gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2, usable_sigma_m=params.usable_sigma_nodes * node_m,
-                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m)
+                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m,
+                   **({"velocity_bias_sigma_mps": params.velocity_bias_sigma_mps, "velocity_bias_walk_mps": params.velocity_bias_walk_mps,
+                       "bias_learning_updates": params.bias_learning_updates} if params.estimate_velocity_bias else {}))
 
     def __post_init__(self) -> None:
         for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m", "patch_length_m", "acquisitions_per_patch"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        if not (np.isfinite(self.patch_lag_m) and self.patch_lag_m >= 0):
-            raise ValueError(f"patch_lag_m must be a non-negative number of metres, got {self.patch_lag_m!r}")
+        for name in ("patch_lag_m", "velocity_bias_sigma_mps", "velocity_bias_walk_mps"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
 
 
 def read_route(path: Path) -> np.ndarray:
@@ -175,6 +185,7 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     bound where there is one, growing as the density does between (module docstring); without it, the density's own.
     """
     from ..nav.trust import ins_position_sigma
+    from ..nav.velocity_bias import VelocityBiasFilter
 
     r, c, on_map = _sample(accuracy, _behind(np.asarray(xy, np.float64), model.patch_lag_m))
     bound = np.full(len(t), np.inf)
@@ -199,19 +210,36 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     slipped, slip_ms = 0.0, 0.0
     evidence = np.zeros(len(lookalike.ring_edges_m)) if lookalike is not None else None  # per ring, against its best look-alike
     nearest_m = 0.0  # the nearest look-alike as good as the truth, last seen (none: 0)
+    # the velocity bias as the filters learn it (their own Kalman filter on the density's corrections): its variance alone,
+    # which does not depend on the corrections' values
+    bias = VelocityBiasFilter(model.velocity_bias_sigma_mps, model.velocity_bias_walk_mps) if model.velocity_bias_sigma_mps > 0 else None
+    fixes_in_row, last_learned = 0, float(t[0]) if len(t) else 0.0
     for n, time_s in enumerate(t):
         since = time_s - last_fix
         step = model.interval_s if previous is None else max(time_s - previous, 0.0)
         ins = float(ins_position_sigma(since, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
-        p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2
+        if bias is not None and previous is not None:
+            bias.walk(step)
+        bias_var = float(bias.variance_mps2.max()) if bias is not None else 0.0
+        # without a fix the density widens by the velocity noise (a random walk), the free INS's biases and what is
+        # not known of the velocity bias (its sigma times the time since the fix)
+        p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2 + bias_var * since**2
         drift = 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
         search_ms, slip_ms = search_ms + drift, slip_ms + drift
         if usable[n]:
             new = share if fixed else min(1.0, model.speed_mps * since / model.patch_length_m) if n else 1.0
-            p = max(1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2), model.floor_m**2 / 2)  # horizontal: half an axis
+            posterior = 1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2)
+            p = max(posterior, model.floor_m**2 / 2)  # horizontal: half an axis
             p_fix, last_fix, fixed = p, time_s, True
+            fixes_in_row += 1
+            if bias is not None:
+                if fixes_in_row >= model.bias_learning_updates:  # learned only while the density has been narrow a while
+                    bias.update(np.zeros(2), time_s - last_learned, np.full(2, posterior), new)
+                elif bias.following:
+                    bias.restart()
+                last_learned = time_s
         else:
-            fixed = False
+            fixed, fixes_in_row = False, 0
         if rings is not None and np.isfinite(rings[2][:, n]).any():
             nearest_m = _nearest_lookalike(rings[1][:, n], rings[2][:, n])
         if rings is not None and on_map[n] and np.isnan(rings[0][:, n]).all() and searching > 0.0:

@@ -123,3 +123,29 @@ def test_a_real_time_patch_is_centred_half_its_diagonal_behind_and_its_fixes_lag
     assert behind["usable"][:5].all()  # before it has gone 300 m, the patch lies about its first pings
     with pytest.raises(ValueError, match="patch_lag_m"):
         RouteModel(patch_lag_m=-1.0)
+
+
+def test_without_a_fix_the_density_widens_by_the_velocity_bias_not_yet_learned():
+    from lost.host.nav.trust import ins_position_sigma
+
+    bound = np.full((40, 600), 1.0)
+    bound[:, 20:80] = np.inf  # an early stretch without a fix, and the same stretch late
+    bound[:, 500:560] = np.inf
+    accuracy = Grid(depth_m=bound, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    t = np.arange(0.0, 2900.0)
+    xy = np.column_stack([2.0 * t, np.full(t.size, 200.0)])
+    base = dict(speed_mps=2.0, interval_s=1.0, velocity_noise_mps=0.01, initial_sigma_m=100.0, usable_sigma_m=5.0, floor_m=1.0)
+    never_learned = predict_along(accuracy, t, xy, RouteModel(**base, velocity_bias_sigma_mps=0.05, bias_learning_updates=10**9))
+    blind = ~never_learned["usable"] & (t > 50.0) & (t < 1000.0)
+    since = t[blind] - t[np.flatnonzero(blind)[0] - 1]
+    ins = ins_position_sigma(since, gyro_bias_rps=RouteModel.gyro_bias_rps, accel_bias_mps2=RouteModel.accel_bias_mps2)
+    p_fix = 0.5  # the floor, half an axis of 1 m
+    by_hand = 2.0 * (p_fix + 0.01**2 * since * 1.0 + ins**2 + 0.05**2 * since**2)
+    assert never_learned["predicted_m"][blind] ** 2 == pytest.approx(by_hand, rel=1e-9)
+    learned = predict_along(accuracy, t, xy, RouteModel(**base, velocity_bias_sigma_mps=0.05, velocity_bias_walk_mps=0.0005))
+    none = predict_along(accuracy, t, xy, RouteModel(**base))
+    early, late = (t > 370.0) & (t < 398.0), (t > 2770.0) & (t < 2798.0)  # the end of each stretch
+    end = {name: (route["predicted_m"][early].max(), route["predicted_m"][late].max())
+           for name, route in (("never", never_learned), ("learned", learned), ("none", none))}
+    assert end["never"][0] > 1.8 * end["learned"][0] and end["learned"][0] > 1.4 * end["none"][0]  # learned from a hundred fixes only
+    assert end["none"][1] < end["learned"][1] < 0.85 * end["learned"][0]  # and better learned later
