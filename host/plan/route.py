@@ -86,7 +86,7 @@ class RouteModel:
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
     patch_length_m: float = 100.0
-    acquisitions_per_patch: float = 100.0
+    acquisitions_per_patch: float = 10.0
     patch_lag_m: float = 0.0
     velocity_bias_sigma_mps: float = 0.0
     velocity_bias_walk_mps: float = 0.0
