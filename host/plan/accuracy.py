@@ -138,11 +138,19 @@ def held_grid(grid: Grid, sonar: SonarModel, weight_sigma_m: np.ndarray | float,
     gradient less its weighted mean (the offset taken out). With the weights the errors' own it is :func:`accuracy_grid`'s
     bound; where the filters weigh steep nodes down for the slope they cannot place, the shift rests on the flatter
     nodes and is worse than the bound of the errors alone. Infinity where :func:`accuracy_grid` has no bound.
+
+    Raises
+    ------
+    ValueError
+        Either sigma not a finite, non-negative number of metres at a node with a depth.
     """
     depth = grid.depth_m
     holes = ~np.isfinite(depth)
     weight_sigma = np.broadcast_to(np.asarray(weight_sigma_m, dtype=np.float64), depth.shape)
-    error_var = sonar.noise_m**2 + np.broadcast_to(np.asarray(error_sigma_m, dtype=np.float64), depth.shape) ** 2
+    error_sigma = np.broadcast_to(np.asarray(error_sigma_m, dtype=np.float64), depth.shape)
+    if not np.all(np.isfinite(error_sigma[~holes])) or np.any(error_sigma < 0):
+        raise ValueError("the map's error against the patch must be a finite, non-negative number of metres at every node with a depth")
+    error_var = sonar.noise_m**2 + error_sigma**2
     filled = np.where(holes, np.nanmean(depth) if (~holes).any() else 0.0, depth)
     gy, gx = np.gradient(filled, grid.node_m)
     weight = np.where(holes, 0.0, 1.0 / (sonar.noise_m**2 + weight_sigma**2))

@@ -112,6 +112,8 @@ class RouteModel:
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+        if isinstance(self.bias_learning_updates, bool) or not (isinstance(self.bias_learning_updates, (int, np.integer)) and self.bias_learning_updates >= 1):
+            raise ValueError(f"bias_learning_updates must be a whole number of at least 1, got {self.bias_learning_updates!r}")
 
 
 def read_route(path: Path) -> np.ndarray:
