@@ -19,11 +19,11 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   :func:`lost.host.plan.accuracy.held_grid`), not averaged along the track, since the map's errors and the relief a node
   cannot show are the same on every pass over a place and the patches of one stretch share them. Where there is no fix
   it grows as the density does from the last one.
-
-The map is read where the patch lies: ``patch_lag_m`` behind the vehicle along the track for a real-time patch.
 - Not holding it (probability ``unlocked``): still searching (a mean square distance that starts at the initial
   search's, ``2 initial_sigma_m^2``), or holding a wrong place (a look-alike's distance); both drift with the dead
   reckoning.
+
+The map is read where the patch lies: ``patch_lag_m`` behind the vehicle along the track for a real-time patch.
 
 The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr``, distance and
 the ring's rivals, one per basin of the misfit) move the probability between the states:
