@@ -30,7 +30,7 @@ import numpy as np
 from lost.host.campaign import scenario_with
 from lost.host.grid import Grid
 from lost.host.nav import NavParameters, navigate
-from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, held_sigma, lookalike_grid, map_sigma, predict_along
+from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, held_grid, held_sigma, lookalike_grid, map_sigma, predict_along
 from lost.host.report import ConvergenceRule, convergence_index, horizontal_error
 from lost.host.scenario import builtin_scenario_path, load_scenario, scenario_grid, simulate
 
@@ -97,15 +97,15 @@ def prepare(name: str, seeds: int, workers: int, cache: Path | None = None) -> F
     grid = scenario_grid(scenario)
     params = NavParameters(**scenario.navigation)
     spec = scenario.sensors["sonar"]
-    sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3), binned=spec.mode == "swath")
+    sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3), binned=spec.mode == "swath", realtime=spec.realtime)
     sigma = map_sigma(grid, params.survey_sigma_m)
     t = np.asarray(runs[0]["t_s"])
     model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), speed_mps=scenario.ship.speed_kn * 1852 / 3600,
-                                       interval_s=spec.interval_s, initial_sigma_m=params.initial_sigma_m)
+                                       interval_s=spec.interval_s, initial_sigma_m=params.initial_sigma_m, patch_lag_m=sonar.lag_m(grid.node_m))
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
     sonar_xy = np.asarray(runs[0]["truth"])[np.searchsorted(t, sonar_times)]
     return Floor(name, runs, grid, sonar, sigma, params.lookalike_radius_m, accuracy_grid(grid, sonar, sigma),
-                 accuracy_grid(grid, sonar, held_sigma(grid, sonar, params.survey_sigma_m)), model, sonar_times, sonar_xy)
+                 held_grid(grid, sonar, sigma, held_sigma(grid, sonar, params.survey_sigma_m)), model, sonar_times, sonar_xy)
 
 
 def score(floor: Floor, lookalike: Lookalike, model: RouteModel, segment_s: float = 120.0) -> dict:

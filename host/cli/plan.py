@@ -32,21 +32,21 @@ def _models(args: argparse.Namespace, node_m: float):
         scenario = load_scenario(args.config)
         spec = scenario.sensors["sonar"]
         params = NavParameters(**scenario.navigation)
-        sonar = {"shape": tuple(spec.shape), "noise_m": max(spec.noise, 1e-3), "binned": spec.mode == "swath"}
+        sonar = {"shape": tuple(spec.shape), "noise_m": max(spec.noise, 1e-3), "binned": spec.mode == "swath", "realtime": spec.realtime}
         motion = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": spec.interval_s}
     if args.sonar_noise_m is not None:
         sonar["noise_m"] = args.sonar_noise_m
     if args.speed_mps is not None:
         motion["speed_mps"] = args.speed_mps
     sonar = SonarModel(**sonar)
-    model = RouteModel.from_navigation(params, node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), **motion)
+    model = RouteModel.from_navigation(params, node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), patch_lag_m=sonar.lag_m(node_m), **motion)
     return sonar, model, params.lookalike_radius_m if args.lookalike_radius_m is None else args.lookalike_radius_m
 
 
 def run_plan(args: argparse.Namespace) -> int:
     """The handler of ``lost plan``."""
     from ..io import read_grid
-    from ..plan import accuracy_grid, held_sigma, lookalike_grid, map_sigma, predict_route, read_route
+    from ..plan import accuracy_grid, held_grid, held_sigma, lookalike_grid, map_sigma, predict_route, read_route
     from ..plan.output import lookalike_layers, plan_plots, write_accuracy_netcdf, write_route_csv
     from ..plotting import draw_plots
 
@@ -61,7 +61,7 @@ def run_plan(args: argparse.Namespace) -> int:
         bound_s = time.perf_counter() - start
         lookalike = lookalike_grid(grid, sonar, sigma, radius_m=radius_m)
         layers = lookalike_layers(lookalike)
-        held = None if waypoints is None else accuracy_grid(grid, sonar, held_sigma(grid, sonar, args.map_sigma_m))
+        held = None if waypoints is None else held_grid(grid, sonar, sigma, held_sigma(grid, sonar, args.map_sigma_m))
         route = None if waypoints is None else predict_route(accuracy, waypoints, model, lookalike, held)
         elapsed = (bound_s, time.perf_counter() - start - bound_s)
         write_accuracy_netcdf(folder / "accuracy.nc", accuracy, layers)

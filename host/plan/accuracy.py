@@ -24,18 +24,25 @@ from scipy import ndimage
 
 from ..grid import Grid
 
-__all__ = ["SonarModel", "accuracy_grid", "information", "map_sigma", "survey_sigma", "held_sigma"]
+__all__ = ["SonarModel", "accuracy_grid", "held_grid", "information", "map_sigma", "survey_sigma", "held_sigma"]
 
 
 @dataclass(frozen=True, kw_only=True)
 class SonarModel:
     """What the planner assumes of the sonar: the patch (nodes of the map), its depth noise (1 sigma, metres), and whether
     its patch is a swath binned into the map's cells (``binned``, as ``lost.host.io.sonar`` grids soundings: each node the
-    mean of its cell's soundings) or sampled at points (a simulator's ``gridded`` patch)."""
+    mean of its cell's soundings) or sampled at points (a simulator's ``gridded`` patch); ``realtime``: the patch of an
+    update holds only the pings received by then, centred half its diagonal behind the vehicle (:meth:`lag_m`)."""
 
     shape: tuple[int, int] = (10, 10)
     noise_m: float = 0.5
     binned: bool = True
+    realtime: bool = False
+
+    def lag_m(self, node_m: float) -> float:
+        """How far behind the vehicle its patch is centred, metres: half the patch's diagonal for a real-time patch (the
+        latest earlier position that far back, as ``lost.host.scenario`` and a live survey gather it), else 0."""
+        return float(np.hypot(*self.shape) * node_m / 2.0) if self.realtime else 0.0
 
     def __post_init__(self) -> None:
         if len(self.shape) != 2 or min(self.shape) < 2:
@@ -60,19 +67,24 @@ def held_sigma(grid: Grid, sonar: SonarModel, survey_sigma_m: float | np.ndarray
     allowance: no term for the slope the filters cannot place, which is their density's width, not their error).
 
     A gridded layer's ``sigma_m`` is its soundings' spread in the cell. A patch sampled at points (``sonar.binned`` False)
-    sees that whole spread against the cell's mean; a swath binned into cells (``sonar.binned``) sees only what a plane
-    through the cell does not explain (the mean of a plane's soundings is its centre's depth), with the relief the node
-    cannot show. A map without a layer: the survey's one sigma (:func:`survey_sigma`) and the relief.
+    sees that whole spread against the cell's mean. A swath binned into cells (``sonar.binned``) is the mean of its own
+    soundings of the cell, as the node is of the survey's: the spread (the floor's relief within the cell, each
+    sounding's noise) averages out of both means, and what remains is the survey's error common to a cell's soundings
+    (a line's offset and drift, the refraction of its outer beams), which the layer does not carry: the survey's one
+    sigma stands for it (``survey_sigma_m``, the navigation's), with the relief the node cannot show. A map without a
+    layer: the survey's one sigma (:func:`survey_sigma`) and the relief.
     """
     from ..nav.maperror import node_terms
+    from ..nav.parameters import NavParameters
 
     survey = np.asarray(survey_sigma(grid, survey_sigma_m), np.float64)
-    plane, relief, _ = node_terms(grid.depth_m, grid.node_m)
+    _, relief, _ = node_terms(grid.depth_m, grid.node_m)
     if getattr(grid, "sigma_m", None) is None:
         return np.sqrt(survey**2 + relief)
     if not sonar.binned:
         return np.broadcast_to(survey, grid.shape).copy()
-    return np.sqrt(np.maximum(survey**2 - plane, 0.0) + relief)
+    common = np.asarray(NavParameters().survey_sigma_m if survey_sigma_m is None else survey_sigma_m, np.float64)
+    return np.broadcast_to(np.sqrt(common**2 + relief), grid.shape).copy()
 
 
 def map_sigma(grid: Grid, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray:
@@ -113,6 +125,53 @@ def information(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | float =
     h, wd = shape
     inside[h // 2: depth.shape[0] - (h - 1 - h // 2), wd // 2: depth.shape[1] - (wd - 1 - wd // 2)] = True
     return ixx, ixy, iyy, inside & ~touched
+
+
+def held_grid(grid: Grid, sonar: SonarModel, weight_sigma_m: np.ndarray | float, error_sigma_m: np.ndarray | float) -> Grid:
+    """The 1-sigma horizontal error (metres) of the position one patch centred at each node gives a filter that weighs its
+    nodes by ``weight_sigma_m`` (the map's error as its likelihood takes it, :func:`map_sigma`) where the errors truly
+    have ``error_sigma_m`` (:func:`held_sigma`), both beside the sonar's noise.
+
+    The weighted least-squares fit of the shift and the depth offset with weights ``w_k = 1 / (s^2 + weight_k^2)`` has the
+    covariance ``M^-1 N M^-1`` (the sandwich): ``M`` the information of :func:`information` with those weights and
+    ``N = sum_k w_k^2 v_k c_k c_k^T``, ``v_k = s^2 + error_k^2`` the true variance and ``c_k = g_k - sum w g / sum w`` the
+    gradient less its weighted mean (the offset taken out). With the weights the errors' own it is :func:`accuracy_grid`'s
+    bound; where the filters weigh steep nodes down for the slope they cannot place, the shift rests on the flatter
+    nodes and is worse than the bound of the errors alone. Infinity where :func:`accuracy_grid` has no bound.
+
+    Raises
+    ------
+    ValueError
+        Either sigma not a finite, non-negative number of metres at a node with a depth.
+    """
+    depth = grid.depth_m
+    holes = ~np.isfinite(depth)
+    weight_sigma = np.broadcast_to(np.asarray(weight_sigma_m, dtype=np.float64), depth.shape)
+    error_sigma = np.broadcast_to(np.asarray(error_sigma_m, dtype=np.float64), depth.shape)
+    if not np.all(np.isfinite(error_sigma[~holes])) or np.any(error_sigma < 0):
+        raise ValueError("the map's error against the patch must be a finite, non-negative number of metres at every node with a depth")
+    error_var = sonar.noise_m**2 + error_sigma**2
+    filled = np.where(holes, np.nanmean(depth) if (~holes).any() else 0.0, depth)
+    gy, gx = np.gradient(filled, grid.node_m)
+    weight = np.where(holes, 0.0, 1.0 / (sonar.noise_m**2 + weight_sigma**2))
+    spread = np.where(holes, 0.0, weight**2 * error_var)
+    ixx, ixy, iyy, defined = information(grid, sonar, weight_sigma)
+    shape = sonar.shape
+    with np.errstate(invalid="ignore", divide="ignore"):
+        total = _box(weight, shape)
+        mx, my = _box(weight * gx, shape) / total, _box(weight * gy, shape) / total  # the weighted mean gradient
+        ux, uy, uu = _box(spread * gx, shape), _box(spread * gy, shape), _box(spread, shape)
+        nxx = _box(spread * gx * gx, shape) - 2.0 * mx * ux + mx * mx * uu
+        nyy = _box(spread * gy * gy, shape) - 2.0 * my * uy + my * my * uu
+        nxy = _box(spread * gx * gy, shape) - mx * uy - my * ux + mx * my * uu
+        det = ixx * iyy - ixy * ixy
+        scale = np.maximum(ixx + iyy, 1e-300)
+        ok = defined & np.isfinite(det) & (det > 1e-12 * scale * scale)
+        # M^-1 = [[iyy, -ixy], [-ixy, ixx]] / det: the trace of M^-1 N M^-1 written out
+        trace = ((iyy * iyy + ixy * ixy) * nxx - 2.0 * ixy * (iyy + ixx) * nxy + (ixy * ixy + ixx * ixx) * nyy) / (det * det)
+    held = np.full(grid.shape, np.inf)
+    held[ok] = np.sqrt(np.maximum(trace[ok], 0.0))
+    return Grid(depth_m=held, x0_m=grid.x0_m, y0_m=grid.y0_m, node_m=grid.node_m, crs=grid.crs)
 
 
 def accuracy_grid(grid: Grid, sonar: SonarModel, map_sigma_m: np.ndarray | float = 0.0) -> Grid:

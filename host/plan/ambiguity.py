@@ -43,7 +43,7 @@ RING_NODES = (4.0, 8.0, 16.0, 32.0)
 #: the map's errors are correlated over a patch and the filters learn their misfit level from the data. Fitted to the
 #: point-mass filter's Monte Carlo on the four shipped floors (``benchmarks/plan_fit.py``; held out of the fit, a floor's
 #: share of segments within 1.5x falls: ``docs/campaign.md``).
-EVIDENCE_SCALE = 16.0
+EVIDENCE_SCALE = 32.0
 
 #: The placements within this many nodes (Chebyshev) of the truth are the truth's own peak, not a look-alike.
 EXCLUSION_NODES = 2

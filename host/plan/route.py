@@ -3,21 +3,27 @@
 The vehicle follows the waypoints at a constant speed and correlates a patch every ``interval_s``. The prediction is a
 mixture of two states, as a Monte Carlo of the filters shows them:
 
-- Holding the lock: a Gaussian error (per axis variance ``P``). Between updates it grows as the dead reckoning's does:
-  the velocity noise as a random walk (``velocity_noise_mps``) and a free INS's bias terms (Nygren eq. 6.2,
-  ``lost.host.nav.trust.ins_position_sigma``) from the last update. An update whose bound (:mod:`lost.host.plan.accuracy`)
+- Holding the lock: a Gaussian error (per axis variance ``P``). Between updates it grows as the filters' density does:
+  the velocity noise as a random walk (``velocity_noise_mps``), a free INS's bias terms (Nygren eq. 6.2,
+  ``lost.host.nav.trust.ins_position_sigma``) from the last update, and what is not yet known of the velocity bias (its
+  sigma times the time since the fix), the bias learned as the filters learn it (their Kalman filter,
+  ``lost.host.nav.velocity_bias``, on every fix once ``bias_learning_updates`` have come in a row: slowly early in a tow,
+  well after a long informative stretch). An update whose bound (:mod:`lost.host.plan.accuracy`)
   is within ``usable_sigma_m`` fuses as a Gaussian measurement of the share of its patch that is new (the filters
   temper each patch so: ``1/P += 2 share / bound^2``, the bound being horizontal); a larger bound is no fix and the
   error keeps growing. The filters keep
   their density at least ``floor_m`` wide, so no update takes ``P`` below it. ``P`` is the density's width, which sets
-  the lock's odds against its look-alikes; the error of the position held is another thing (``held``): the bound of one
-  patch with the map's error against the sonar's patch alone (:func:`lost.host.plan.accuracy.held_sigma`: no slope
-  allowance, no density floor), not averaged along the track, since the map's errors and the relief a node cannot show
-  are the same on every pass over a place and the patches of one stretch share them. Where there is no fix it grows as
-  the density does from the last one.
+  the lock's odds against its look-alikes; the error of the position held is another thing (``held``): the error of
+  one patch's fit with the map's error against the sonar's patch alone (:func:`lost.host.plan.accuracy.held_sigma`: no
+  slope allowance, no density floor) weighed as the filters weigh the patch's nodes (their allowance included:
+  :func:`lost.host.plan.accuracy.held_grid`), not averaged along the track, since the map's errors and the relief a node
+  cannot show are the same on every pass over a place and the patches of one stretch share them. Where there is no fix
+  it grows as the density does from the last one.
 - Not holding it (probability ``unlocked``): still searching (a mean square distance that starts at the initial
   search's, ``2 initial_sigma_m^2``), or holding a wrong place (a look-alike's distance); both drift with the dead
   reckoning.
+
+The map is read where the patch lies: ``patch_lag_m`` behind the vehicle along the track for a real-time patch.
 
 The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr``, distance and
 the ring's rivals, one per basin of the misfit) move the probability between the states:
@@ -27,6 +33,10 @@ the ring's rivals, one per basin of the misfit) move the probability between the
   ``Phi(-sqrt(evidence) / 2)`` (:func:`_still_searching`). Rough ground ends it within a patch length, repeated
   terrain never; a hole adds nothing, and a search over a hole narrows (a patch length of such updates) into a wrong
   lock: the filter updates on the patch's valid nodes, where the truth's placement is neutral and the others are not.
+  The wrong place is where the search's density reaches beyond the nearest look-alike as good as the truth (a ring's
+  best with rivals of at least one half, at ``r0``): as a Bayesian filter with a flat likelihood over look-alikes
+  spread evenly beyond ``r0`` would hold it, at a mean square distance ``r0^2 + 2 initial_sigma_m^2``
+  (:func:`_wrong_place_ms`); without such a look-alike, anywhere in the search's density.
 - A lock slips onto a ring's best look-alike with the probability a new patch prefers it against the locked density's
   own odds, ``Phi(-(snr / 2c + d^2 / 2P) / sqrt(snr / c))`` (``c``: the look-alikes' ``evidence_scale``), summed over
   the rings beyond three sigma, per new patch.
@@ -60,7 +70,9 @@ class RouteModel:
     """The motion, dead reckoning and filter assumptions of a route prediction (module docstring).
 
     ``patch_length_m`` is a patch's extent along the track (the share of it new at each update is the filters'
-    tempering); ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the four shipped floors
+    tempering); ``patch_lag_m`` how far behind the vehicle along the track its patch is centred (a real-time patch of
+    the pings received so far: :attr:`lost.host.plan.accuracy.SonarModel.lag_m`), where the map's bound and look-alikes
+    are taken; ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the four shipped floors
     with the look-alikes' ``evidence_scale`` (``benchmarks/plan_fit.py``, which also scores each floor held out of the
     fit; ``docs/campaign.md``).
     """
@@ -74,22 +86,34 @@ class RouteModel:
     usable_sigma_m: float = 10.0
     floor_m: float = 0.0
     patch_length_m: float = 100.0
-    acquisitions_per_patch: float = 100.0
+    acquisitions_per_patch: float = 10.0
+    patch_lag_m: float = 0.0
+    velocity_bias_sigma_mps: float = 0.0
+    velocity_bias_walk_mps: float = 0.0
+    bias_learning_updates: int = 5
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
         """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m`` with a patch of
         ``patch_nodes`` a side: its initial search, dead reckoning's noise and biases, usable threshold and density's floor;
-        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m)."""
+        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m and patch_lag_m)."""
         return cls(**{"initial_sigma_m": params.initial_sigma_m, **motion}, velocity_noise_mps=params.velocity_noise_mps,
                    gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2, usable_sigma_m=params.usable_sigma_nodes * node_m,
-                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m)
+                   floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m,
+                   **({"velocity_bias_sigma_mps": params.velocity_bias_sigma_mps, "velocity_bias_walk_mps": params.velocity_bias_walk_mps,
+                       "bias_learning_updates": params.bias_learning_updates} if params.estimate_velocity_bias else {}))
 
     def __post_init__(self) -> None:
         for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m", "patch_length_m", "acquisitions_per_patch"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
+        for name in ("patch_lag_m", "velocity_bias_sigma_mps", "velocity_bias_walk_mps"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+        if isinstance(self.bias_learning_updates, bool) or not (isinstance(self.bias_learning_updates, (int, np.integer)) and self.bias_learning_updates >= 1):
+            raise ValueError(f"bias_learning_updates must be a whole number of at least 1, got {self.bias_learning_updates!r}")
 
 
 def read_route(path: Path) -> np.ndarray:
@@ -133,6 +157,16 @@ def predict_route(accuracy: Grid, waypoints: np.ndarray, model: RouteModel, look
     return predict_along(accuracy, t, xy, model, lookalike, held)
 
 
+def _behind(xy: np.ndarray, lag_m: float) -> np.ndarray:
+    """The positions ``lag_m`` back along the track from each of ``xy`` (the track's first position where it has not
+    gone that far: a real-time patch then lies about its first pings)."""
+    if lag_m <= 0 or len(xy) < 2:
+        return xy
+    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    back = np.maximum(along - lag_m, 0.0)
+    return np.column_stack([np.interp(back, along, xy[:, 0]), np.interp(back, along, xy[:, 1])])
+
+
 def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The nearest node of each position, and which positions are on the map."""
     row, col = accuracy.row_col(xy[:, 0], xy[:, 1])
@@ -149,12 +183,13 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     Without ``lookalike`` the filter is taken to hold the true position from the start (the bound and the growth
     only); with it, the lock is acquired, lost and regained as the module docstring says, and the result also
     carries ``unlocked`` (the probability of not holding the true position) and ``locked_m`` (the error when holding it).
-    With ``held`` (one patch's bound with the survey's error alone, :func:`lost.host.plan.accuracy.held_sigma`) the error holding the lock is that
+    With ``held`` (one patch's error with the survey's error alone, :func:`lost.host.plan.accuracy.held_grid`) the error holding the lock is that
     bound where there is one, growing as the density does between (module docstring); without it, the density's own.
     """
     from ..nav.trust import ins_position_sigma
+    from ..nav.velocity_bias import VelocityBiasFilter
 
-    r, c, on_map = _sample(accuracy, xy)
+    r, c, on_map = _sample(accuracy, _behind(np.asarray(xy, np.float64), model.patch_lag_m))
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
     held_bound = np.full(len(t), np.inf)
@@ -176,25 +211,46 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     searching, search_ms = (1.0, 2.0 * model.initial_sigma_m**2) if lookalike is not None else (0.0, 0.0)
     slipped, slip_ms = 0.0, 0.0
     evidence = np.zeros(len(lookalike.ring_edges_m)) if lookalike is not None else None  # per ring, against its best look-alike
+    nearest_m = 0.0  # the nearest look-alike as good as the truth, last seen (none: 0)
+    # the velocity bias as the filters learn it (their own Kalman filter on the density's corrections): its variance alone,
+    # which does not depend on the corrections' values
+    bias = VelocityBiasFilter(model.velocity_bias_sigma_mps, model.velocity_bias_walk_mps) if model.velocity_bias_sigma_mps > 0 else None
+    fixes_in_row, last_learned = 0, float(t[0]) if len(t) else 0.0
     for n, time_s in enumerate(t):
         since = time_s - last_fix
         step = model.interval_s if previous is None else max(time_s - previous, 0.0)
         ins = float(ins_position_sigma(since, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
-        p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2
+        if bias is not None and previous is not None:
+            bias.walk(step)
+        bias_var = float(bias.variance_mps2.max()) if bias is not None else 0.0
+        # without a fix the density widens by the velocity noise (a random walk), the free INS's biases and what is
+        # not known of the velocity bias (its sigma times the time since the fix)
+        p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2 + bias_var * since**2
         drift = 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
         search_ms, slip_ms = search_ms + drift, slip_ms + drift
         if usable[n]:
             new = share if fixed else min(1.0, model.speed_mps * since / model.patch_length_m) if n else 1.0
-            p = max(1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2), model.floor_m**2 / 2)  # horizontal: half an axis
+            posterior = 1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2)
+            p = max(posterior, model.floor_m**2 / 2)  # horizontal: half an axis
             p_fix, last_fix, fixed = p, time_s, True
+            fixes_in_row += 1
+            if bias is not None:
+                if fixes_in_row >= model.bias_learning_updates:  # learned only while the density has been narrow a while
+                    bias.update(np.zeros(2), time_s - last_learned, np.full(2, posterior), new)
+                elif bias.following:
+                    bias.restart()
+                last_learned = time_s
         else:
-            fixed = False
+            fixed, fixes_in_row = False, 0
+        if rings is not None and np.isfinite(rings[2][:, n]).any():
+            nearest_m = _nearest_lookalike(rings[1][:, n], rings[2][:, n])
         if rings is not None and on_map[n] and np.isnan(rings[0][:, n]).all() and searching > 0.0:
             # a search over a hole of the map: the filter still updates on the patch's valid nodes, where the truth's
             # placement is neutral and the others are not, and narrows onto a wrong place (a false lock, not a search)
-            # as a patch's length of such updates accumulates
+            # as a patch's length of such updates accumulates; the place is one the search's density reaches beyond the
+            # nearest look-alike as good as the truth (:func:`_wrong_place_ms`)
             narrowed = searching * share
-            slip_ms = (slipped * slip_ms + narrowed * search_ms) / (slipped + narrowed)
+            slip_ms = (slipped * slip_ms + narrowed * _wrong_place_ms(search_ms, nearest_m)) / (slipped + narrowed)
             slipped, searching = slipped + narrowed, searching - narrowed
         if rings is not None:
             evidence += share * np.nan_to_num(rings[0][:, n], nan=0.0, posinf=0.0)  # the filters temper every patch, the first too
@@ -261,6 +317,24 @@ def _still_searching(separation: np.ndarray, rivals: np.ndarray, evidence: np.nd
     best = ndtr(-np.sqrt(separation[ok] / scale) / 2.0)
     count = rivals[ok] / np.maximum(best, 1e-300)
     return float(min(1.0, np.sum(count * ndtr(-np.sqrt(evidence[ok]) / 2.0))))
+
+
+def _nearest_lookalike(distance_m: np.ndarray, rivals: np.ndarray) -> float:
+    """The distance of the nearest ring's best look-alike that is as good as the truth (its ring's rivals at least one
+    half: an indistinguishable placement wins a patch with even odds), metres; 0 where no ring holds one."""
+    alike = np.isfinite(rivals) & (rivals >= 0.5)
+    return float(distance_m[alike][0]) if alike.any() else 0.0
+
+
+def _wrong_place_ms(search_ms: float, nearest_m: float) -> float:
+    """The mean square distance of the wrong place a search narrows onto when the truth's own placement drops out.
+
+    A Bayesian filter with a flat likelihood over the look-alikes keeps the search's density, a Gaussian of
+    ``search_ms / 2`` per axis about the truth, on them; look-alikes spread evenly over the plane from the nearest
+    one's distance ``r0`` outward take it in proportion to that density. The squared distance of a 2D Gaussian is
+    exponential (memoryless), so beyond ``r0`` its mean is ``r0^2 + search_ms``. Without a look-alike as good as the
+    truth (``r0`` 0) the wrong place is anywhere in the search's density: ``search_ms``."""
+    return nearest_m**2 + search_ms
 
 
 def _acquisition(rivals: np.ndarray, lost_ms: float, edges_m: np.ndarray) -> float:

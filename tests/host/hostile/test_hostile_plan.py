@@ -11,7 +11,7 @@ from lost.host.campaign.spec import RunTask
 from lost.host.cli import main
 from lost.host.grid import Grid
 from lost.host.io import write_npz
-from lost.host.plan import SonarModel, lookalike_grid
+from lost.host.plan import RouteModel, SonarModel, held_grid, lookalike_grid
 
 
 def _grid(depth: np.ndarray) -> Grid:
@@ -47,3 +47,27 @@ def test_a_scenario_the_system_does_not_ship_is_a_row_with_its_error():
     (row,) = run_task(RunTask(case="t", scenario="no_such_diver", seed=0, values={}, estimators=("ours",), system="track"))
     assert row["estimator"] is None and "no_such_diver" in row["error"]
 
+
+
+@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf")])
+def test_a_held_error_that_is_no_sigma_is_named(bad):
+    depth = np.random.default_rng(3).normal(size=(20, 20))
+    errors = np.full(depth.shape, 0.3)
+    errors[5, 5] = bad
+    with pytest.raises(ValueError, match="map's error against the patch must be a finite, non-negative"):
+        held_grid(_grid(depth), SonarModel(shape=(4, 4)), 0.5, errors)
+    with pytest.raises(ValueError, match="map's uncertainty must be a finite, non-negative"):
+        held_grid(_grid(depth), SonarModel(shape=(4, 4)), errors, 0.5)
+
+
+@pytest.mark.parametrize("field", ["patch_lag_m", "velocity_bias_sigma_mps", "velocity_bias_walk_mps"])
+@pytest.mark.parametrize("bad", [-1.0, float("nan")])
+def test_a_route_model_of_no_lag_or_bias_is_named(field, bad):
+    with pytest.raises(ValueError, match=f"{field} must be a non-negative number"):
+        RouteModel(**{field: bad})
+
+
+@pytest.mark.parametrize("bad", [0, 2.5, True])
+def test_a_route_model_learning_the_bias_after_no_whole_number_of_fixes_is_named(bad):
+    with pytest.raises(ValueError, match="bias_learning_updates must be a whole number of at least 1"):
+        RouteModel(bias_learning_updates=bad)

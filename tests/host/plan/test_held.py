@@ -9,7 +9,7 @@ from scipy import ndimage
 
 from lost.host.grid import Grid
 from lost.host.nav.maperror import node_variance
-from lost.host.plan import RouteModel, SonarModel, accuracy_grid, held_sigma, predict_along
+from lost.host.plan import RouteModel, SonarModel, accuracy_grid, held_grid, held_sigma, predict_along
 
 
 def _plane_with_layer(spread: float = 0.0) -> Grid:
@@ -22,14 +22,46 @@ def _plane_with_layer(spread: float = 0.0) -> Grid:
     return Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=node, sigma_m=np.sqrt(plane + spread**2))
 
 
-def test_a_binned_swath_sees_the_spread_a_plane_does_not_explain_a_point_sampled_patch_the_whole():
-    grid = _plane_with_layer(spread=0.3)
-    binned = held_sigma(grid, SonarModel(binned=True))
-    points = held_sigma(grid, SonarModel(binned=False))
-    inside = (slice(2, -2), slice(2, -2))  # the plane's second differences are exact away from the edges
-    assert np.allclose(binned[inside], 0.3, atol=1e-9)
-    assert np.allclose(points, grid.sigma_m)
-    assert np.all(points[inside] > 3 * binned[inside])
+def test_a_binned_swath_sees_the_surveys_common_error_a_point_sampled_patch_the_whole_spread():
+    for spread in (0.3, 3.0):  # the spread averages out of the node's mean and the binned patch's alike
+        grid = _plane_with_layer(spread=spread)
+        binned = held_sigma(grid, SonarModel(binned=True), 0.2)
+        points = held_sigma(grid, SonarModel(binned=False), 0.2)
+        inside = (slice(2, -2), slice(2, -2))  # the plane's second differences are exact away from the edges: no relief
+        assert np.allclose(binned[inside], 0.2, atol=1e-9)
+        assert np.allclose(points, grid.sigma_m)
+        assert np.all(points[inside] > 3 * binned[inside])
+
+
+def _sandwich_written_out(grid: Grid, sonar: SonarModel, weight_sigma: np.ndarray, error_sigma: np.ndarray, row: int, col: int) -> float:
+    """The weighted least-squares fit of (shift east, shift north, depth offset) over the patch centred at (row, col), its
+    covariance A^-1 B A^-1 written out with the offset as a third unknown, the trace of its shift block."""
+    h, w = sonar.shape
+    window = (slice(row - h // 2, row - h // 2 + h), slice(col - w // 2, col - w // 2 + w))
+    gy, gx = np.gradient(grid.depth_m, grid.node_m)
+    design = np.column_stack([gx[window].ravel(), gy[window].ravel(), np.ones(h * w)])
+    weight = 1.0 / (sonar.noise_m**2 + weight_sigma[window].ravel() ** 2)
+    variance = sonar.noise_m**2 + error_sigma[window].ravel() ** 2
+    a = design.T @ (weight[:, None] * design)
+    b = design.T @ ((weight**2 * variance)[:, None] * design)
+    inverse = np.linalg.inv(a)
+    return float(np.sqrt(np.trace((inverse @ b @ inverse)[:2, :2])))
+
+
+def test_the_held_bound_of_mismatched_weights_is_the_sandwich_written_out():
+    rng = np.random.default_rng(8)
+    depth = 500.0 + 40.0 * ndimage.gaussian_filter(rng.normal(size=(40, 50)), 2.0)
+    grid = Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    sonar = SonarModel(shape=(6, 8), noise_m=0.3)
+    weights, errors = 0.2 + 2.0 * rng.random(depth.shape), 0.1 + 0.5 * rng.random(depth.shape)
+    held = held_grid(grid, sonar, weights, errors).depth_m
+    for row, col in ((10, 12), (20, 25), (30, 40)):
+        assert held[row, col] == pytest.approx(_sandwich_written_out(grid, sonar, weights, errors, row, col), rel=1e-8)
+    optimal = accuracy_grid(grid, sonar, errors).depth_m  # weights the errors' own: the bound, the least of all weightings
+    ok = np.isfinite(optimal)
+    assert np.array_equal(np.isfinite(held), ok)
+    assert np.allclose(held_grid(grid, sonar, errors, errors).depth_m[ok], optimal[ok], rtol=1e-9)
+    assert np.all(held[ok] >= optimal[ok] * (1 - 1e-9)) and np.median(held[ok] / optimal[ok]) > 1.05
 
 
 def test_a_map_without_a_layer_takes_the_survey_sigma_and_the_relief():
@@ -70,3 +102,50 @@ def test_the_held_bound_on_rough_ground_is_below_the_filters_bound():
     held = accuracy_grid(grid, sonar, held_sigma(grid, sonar, 0.5)).depth_m
     ok = np.isfinite(filters)
     assert ok.any() and np.all(held[ok] <= filters[ok] + 1e-12)
+
+
+def test_a_real_time_patch_is_centred_half_its_diagonal_behind_and_its_fixes_lag_so():
+    assert SonarModel(shape=(8, 8), realtime=True).lag_m(40.0) == pytest.approx(np.hypot(8, 8) * 20.0)
+    assert SonarModel(shape=(8, 8)).lag_m(40.0) == 0.0
+    bound = np.full((40, 300), 1.0)
+    bound[:, 100:150] = np.inf  # no fix from 1000 to 1500 m
+    accuracy = Grid(depth_m=bound, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    t = np.arange(0.0, 1400.0)
+    xy = np.column_stack([2.0 * t, np.full(t.size, 200.0)])
+    model = RouteModel(speed_mps=2.0, interval_s=1.0, initial_sigma_m=100.0, usable_sigma_m=5.0, floor_m=1.0)
+    at_vehicle = predict_along(accuracy, t, xy, model)
+    behind = predict_along(accuracy, t, xy, RouteModel(**{**model.__dict__, "patch_lag_m": 300.0}))
+    def changes(route):  # where the fixes stop and where they resume, metres east
+        return route["east_m"][1:][np.diff(route["usable"].astype(int)) != 0]
+
+    assert changes(at_vehicle) == pytest.approx([995.0, 1495.0], abs=6.0)
+    assert changes(behind) - changes(at_vehicle) == pytest.approx([300.0, 300.0], abs=2.0)
+    assert behind["usable"][:5].all()  # before it has gone 300 m, the patch lies about its first pings
+    with pytest.raises(ValueError, match="patch_lag_m"):
+        RouteModel(patch_lag_m=-1.0)
+
+
+def test_without_a_fix_the_density_widens_by_the_velocity_bias_not_yet_learned():
+    from lost.host.nav.trust import ins_position_sigma
+
+    bound = np.full((40, 600), 1.0)
+    bound[:, 20:80] = np.inf  # an early stretch without a fix, and the same stretch late
+    bound[:, 500:560] = np.inf
+    accuracy = Grid(depth_m=bound, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    t = np.arange(0.0, 2900.0)
+    xy = np.column_stack([2.0 * t, np.full(t.size, 200.0)])
+    base = dict(speed_mps=2.0, interval_s=1.0, velocity_noise_mps=0.01, initial_sigma_m=100.0, usable_sigma_m=5.0, floor_m=1.0)
+    never_learned = predict_along(accuracy, t, xy, RouteModel(**base, velocity_bias_sigma_mps=0.05, bias_learning_updates=10**9))
+    blind = ~never_learned["usable"] & (t > 50.0) & (t < 1000.0)
+    since = t[blind] - t[np.flatnonzero(blind)[0] - 1]
+    ins = ins_position_sigma(since, gyro_bias_rps=RouteModel.gyro_bias_rps, accel_bias_mps2=RouteModel.accel_bias_mps2)
+    p_fix = 0.5  # the floor, half an axis of 1 m
+    by_hand = 2.0 * (p_fix + 0.01**2 * since * 1.0 + ins**2 + 0.05**2 * since**2)
+    assert never_learned["predicted_m"][blind] ** 2 == pytest.approx(by_hand, rel=1e-9)
+    learned = predict_along(accuracy, t, xy, RouteModel(**base, velocity_bias_sigma_mps=0.05, velocity_bias_walk_mps=0.0005))
+    none = predict_along(accuracy, t, xy, RouteModel(**base))
+    early, late = (t > 370.0) & (t < 398.0), (t > 2770.0) & (t < 2798.0)  # the end of each stretch
+    end = {name: (route["predicted_m"][early].max(), route["predicted_m"][late].max())
+           for name, route in (("never", never_learned), ("learned", learned), ("none", none))}
+    assert end["never"][0] > 1.8 * end["learned"][0] and end["learned"][0] > 1.4 * end["none"][0]  # learned from a hundred fixes only
+    assert end["none"][1] < end["learned"][1] < 0.85 * end["learned"][0]  # and better learned later

@@ -136,3 +136,38 @@ def test_a_search_ends_on_rough_ground_and_a_search_over_a_hole_becomes_a_wrong_
     started_in_hole = predict_along(accuracy, t[t < 200.0], np.column_stack([950.0 + 0.3 * t[t < 200.0], np.full((t < 200.0).sum(), 200.0)]),
                                     model, lookalike)
     assert started_in_hole["unlocked"][-1] > 0.99 and started_in_hole["predicted_m"][-1] > 50.0  # no terrain: a search or a wrong lock
+
+
+def test_the_wrong_place_beyond_the_nearest_look_alike_is_the_search_densitys_tail():
+    from lost.host.plan.route import _wrong_place_ms
+
+    # the search's density about the truth, 60 m an axis: its mean square distance beyond 100 m, by sampling
+    offsets = np.random.default_rng(11).normal(scale=60.0, size=(400_000, 2))
+    squared = np.sum(offsets**2, axis=1)
+    assert _wrong_place_ms(2 * 60.0**2, 100.0) == pytest.approx(squared[squared > 100.0**2].mean(), rel=0.02)
+    assert _wrong_place_ms(2 * 60.0**2, 0.0) == pytest.approx(squared.mean(), rel=0.01)
+
+
+def test_a_search_on_a_repeated_tile_narrows_over_a_hole_onto_a_copy_beyond_the_nearest():
+    from lost.host.plan import accuracy_grid
+
+    tile = 20.0 * ndimage.gaussian_filter(np.random.default_rng(5).normal(size=(10, 10)), 1.5, mode="wrap")
+    depth = 500.0 + np.tile(tile, (6, 40))  # a 100 m tile repeated over 600 m x 4 km at 10 m nodes
+    depth[:, 120:250] = np.nan  # a hole of 1.3 km across the route: several patch lengths
+    grid = Grid(depth_m=depth, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    sonar = SonarModel(shape=(8, 8), noise_m=0.3)
+    accuracy, lookalike = accuracy_grid(grid, sonar, 0.1), lookalike_grid(grid, sonar, 0.1, radius_m=150.0, work=3e6)
+    model = RouteModel(speed_mps=1.5, interval_s=2.0, initial_sigma_m=60.0, velocity_noise_mps=1e-6, usable_sigma_m=10.0, floor_m=1.0,
+                       patch_length_m=80.0)
+    t = np.arange(0.0, 1600.0, 2.0)
+    xy = np.column_stack([200.0 + 1.5 * t, np.full(t.size, 300.0)])
+    route = predict_along(accuracy, t, xy, model, lookalike)
+    tiles, hole_end = xy[:, 0] < 1100.0, (xy[:, 0] > 2300.0) & (xy[:, 0] < 2450.0)
+    assert route["unlocked"][tiles].min() > 0.99 and route["predicted_m"][tiles].max() == pytest.approx(np.sqrt(2) * 60.0, rel=0.01)
+    # the copies lie every 100 m (100 and 141 m in the outer ring, its best one of them): the truth's placement gone,
+    # the wrong place is in the search density's tail beyond it
+    last = int(np.flatnonzero(tiles)[-1])
+    nearest = lookalike.distance_m[-1, 30, int(round(xy[last, 0] / 10.0))]
+    assert nearest == pytest.approx(100.0) or nearest == pytest.approx(100.0 * np.sqrt(2))
+    assert route["unlocked"][hole_end].min() > 0.99
+    assert route["predicted_m"][hole_end][-1] == pytest.approx(np.sqrt(nearest**2 + 2 * 60.0**2), rel=0.02)

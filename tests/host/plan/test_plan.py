@@ -136,3 +136,19 @@ def test_the_route_model_takes_the_navigations_search_noise_and_floor():
     assert (model.initial_sigma_m, model.velocity_noise_mps, model.usable_sigma_m, model.patch_length_m, model.speed_mps) == (250.0, 0.1, 50.0, 200.0, 2.0)
     assert model.floor_m == pytest.approx(np.hypot(params.position_floor_nodes * 25.0, params.position_floor_tracking_m))
     assert RouteModel.from_navigation(params, 25.0, initial_sigma_m=40.0).initial_sigma_m == 40.0
+    assert (model.velocity_bias_sigma_mps, model.velocity_bias_walk_mps, model.bias_learning_updates) == (
+        params.velocity_bias_sigma_mps, params.velocity_bias_walk_mps, params.bias_learning_updates)
+    assert RouteModel.from_navigation(NavParameters(estimate_velocity_bias=False), 25.0).velocity_bias_sigma_mps == 0.0
+
+
+def test_lost_plan_takes_a_real_time_patch_and_its_lag_from_a_scenario():
+    import argparse
+
+    from lost.host.cli import plan as plan_cli
+    from lost.host.scenario import builtin_scenario_path
+
+    args = argparse.Namespace(config=builtin_scenario_path("demo"), sonar_noise_m=None, speed_mps=None, lookalike_radius_m=None)
+    sonar, model, _ = plan_cli._models(args, 30.0)
+    assert sonar.realtime and sonar.binned  # demo's swath, gathered ping by ping
+    assert model.patch_lag_m == pytest.approx(np.hypot(10, 10) * 30.0 / 2.0)
+    assert plan_cli._models(argparse.Namespace(config=None, sonar_noise_m=None, speed_mps=None, lookalike_radius_m=None), 30.0)[1].patch_lag_m == 0.0
