@@ -416,10 +416,16 @@ def test_the_point_mass_filter_keeps_its_density_as_wide_as_an_unlearned_bias_ma
     for f in (learning, blind):
         f._patch_age_s = 60.0
     base = blind._floor_var
-    assert base < (0.05 * 60.0) ** 2
-    assert learning._floor_var == pytest.approx((0.05 * 60.0) ** 2)  # the larger of the two, not their sum
+    assert base < (0.05 * 60.0) ** 2 and blind._misplacement_var() == 0.0
+    assert learning._misplacement_var() == pytest.approx((0.05 * 60.0) ** 2)
+    narrow = 0.01 * np.eye(2)
+    learning._keep_floor(narrow)
+    owed = learning._pending_var + learning._pending_axes
+    np.testing.assert_allclose(owed, (0.05 * 60.0) ** 2 - 0.01)  # the larger of the two, not their sum
+    learning._pending_var, learning._pending_axes = 0.0, np.zeros(2)
     learning._patch_age_s = 1.0
-    assert learning._floor_var == base
+    learning._keep_floor(narrow)
+    assert learning._pending_var == pytest.approx(base - 0.01) and not learning._pending_axes.any()
 
 
 def test_each_filter_reports_its_velocity_bias_with_its_sigma():
@@ -452,3 +458,23 @@ def test_a_cloud_resampled_onto_one_particle_reports_the_floors_width_not_a_zero
     assert np.linalg.eigvalsh(cov).min() > 0.5 * floor and np.all(np.diag(cov) < 2.0 * floor)
     assert np.all(np.isfinite(pf.estimate().covariance)) and np.linalg.det(pf.estimate().covariance) > 0
     assert pf.counts["resampled_collapsed"] == 1
+
+
+def test_the_bias_misplacement_floor_widens_only_the_directions_narrower_than_it():
+    """Where a range holds one axis and the terrain hardly the other, an isotropic lift by what is not known of the
+    velocity bias widened the poorly held axis at every update (``shelf_canyon``)."""
+    grid = _map()
+    params = _quiet(estimate_velocity_bias=True, velocity_bias_sigma_mps=0.05, initial_sigma_m=20.0, pmf_min_cell_m=0.5,
+                    position_floor_nodes=0.0, position_floor_m=0.5, position_floor_tracking_m=0.5)
+    pmf = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+    pmf.start(0.0, np.array([400.0, 400.0]), _observation())
+    pmf._patch_age_s = 60.0  # 0.05 m/s of bias not yet known: the patch may lie 3 m from where it was reckoned
+    x, y, _ = pmf.density
+    narrow_east = np.exp(-0.5 * (((x - 400.0) / 1.0) ** 2 + ((y - 400.0) / 10.0) ** 2))  # 1 m east, 10 m north
+    pmf._p_grid = narrow_east / narrow_east.sum()
+    before = pmf.estimate().covariance
+    pmf._keep_floor(before)
+    pmf.predict(Motion(dt_s=1.0, velocity_mps=np.zeros(2)))
+    after = pmf.estimate().covariance
+    assert math.sqrt(after[0, 0]) == pytest.approx(3.0, rel=0.1)  # east lifted to the misplacement
+    assert after[1, 1] == pytest.approx(before[1, 1], rel=0.05)  # north, already wider, left as it was
