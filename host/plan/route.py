@@ -176,6 +176,89 @@ def _sample(accuracy: Grid, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     return r, c, on_map
 
 
+class _Lock:
+    """The state holding the lock: the density's variance per axis (``p``), grown between fixes and narrowed by them, with
+    the velocity bias as the filters learn it (their own Kalman filter on the density's corrections: its variance alone,
+    which does not depend on the corrections' values)."""
+
+    def __init__(self, model: RouteModel, t0: float, share: float) -> None:
+        from ..nav.velocity_bias import VelocityBiasFilter
+
+        self._model, self._share = model, share
+        self.p_fix, self.last_fix, self.fixed = model.initial_sigma_m**2 / 2, t0, False
+        self._bias = VelocityBiasFilter(model.velocity_bias_sigma_mps, model.velocity_bias_walk_mps) if model.velocity_bias_sigma_mps > 0 else None
+        self._fixes_in_row, self._last_learned = 0, t0
+
+    def advance(self, time_s: float, step: float, first: bool, usable: bool, bound: float) -> float:
+        """The density's variance per axis at ``time_s``: grown since the last fix, and a fix there if ``usable``."""
+        from ..nav.trust import ins_position_sigma
+
+        model, bias = self._model, self._bias
+        since = time_s - self.last_fix
+        ins = float(ins_position_sigma(since, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
+        if bias is not None and not first:
+            bias.walk(step)
+        bias_var = float(bias.variance_mps2.max()) if bias is not None else 0.0
+        # without a fix the density widens by the velocity noise (a random walk), the free INS's biases and what is
+        # not known of the velocity bias (its sigma times the time since the fix)
+        p = self.p_fix + model.velocity_noise_mps**2 * since * step + ins**2 + bias_var * since**2
+        if not usable:
+            self.fixed, self._fixes_in_row = False, 0
+            return p
+        new = self._share if self.fixed else 1.0 if first else min(1.0, model.speed_mps * since / model.patch_length_m)
+        posterior = 1.0 / (1.0 / p + 2.0 * new / bound**2)
+        p = max(posterior, model.floor_m**2 / 2)  # horizontal: half an axis
+        self.p_fix, self.last_fix, self.fixed = p, time_s, True
+        self._fixes_in_row += 1
+        if bias is not None:
+            if self._fixes_in_row >= model.bias_learning_updates:  # learned only while the density has been narrow a while
+                bias.update(np.zeros(2), time_s - self._last_learned, np.full(2, posterior), new)
+            elif bias.following:
+                bias.restart()
+            self._last_learned = time_s
+        return p
+
+
+class _Unlocked:
+    """The states not holding the lock: still searching, or slipped onto a wrong place; their probabilities and mean
+    square errors, moved by the look-alikes (module docstring)."""
+
+    def __init__(self, model: RouteModel, lookalike: Lookalike, share: float) -> None:
+        self._model, self._lookalike, self._share = model, lookalike, share
+        self.searching, self.search_ms = 1.0, 2.0 * model.initial_sigma_m**2
+        self.slipped, self.slip_ms = 0.0, 0.0
+        self._evidence = np.zeros(len(lookalike.ring_edges_m))  # per ring, against its best look-alike
+        self._nearest_m = 0.0  # the nearest look-alike as good as the truth, last seen (none: 0)
+
+    def advance(self, step: float, p: float, usable: bool, on_map: bool, snr: np.ndarray, distance_m: np.ndarray,
+                rivals: np.ndarray) -> tuple[float, float]:
+        """One update with the held density's variance ``p`` and the rings' look-alikes there: the probability of not
+        holding the truth and the mean square error then."""
+        model, lookalike, share = self._model, self._lookalike, self._share
+        drift = 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
+        self.search_ms, self.slip_ms = self.search_ms + drift, self.slip_ms + drift
+        if np.isfinite(rivals).any():
+            self._nearest_m = _nearest_lookalike(distance_m, rivals)
+        if on_map and np.isnan(snr).all() and self.searching > 0.0:
+            # a search over a hole of the map: the filter still updates on the patch's valid nodes, where the truth's
+            # placement is neutral and the others are not, and narrows onto a wrong place (a false lock, not a search)
+            # as a patch's length of such updates accumulates; the place is one the search's density reaches beyond the
+            # nearest look-alike as good as the truth (:func:`_wrong_place_ms`)
+            narrowed = self.searching * share
+            self.slip_ms = (self.slipped * self.slip_ms + narrowed * _wrong_place_ms(self.search_ms, self._nearest_m)) / (self.slipped + narrowed)
+            self.slipped, self.searching = self.slipped + narrowed, self.searching - narrowed
+        self._evidence += share * np.nan_to_num(snr, nan=0.0, posinf=0.0)  # the filters temper every patch, the first too
+        self.searching = min(self.searching, _still_searching(snr, rivals, self._evidence, lookalike.evidence_scale))
+        lose, lose_ms = _loss(snr, distance_m, p, lookalike.evidence_scale)
+        gain = _acquisition(rivals, self.slip_ms, lookalike.ring_edges_m) if usable else 0.0
+        stay = self.slipped * (1.0 - min(1.0, share * model.acquisitions_per_patch) * gain)
+        fresh = max(1.0 - self.searching - self.slipped, 0.0) * share * lose
+        self.slip_ms = (stay * self.slip_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
+        self.slipped = min(stay + fresh, 1.0 - self.searching)
+        lost = self.searching + self.slipped
+        return lost, (self.searching * self.search_ms + self.slipped * self.slip_ms) / max(lost, 1e-300)
+
+
 def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None,
                   held: Grid | None = None) -> dict[str, np.ndarray]:
     """The predicted 1-sigma horizontal error at updates at times ``t`` and positions ``xy`` (a track already known).
@@ -186,9 +269,6 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     With ``held`` (one patch's error with the survey's error alone, :func:`lost.host.plan.accuracy.held_grid`) the error holding the lock is that
     bound where there is one, growing as the density does between (module docstring); without it, the density's own.
     """
-    from ..nav.trust import ins_position_sigma
-    from ..nav.velocity_bias import VelocityBiasFilter
-
     r, c, on_map = _sample(accuracy, _behind(np.asarray(xy, np.float64), model.patch_lag_m))
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
@@ -202,69 +282,19 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
         for along, grid in zip(rings, (lookalike.snr, lookalike.distance_m, lookalike.rivals)):
             along[:, on_map] = grid[:, r[on_map], c[on_map]]
     share = min(1.0, model.speed_mps * model.interval_s / model.patch_length_m)  # of a patch new at each update (tempering)
-    variance = np.empty(len(t))  # per axis, holding the lock: the density's
     held_ms = np.empty(len(t))  # horizontal mean square error holding the lock
     error_ms, grown_from = np.inf, 0.0
     unlocked = np.zeros(len(t))
     unlocked_ms = np.zeros(len(t))  # horizontal mean square error while not holding it
-    p_fix, last_fix, previous, fixed = model.initial_sigma_m**2 / 2, float(t[0]) if len(t) else 0.0, None, False
-    searching, search_ms = (1.0, 2.0 * model.initial_sigma_m**2) if lookalike is not None else (0.0, 0.0)
-    slipped, slip_ms = 0.0, 0.0
-    evidence = np.zeros(len(lookalike.ring_edges_m)) if lookalike is not None else None  # per ring, against its best look-alike
-    nearest_m = 0.0  # the nearest look-alike as good as the truth, last seen (none: 0)
-    # the velocity bias as the filters learn it (their own Kalman filter on the density's corrections): its variance alone,
-    # which does not depend on the corrections' values
-    bias = VelocityBiasFilter(model.velocity_bias_sigma_mps, model.velocity_bias_walk_mps) if model.velocity_bias_sigma_mps > 0 else None
-    fixes_in_row, last_learned = 0, float(t[0]) if len(t) else 0.0
+    lock = _Lock(model, float(t[0]) if len(t) else 0.0, share)
+    lost = _Unlocked(model, lookalike, share) if lookalike is not None else None
+    previous = None
     for n, time_s in enumerate(t):
-        since = time_s - last_fix
         step = model.interval_s if previous is None else max(time_s - previous, 0.0)
-        ins = float(ins_position_sigma(since, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
-        if bias is not None and previous is not None:
-            bias.walk(step)
-        bias_var = float(bias.variance_mps2.max()) if bias is not None else 0.0
-        # without a fix the density widens by the velocity noise (a random walk), the free INS's biases and what is
-        # not known of the velocity bias (its sigma times the time since the fix)
-        p = p_fix + model.velocity_noise_mps**2 * since * step + ins**2 + bias_var * since**2
-        drift = 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
-        search_ms, slip_ms = search_ms + drift, slip_ms + drift
-        if usable[n]:
-            new = share if fixed else min(1.0, model.speed_mps * since / model.patch_length_m) if n else 1.0
-            posterior = 1.0 / (1.0 / p + 2.0 * new / bound[n] ** 2)
-            p = max(posterior, model.floor_m**2 / 2)  # horizontal: half an axis
-            p_fix, last_fix, fixed = p, time_s, True
-            fixes_in_row += 1
-            if bias is not None:
-                if fixes_in_row >= model.bias_learning_updates:  # learned only while the density has been narrow a while
-                    bias.update(np.zeros(2), time_s - last_learned, np.full(2, posterior), new)
-                elif bias.following:
-                    bias.restart()
-                last_learned = time_s
-        else:
-            fixed, fixes_in_row = False, 0
-        if rings is not None and np.isfinite(rings[2][:, n]).any():
-            nearest_m = _nearest_lookalike(rings[1][:, n], rings[2][:, n])
-        if rings is not None and on_map[n] and np.isnan(rings[0][:, n]).all() and searching > 0.0:
-            # a search over a hole of the map: the filter still updates on the patch's valid nodes, where the truth's
-            # placement is neutral and the others are not, and narrows onto a wrong place (a false lock, not a search)
-            # as a patch's length of such updates accumulates; the place is one the search's density reaches beyond the
-            # nearest look-alike as good as the truth (:func:`_wrong_place_ms`)
-            narrowed = searching * share
-            slip_ms = (slipped * slip_ms + narrowed * _wrong_place_ms(search_ms, nearest_m)) / (slipped + narrowed)
-            slipped, searching = slipped + narrowed, searching - narrowed
-        if rings is not None:
-            evidence += share * np.nan_to_num(rings[0][:, n], nan=0.0, posinf=0.0)  # the filters temper every patch, the first too
-            searching = min(searching, _still_searching(rings[0][:, n], rings[2][:, n], evidence, lookalike.evidence_scale))
-            lose, lose_ms = _loss(rings[0][:, n], rings[1][:, n], p, lookalike.evidence_scale)
-            gain = _acquisition(rings[2][:, n], slip_ms, lookalike.ring_edges_m) if usable[n] else 0.0
-            stay = slipped * (1.0 - min(1.0, share * model.acquisitions_per_patch) * gain)
-            fresh = max(1.0 - searching - slipped, 0.0) * share * lose
-            slip_ms = (stay * slip_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
-            slipped = min(stay + fresh, 1.0 - searching)
-            lost = searching + slipped
-            unlocked_ms[n] = (searching * search_ms + slipped * slip_ms) / max(lost, 1e-300)
-            unlocked[n] = lost
-        variance[n], previous = p, time_s
+        p = lock.advance(time_s, step, previous is None, bool(usable[n]), bound[n])
+        if lost is not None:
+            unlocked[n], unlocked_ms[n] = lost.advance(step, p, bool(usable[n]), bool(on_map[n]), *(ring[:, n] for ring in rings))
+        previous = time_s
         if usable[n] and np.isfinite(held_bound[n]):
             error_ms, grown_from = held_bound[n] ** 2, 2.0 * p
         # two bounds on the error held, each from above: the density's width and one patch's bound grown since; the lower
