@@ -13,4 +13,4 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     """Add ``lost demo``."""
     demo = commands.add_parser("demo", parents=parents, help="run the built-in scenario into runs/demo")
     navigation_options(demo, "runs/demo, replaced at each run")
-    demo.set_defaults(handler=run_demo)
+    demo.set_defaults(handler=run_demo, no_plots=False)  # the demo draws its figures

@@ -169,7 +169,7 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
         if usbl.enabled and params.reference_depth_m != usbl.transducer_depth_m:
             warnings.append(f"[navigation] reference_depth_m ({params.reference_depth_m:g} m) is not the USBL transducer's depth "
                             f"([sensors.usbl] transducer_depth_m = {usbl.transducer_depth_m:g} m): the rays start at the wrong depth")
-        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=scenario.name, out=folder, warnings=warnings,
+        summary = _navigate(records, grid, params, plots=not args.no_plots, name=scenario.name, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), profile=profile, profile_source=source)
     _print_summary(summary, out)
     return 0
@@ -226,7 +226,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                       patch_shape=args.patch_shape, patch_centre=args.patch_centre)
         print(report.summary())
         warnings += [*report.warnings, *check_against_map(records, grid)]
-        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=Path(args.log).stem, out=folder, warnings=warnings,
+        summary = _navigate(records, grid, params, plots=not args.no_plots, name=Path(args.log).stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), profile=profile, profile_source=None if args.svp is None else str(args.svp),
                             extra=extra)
     _print_summary(summary, out)
@@ -276,7 +276,7 @@ def _run_survey(args: argparse.Namespace) -> int:
         chosen = f"of the last {recorder.window_s:g} s of pings" if recorder.patch_rule == "window" else f"behind, of pings up to {recorder.window_s:g} s back"
         print(f"{names}: {len(records)} records of {interval:g} s, patches {chosen}"
               + "".join(f"\n  skipped: {n} {reason}" for reason, n in skipped.items()))
-        summary = _navigate(records, grid, params, plots=not getattr(args, "no_plots", False), name=files[0].stem, out=folder, warnings=warnings,
+        summary = _navigate(records, grid, params, plots=not args.no_plots, name=files[0].stem, out=folder, warnings=warnings,
                             estimators=_estimators(args.estimator), extra=extra)
     _print_summary(summary, out)
     return 0

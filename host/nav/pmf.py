@@ -60,7 +60,7 @@ from ..grid import Grid
 from .bayes import BayesFilter
 from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
-from .trust import largest_sigma
+from .trust import eigenvalues_2x2, largest_sigma
 from .velocity_bias import VelocityBiasFilter
 
 __all__ = ["PointMassFilter", "PMF_CELLS_PER_NODE"]
@@ -257,12 +257,16 @@ class PointMassFilter(BayesFilter):
         """
         if not np.all(np.isfinite(covariance)):
             return
-        values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
-        shared = max(self._floor_var - float(values[0]), 0.0)
+        narrow, wide = eigenvalues_2x2(covariance)
+        shared = max(self._floor_var - narrow, 0.0)
         self._pending_var += shared
-        bias_missing = np.maximum(self._misplacement_var() - (values + shared), 0.0)
-        if bias_missing.any():
-            self._pending_axes += (vectors**2) @ bias_missing  # each direction's shortfall, read on the grid's axes
+        short_narrow, short_wide = (max(self._misplacement_var() - (value + shared), 0.0) for value in (narrow, wide))
+        if short_narrow > 0.0:
+            # Each direction's shortfall read on the grid's axes: the narrow eigenvector's squared components are
+            # (wide - sxx, wide - syy) / (wide - narrow), the wide one's the rest (closed form: eigh costs 30 us a call).
+            gap = wide - narrow
+            on_narrow = np.clip([(wide - covariance[0, 0]) / gap, (wide - covariance[1, 1]) / gap], 0.0, 1.0) if gap > 1e-12 * wide else np.full(2, 0.5)
+            self._pending_axes += short_narrow * on_narrow + short_wide * (1.0 - on_narrow)
 
     def _misplacement_var(self) -> float:
         """Where the last patch may truly lie given what is not yet known of the velocity bias, m**2: 0.05 m/s over a

@@ -51,14 +51,19 @@ class SonarModel:
             raise ValueError(f"the sonar's noise must be a positive number of metres, got {self.noise_m!r}")
 
 
+def _survey_sigma_given(survey_sigma_m: float | np.ndarray | None) -> float | np.ndarray:
+    """``survey_sigma_m``, or the navigation's default (``NavParameters.survey_sigma_m``) when None."""
+    from ..nav.parameters import NavParameters
+
+    return NavParameters().survey_sigma_m if survey_sigma_m is None else survey_sigma_m
+
+
 def survey_sigma(grid: Grid, survey_sigma_m: float | np.ndarray | None = None) -> np.ndarray | float:
     """The survey's 1-sigma error at every node: the grid's ``sigma_m`` when it carries one (its holes the median of the
     rest), else ``survey_sigma_m``, else NavParameters' default."""
-    from ..nav.parameters import NavParameters
-
     survey = getattr(grid, "sigma_m", None)
     if survey is None:
-        return NavParameters().survey_sigma_m if survey_sigma_m is None else survey_sigma_m
+        return _survey_sigma_given(survey_sigma_m)
     return np.where(np.isfinite(survey), survey, np.nanmedian(survey) if np.isfinite(survey).any() else 0.0)
 
 
@@ -75,7 +80,6 @@ def held_sigma(grid: Grid, sonar: SonarModel, survey_sigma_m: float | np.ndarray
     layer: the survey's one sigma (:func:`survey_sigma`) and the relief.
     """
     from ..nav.maperror import node_terms
-    from ..nav.parameters import NavParameters
 
     survey = np.asarray(survey_sigma(grid, survey_sigma_m), np.float64)
     _, relief, _ = node_terms(grid.depth_m, grid.node_m)
@@ -83,7 +87,7 @@ def held_sigma(grid: Grid, sonar: SonarModel, survey_sigma_m: float | np.ndarray
         return np.sqrt(survey**2 + relief)
     if not sonar.binned:
         return np.broadcast_to(survey, grid.shape).copy()
-    common = np.asarray(NavParameters().survey_sigma_m if survey_sigma_m is None else survey_sigma_m, np.float64)
+    common = np.asarray(_survey_sigma_given(survey_sigma_m), np.float64)
     return np.broadcast_to(np.sqrt(common**2 + relief), grid.shape).copy()
 
 
