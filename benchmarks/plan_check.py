@@ -6,7 +6,8 @@ python benchmarks/plan_check.py [--seeds 10] [--segment-s 120] [--scenarios shor
 For each scenario the floor and the map are fixed (the scenario's own seed draws them) and the sensors change with
 the seed: the question is how well the navigation does on *this* map along *this* route. The planner sees only the
 map (`lost plan`'s model: the bound of one correlation with the map's own error per node, the look-alikes, the lock
-acquired, lost and regained, the dead reckoning's growth, the filters' floor) and the true track. The whole track is
+acquired, lost and regained, the dead reckoning's growth, the filters' floor), the scenario's sensors, the true track
+and the start's error (the first record's of that track's seed: the lay-back model's). The whole track is
 cut into segments of ``segment_s``; per segment, the Monte Carlo RMS (all seeds, all records of the segment) against
 the RMS of the predicted errors. Prints per scenario the share of segments within a factor 1.5 (the goal: >= 80 %),
 also of those after the seeds' median convergence, the median ratio, and steep features against smooth shelves (the
@@ -28,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from lost.host.campaign import scenario_with
+from lost.host.cli.plan import scenario_motion
 from lost.host.grid import Grid
 from lost.host.nav import NavParameters, navigate
 from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, held_grid, held_sigma, lookalike_grid, map_sigma, predict_along
@@ -100,8 +102,8 @@ def prepare(name: str, seeds: int, workers: int, cache: Path | None = None) -> F
     sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3), binned=spec.mode == "swath", realtime=spec.realtime)
     sigma = map_sigma(grid, params.survey_sigma_m)
     t = np.asarray(runs[0]["t_s"])
-    model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), speed_mps=scenario.ship.speed_kn * 1852 / 3600,
-                                       interval_s=spec.interval_s, initial_sigma_m=params.initial_sigma_m, patch_lag_m=sonar.lag_m(grid.node_m))
+    model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), patch_lag_m=sonar.lag_m(grid.node_m),
+                                       initial_error_m=float(runs[0]["error"][0]), **scenario_motion(scenario))
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
     sonar_xy = np.asarray(runs[0]["truth"])[np.searchsorted(t, sonar_times)]
     return Floor(name, runs, grid, sonar, sigma, params.lookalike_radius_m, accuracy_grid(grid, sonar, sigma),

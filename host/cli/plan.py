@@ -17,7 +17,19 @@ import numpy as np
 from ..runfolder import run_folder, write_summary
 from .common import output_options, positive_metres, warnings_collected
 
-__all__ = ["register", "run_plan"]
+__all__ = ["register", "run_plan", "scenario_motion"]
+
+
+def scenario_motion(scenario) -> dict:
+    """What a scenario tells the route model beside its navigation: the ship's speed, the sonar's interval, and the
+    velocity sensor's own noise and bias where the vehicle carries one (else the ship's velocity, whose errors are
+    the tow's, not a sensor's)."""
+    motion = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": scenario.sensors["sonar"].interval_s}
+    velocity = scenario.sensors.get("velocity")
+    if scenario.vehicle.has_velocity_sensor and velocity is not None:
+        bias = np.broadcast_to(np.asarray(velocity.bias, dtype=np.float64), (2,))
+        motion.update(sensor_velocity_noise_mps=float(velocity.noise), sensor_velocity_bias_mps=(float(bias[0]), float(bias[1])))
+    return motion
 
 
 def _models(args: argparse.Namespace, node_m: float):
@@ -33,11 +45,13 @@ def _models(args: argparse.Namespace, node_m: float):
         spec = scenario.sensors["sonar"]
         params = NavParameters(**scenario.navigation)
         sonar = {"shape": tuple(spec.shape), "noise_m": max(spec.noise, 1e-3), "binned": spec.mode == "swath", "realtime": spec.realtime}
-        motion = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": spec.interval_s}
+        motion = scenario_motion(scenario)
     if args.sonar_noise_m is not None:
         sonar["noise_m"] = args.sonar_noise_m
     if args.speed_mps is not None:
         motion["speed_mps"] = args.speed_mps
+    if args.initial_error_m is not None:
+        motion["initial_error_m"] = args.initial_error_m
     sonar = SonarModel(**sonar)
     model = RouteModel.from_navigation(params, node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), patch_lag_m=sonar.lag_m(node_m), **motion)
     return sonar, model, params.lookalike_radius_m if args.lookalike_radius_m is None else args.lookalike_radius_m
@@ -129,6 +143,9 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
                      help="the map's survey noise, 1 sigma, metres, when the grid carries no uncertainty layer (default 0.5); the slope and "
                           "relief a node cannot show are added from the map itself, as the filters do")
     sub.add_argument("--sonar-noise-m", type=positive_metres, default=None, help="the sonar's 1-sigma depth noise, metres (default 0.5, or the scenario's)")
+    sub.add_argument("--initial-error-m", type=positive_metres, default=None,
+                     help="the start's expected horizontal error, metres (a lay-back model's): what the estimate shows while the filters search "
+                          "(default: their prior, initial_sigma_m each axis)")
     sub.add_argument("--speed-mps", type=positive_metres, default=None, help="speed along the route, m/s (default 1.5, or the scenario ship's)")
     sub.add_argument("--lookalike-radius-m", type=positive_metres, default=None,
                      help="how far from each node look-alikes are searched, metres (default the navigation's lookalike_radius_m, 600)")

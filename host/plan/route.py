@@ -18,12 +18,16 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   slope allowance, no density floor) weighed as the filters weigh the patch's nodes (their allowance included:
   :func:`lost.host.plan.accuracy.held_grid`), not averaged along the track, since the map's errors and the relief a node
   cannot show are the same on every pass over a place and the patches of one stretch share them. Where there is no fix
-  it grows as the density does from the last one.
-- Not holding it (probability ``unlocked``): still searching (a mean square distance that starts at the initial
-  search's, ``2 initial_sigma_m^2``), or holding a wrong place (a look-alike's distance); both drift with the dead
-  reckoning.
+  it grows from the last one by the velocity sensor's own noise and the part of its bias the filters have not learned
+  where those are known (``sensor_velocity_noise_mps``, ``sensor_velocity_bias_mps``: :meth:`_Lock.held_growth_ms`),
+  else as the density does.
+- Not holding it (probability ``unlocked``): still searching (the error shown is the start's, ``initial_error_m``, or
+  the initial search's ``2 initial_sigma_m^2`` where the start is not given), or holding a wrong place (a look-alike's
+  distance); both drift with the dead reckoning.
 
-The map is read where the patch lies: ``patch_lag_m`` behind the vehicle along the track for a real-time patch.
+The map is read where the patch lies: ``patch_lag_m`` behind the vehicle along the track for a real-time patch, which
+also fills over its first patch length (the pings received since the start): its bound is wider and its separations
+from the look-alikes smaller by the share of it sounded.
 
 The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr``, distance and
 the ring's rivals, one per basin of the misfit) move the probability between the states:
@@ -75,6 +79,13 @@ class RouteModel:
     are taken; ``acquisitions_per_patch`` is fitted to the Monte Carlo of the point-mass filter on the four shipped floors
     with the look-alikes' ``evidence_scale`` (``benchmarks/plan_fit.py``, which also scores each floor held out of the
     fit; ``docs/campaign.md``).
+
+    ``sensor_velocity_noise_mps`` and ``sensor_velocity_bias_mps`` (east, north) are the velocity sensor's own errors (a
+    scenario's, a datasheet's), where they are known: the error held then grows between fixes by those and the part of
+    the bias the filters have not learned, while the density (the look-alikes' odds) grows by the filters' assumptions.
+    Unknown (None), the filters' assumptions are taken as the truth. ``initial_error_m`` is the start's expected horizontal
+    error (a lay-back model's, a fix's), which the estimate shows while the filters search (held within dead reckoning's
+    reach); None: the filters' prior (``initial_sigma_m`` each axis).
     """
 
     speed_mps: float = 1.5
@@ -91,12 +102,15 @@ class RouteModel:
     velocity_bias_sigma_mps: float = 0.0
     velocity_bias_walk_mps: float = 0.0
     bias_learning_updates: int = 5
+    sensor_velocity_noise_mps: float | None = None
+    sensor_velocity_bias_mps: tuple[float, float] | None = None
+    initial_error_m: float | None = None
 
     @classmethod
     def from_navigation(cls, params: Any, node_m: float, patch_nodes: float = 10.0, **motion: float) -> RouteModel:
         """The model the navigation's parameters (``NavParameters``) imply on a map of ``node_m`` with a patch of
         ``patch_nodes`` a side: its initial search, dead reckoning's noise and biases, usable threshold and density's floor;
-        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m and patch_lag_m)."""
+        ``motion`` sets speed_mps and interval_s (and may set initial_sigma_m, patch_lag_m, initial_error_m and the velocity sensor's errors)."""
         return cls(**{"initial_sigma_m": params.initial_sigma_m, **motion}, velocity_noise_mps=params.velocity_noise_mps,
                    gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2, usable_sigma_m=params.usable_sigma_nodes * node_m,
                    floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m,
@@ -108,10 +122,14 @@ class RouteModel:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        for name in ("patch_lag_m", "velocity_bias_sigma_mps", "velocity_bias_walk_mps"):
+        for name in ("patch_lag_m", "velocity_bias_sigma_mps", "velocity_bias_walk_mps", "sensor_velocity_noise_mps", "initial_error_m"):
             value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
+            if value is not None and not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+        if self.sensor_velocity_bias_mps is not None:
+            bias = np.asarray(self.sensor_velocity_bias_mps, dtype=np.float64)
+            if bias.shape != (2,) or not np.isfinite(bias).all():
+                raise ValueError(f"sensor_velocity_bias_mps must be two finite numbers (east, north), got {self.sensor_velocity_bias_mps!r}")
         if isinstance(self.bias_learning_updates, bool) or not (isinstance(self.bias_learning_updates, (int, np.integer)) and self.bias_learning_updates >= 1):
             raise ValueError(f"bias_learning_updates must be a whole number of at least 1, got {self.bias_learning_updates!r}")
 
@@ -219,6 +237,33 @@ class _Lock:
         return p
 
 
+    def held_growth_ms(self, since_s: float, step: float) -> float | None:
+        """How far the error held has grown (horizontal mean square, m^2) ``since_s`` after its fix, by the velocity
+        sensor's own errors (None where the model does not know them: the density's growth stands for it).
+
+        Per axis, a Kalman filter that started at zero with the prior ``P0`` and holds the variance ``P`` has shrunk a true
+        bias ``b`` by ``k = P / P0``: what is left has the mean square ``k^2 b^2 + P (1 - k)`` (``P`` where ``b^2`` is
+        ``P0``: the filter consistent). A filter without the bias state leaves all of it."""
+        from ..nav.trust import ins_position_sigma
+
+        model = self._model
+        if model.sensor_velocity_noise_mps is None and model.sensor_velocity_bias_mps is None:
+            return None
+        noise = model.velocity_noise_mps if model.sensor_velocity_noise_mps is None else model.sensor_velocity_noise_mps
+        ins = float(ins_position_sigma(since_s, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
+        true_bias_ms = None if model.sensor_velocity_bias_mps is None else np.square(np.asarray(model.sensor_velocity_bias_mps, dtype=np.float64))
+        if self._bias is None:
+            left = np.zeros(2) if true_bias_ms is None else true_bias_ms
+        else:
+            variance = self._bias.variance_mps2
+            if true_bias_ms is None:
+                left = variance
+            else:
+                shrunk = np.minimum(variance / model.velocity_bias_sigma_mps**2, 1.0)
+                left = shrunk**2 * true_bias_ms + variance * (1.0 - shrunk)
+        return 2.0 * (noise**2 * since_s * step + ins**2) + float(np.sum(left)) * since_s**2
+
+
 class _Unlocked:
     """The states not holding the lock: still searching, or slipped onto a wrong place; their probabilities and mean
     square errors, moved by the look-alikes (module docstring)."""
@@ -226,6 +271,8 @@ class _Unlocked:
     def __init__(self, model: RouteModel, lookalike: Lookalike, share: float) -> None:
         self._model, self._lookalike, self._share = model, lookalike, share
         self.searching, self.search_ms = 1.0, 2.0 * model.initial_sigma_m**2
+        # what a user sees while the search goes on: the start held (dead reckoning's), not the search's density
+        self.shown_ms = self.search_ms if model.initial_error_m is None else model.initial_error_m**2
         self.slipped, self.slip_ms = 0.0, 0.0
         self._evidence = np.zeros(len(lookalike.ring_edges_m))  # per ring, against its best look-alike
         self._nearest_m = 0.0  # the nearest look-alike as good as the truth, last seen (none: 0)
@@ -236,7 +283,7 @@ class _Unlocked:
         holding the truth and the mean square error then."""
         model, lookalike, share = self._model, self._lookalike, self._share
         drift = 2.0 * (model.velocity_noise_mps * step) ** 2  # a wrong position drifts as dead reckoning does
-        self.search_ms, self.slip_ms = self.search_ms + drift, self.slip_ms + drift
+        self.search_ms, self.slip_ms, self.shown_ms = self.search_ms + drift, self.slip_ms + drift, self.shown_ms + drift
         if np.isfinite(rivals).any():
             self._nearest_m = _nearest_lookalike(distance_m, rivals)
         if on_map and np.isnan(snr).all() and self.searching > 0.0:
@@ -256,7 +303,7 @@ class _Unlocked:
         self.slip_ms = (stay * self.slip_ms + fresh * (lose_ms + 2.0 * p)) / max(stay + fresh, 1e-300)
         self.slipped = min(stay + fresh, 1.0 - self.searching)
         lost = self.searching + self.slipped
-        return lost, (self.searching * self.search_ms + self.slipped * self.slip_ms) / max(lost, 1e-300)
+        return lost, (self.searching * self.shown_ms + self.slipped * self.slip_ms) / max(lost, 1e-300)
 
 
 def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteModel, lookalike: Lookalike | None = None,
@@ -270,20 +317,24 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     bound where there is one, growing as the density does between (module docstring); without it, the density's own.
     """
     r, c, on_map = _sample(accuracy, _behind(np.asarray(xy, np.float64), model.patch_lag_m))
+    fill = _filled(np.asarray(xy, np.float64), model)
+    with np.errstate(divide="ignore"):
+        thinned = 1.0 / np.sqrt(fill)  # a patch of a fraction of its nodes: its bound that much wider
     bound = np.full(len(t), np.inf)
-    bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]]
+    bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]] * thinned[on_map]
     held_bound = np.full(len(t), np.inf)
     if held is not None:
-        held_bound[on_map] = held.depth_m[r[on_map], c[on_map]]
+        held_bound[on_map] = held.depth_m[r[on_map], c[on_map]] * thinned[on_map]
     usable = bound <= model.usable_sigma_m
     rings = None
     if lookalike is not None:
         rings = tuple(np.full((len(lookalike.ring_edges_m), len(t)), np.nan) for _ in range(3))
         for along, grid in zip(rings, (lookalike.snr, lookalike.distance_m, lookalike.rivals)):
             along[:, on_map] = grid[:, r[on_map], c[on_map]]
+        rings[0][:] *= fill  # and its separations from the look-alikes (sums over its nodes) that much smaller
     share = min(1.0, model.speed_mps * model.interval_s / model.patch_length_m)  # of a patch new at each update (tempering)
     held_ms = np.empty(len(t))  # horizontal mean square error holding the lock
-    error_ms, grown_from = np.inf, 0.0
+    error_ms, grown_from, held_since = np.inf, 0.0, 0.0
     unlocked = np.zeros(len(t))
     unlocked_ms = np.zeros(len(t))  # horizontal mean square error while not holding it
     lock = _Lock(model, float(t[0]) if len(t) else 0.0, share)
@@ -296,14 +347,26 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
             unlocked[n], unlocked_ms[n] = lost.advance(step, p, bool(usable[n]), bool(on_map[n]), *(ring[:, n] for ring in rings))
         previous = time_s
         if usable[n] and np.isfinite(held_bound[n]):
-            error_ms, grown_from = held_bound[n] ** 2, 2.0 * p
-        # two bounds on the error held, each from above: the density's width and one patch's bound grown since; the lower
-        held_ms[n] = 2.0 * p if held is None or not np.isfinite(error_ms) else min(error_ms + max(2.0 * p - grown_from, 0.0), 2.0 * p)
+            error_ms, grown_from, held_since = held_bound[n] ** 2, 2.0 * p, time_s
+        # two bounds on the error held, each from above: the density's width and one patch's bound grown since (by the
+        # sensor's own errors where the model knows them, else as the density grew); the lower
+        growth = lock.held_growth_ms(time_s - held_since, step) if np.isfinite(error_ms) else None
+        growth = max(2.0 * p - grown_from, 0.0) if growth is None else growth
+        held_ms[n] = 2.0 * p if held is None or not np.isfinite(error_ms) else min(error_ms + growth, 2.0 * p)
     predicted = np.sqrt((1.0 - unlocked) * held_ms + unlocked * unlocked_ms)
     result = {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": predicted}
     if rings is not None:
         result.update(unlocked=unlocked, locked_m=np.sqrt(held_ms))
     return result
+
+
+def _filled(xy: np.ndarray, model: RouteModel) -> np.ndarray:
+    """The share of a patch's nodes sounded at each update: a real-time patch (``patch_lag_m`` > 0) holds only the pings
+    received since the start, so it fills over its first patch length along the track; any other patch is whole."""
+    if model.patch_lag_m <= 0 or len(xy) < 2:
+        return np.ones(len(xy))
+    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    return np.minimum(along / model.patch_length_m, 1.0)
 
 
 def _flip(separation: np.ndarray, penalty: np.ndarray | float, scale: float) -> np.ndarray:

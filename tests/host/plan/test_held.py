@@ -119,8 +119,12 @@ def test_a_real_time_patch_is_centred_half_its_diagonal_behind_and_its_fixes_lag
         return route["east_m"][1:][np.diff(route["usable"].astype(int)) != 0]
 
     assert changes(at_vehicle) == pytest.approx([995.0, 1495.0], abs=6.0)
-    assert changes(behind) - changes(at_vehicle) == pytest.approx([300.0, 300.0], abs=2.0)
-    assert behind["usable"][:5].all()  # before it has gone 300 m, the patch lies about its first pings
+    assert changes(behind)[1:] - changes(at_vehicle) == pytest.approx([300.0, 300.0], abs=2.0)
+    # before it has gone 300 m, the patch lies about its first pings, and it fills over its first patch length (100 m):
+    # its bound that much wider, no fix before a twenty-fifth of it (a 1 m bound against the usable 5 m)
+    assert changes(behind)[0] == pytest.approx(4.0, abs=2.0) and not behind["usable"][0] and behind["usable"][3:500].all()
+    assert behind["bound_m"][25] == pytest.approx(1.0 / np.sqrt(0.5)) and behind["bound_m"][50] == pytest.approx(1.0)
+    assert at_vehicle["bound_m"][0] == 1.0  # a patch that is not real-time is whole from the start
     with pytest.raises(ValueError, match="patch_lag_m"):
         RouteModel(patch_lag_m=-1.0)
 
@@ -149,3 +153,61 @@ def test_without_a_fix_the_density_widens_by_the_velocity_bias_not_yet_learned()
            for name, route in (("never", never_learned), ("learned", learned), ("none", none))}
     assert end["never"][0] > 1.8 * end["learned"][0] and end["learned"][0] > 1.4 * end["none"][0]  # learned from a hundred fixes only
     assert end["none"][1] < end["learned"][1] < 0.85 * end["learned"][0]  # and better learned later
+
+
+def _gap_route(**fields) -> dict:
+    """Along a uniform map (bound 1 m, held 0.5 m) with 300 s without a fix after 100 s of fixes."""
+    bound = np.full((40, 600), 1.0)
+    bound[:, 20:80] = np.inf
+    held = np.where(np.isfinite(bound), 0.5, np.inf)
+    accuracy = Grid(depth_m=bound, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    t = np.arange(0.0, 500.0)
+    xy = np.column_stack([2.0 * t, np.full(t.size, 200.0)])
+    base = dict(speed_mps=2.0, interval_s=1.0, velocity_noise_mps=0.01, initial_sigma_m=100.0, usable_sigma_m=5.0, floor_m=1.0,
+                gyro_bias_rps=0.0, accel_bias_mps2=0.0)  # a DVL's dead reckoning alone
+    route = predict_along(accuracy, t, xy, RouteModel(**{**base, **fields}), held=Grid(depth_m=held, x0_m=0.0, y0_m=0.0, node_m=10.0))
+    return {**route, "t": t}
+
+
+def test_the_error_held_grows_by_the_sensors_own_errors_where_they_are_known():
+    never = dict(velocity_bias_sigma_mps=0.05, bias_learning_updates=10**9)  # the filters never learn their bias
+    known = _gap_route(**never, sensor_velocity_noise_mps=0.02, sensor_velocity_bias_mps=(0.01, -0.005))
+    assumed = _gap_route(**never)
+    blind = ~known["usable"] & (known["t"] < 400.0)
+    since = known["t"][blind] - known["t"][np.flatnonzero(blind)[0] - 1]
+    # the whole bias is left (nothing learned): the one patch's bound grown by the sensor's noise and its bias
+    by_hand = 0.5**2 + 2.0 * 0.02**2 * since + (0.01**2 + 0.005**2) * since**2
+    assert known["predicted_m"][blind] ** 2 == pytest.approx(np.minimum(by_hand, assumed["predicted_m"][blind] ** 2), rel=1e-9)
+    assert known["predicted_m"][blind][-1] < 0.3 * assumed["predicted_m"][blind][-1]  # 0.011 m/s against the prior's 0.05
+    # a bias as large as the filters' prior, learned: what a consistent filter holds, k^2 b^2 + P (1 - k) = P
+    learned = dict(velocity_bias_sigma_mps=0.05, velocity_bias_walk_mps=0.0005)
+    consistent = _gap_route(**learned, sensor_velocity_noise_mps=0.01, sensor_velocity_bias_mps=(0.05, 0.05))
+    smaller = _gap_route(**learned, sensor_velocity_noise_mps=0.01, sensor_velocity_bias_mps=(0.0, 0.0))
+    assert consistent["predicted_m"][blind] == pytest.approx(_gap_route(**learned)["predicted_m"][blind], rel=1e-9)
+    assert smaller["predicted_m"][blind][-1] < 0.95 * consistent["predicted_m"][blind][-1]
+    assert np.all(smaller["predicted_m"][blind] <= consistent["predicted_m"][blind] + 1e-12)
+
+
+def test_while_the_search_goes_on_the_estimate_shows_the_starts_error():
+    from lost.host.plan import Lookalike
+
+    accuracy = Grid(depth_m=np.full((40, 400), np.inf), x0_m=0.0, y0_m=0.0, node_m=10.0)  # the route runs beside this map
+    edges = np.array([40.0, 80.0])
+    unknown = np.full((2, 40, 400), np.nan)
+    lookalike = Lookalike(ring_edges_m=edges, snr=unknown, distance_m=unknown, rivals=unknown, evidence_scale=32.0)
+    t = np.arange(0.0, 200.0)
+    xy = np.column_stack([100.0 + 2.0 * t, np.full(t.size, 1000.0)])
+    base = dict(speed_mps=2.0, interval_s=1.0, velocity_noise_mps=1e-6, initial_sigma_m=300.0, usable_sigma_m=5.0, floor_m=1.0)
+    prior = predict_along(accuracy, t, xy, RouteModel(**base), lookalike)
+    start = predict_along(accuracy, t, xy, RouteModel(**base, initial_error_m=180.0), lookalike)
+    assert prior["unlocked"].min() > 1.0 - 1e-9 and start["unlocked"].min() > 1.0 - 1e-9
+    assert prior["predicted_m"] == pytest.approx(np.sqrt(2.0) * 300.0, rel=1e-6)
+    assert start["predicted_m"] == pytest.approx(180.0, rel=1e-6)
+
+
+@pytest.mark.parametrize("field, bad", [("sensor_velocity_noise_mps", -0.1), ("sensor_velocity_noise_mps", float("nan")),
+                                        ("sensor_velocity_bias_mps", (0.1,)), ("sensor_velocity_bias_mps", (0.1, float("inf"))),
+                                        ("initial_error_m", -5.0)])
+def test_the_sensors_errors_and_the_starts_are_checked(field, bad):
+    with pytest.raises(ValueError, match=field):
+        RouteModel(**{field: bad})

@@ -147,8 +147,28 @@ def test_lost_plan_takes_a_real_time_patch_and_its_lag_from_a_scenario():
     from lost.host.cli import plan as plan_cli
     from lost.host.scenario import builtin_scenario_path
 
-    args = argparse.Namespace(config=builtin_scenario_path("demo"), sonar_noise_m=None, speed_mps=None, lookalike_radius_m=None)
+    args = argparse.Namespace(config=builtin_scenario_path("demo"), sonar_noise_m=None, speed_mps=None, initial_error_m=None, lookalike_radius_m=None)
     sonar, model, _ = plan_cli._models(args, 30.0)
     assert sonar.realtime and sonar.binned  # demo's swath, gathered ping by ping
     assert model.patch_lag_m == pytest.approx(np.hypot(10, 10) * 30.0 / 2.0)
-    assert plan_cli._models(argparse.Namespace(config=None, sonar_noise_m=None, speed_mps=None, lookalike_radius_m=None), 30.0)[1].patch_lag_m == 0.0
+    assert plan_cli._models(argparse.Namespace(config=None, sonar_noise_m=None, speed_mps=None, initial_error_m=None,
+                                                     lookalike_radius_m=None), 30.0)[1].patch_lag_m == 0.0
+
+
+def test_a_scenario_gives_the_route_model_its_velocity_sensors_errors_and_the_start_is_an_option():
+    import argparse
+    import dataclasses
+
+    from lost.host.cli.plan import _models, scenario_motion
+    from lost.host.scenario import builtin_scenario_path, load_scenario
+
+    demo = load_scenario(builtin_scenario_path("demo"))
+    motion = scenario_motion(demo)
+    assert motion["sensor_velocity_bias_mps"] == (0.02, -0.015) and motion["sensor_velocity_noise_mps"] == 0.03
+    assert motion["interval_s"] == 1.0 and motion["speed_mps"] == pytest.approx(3.0 * 1852.0 / 3600.0)
+    towed_blind = dataclasses.replace(demo, vehicle=dataclasses.replace(demo.vehicle, has_velocity_sensor=False))
+    assert "sensor_velocity_bias_mps" not in scenario_motion(towed_blind)  # the ship's velocity: no sensor's errors
+    args = argparse.Namespace(config=builtin_scenario_path("demo"), sonar_noise_m=None, speed_mps=None, initial_error_m=180.0,
+                              lookalike_radius_m=None)
+    _, model, _ = _models(args, 30.0)
+    assert model.initial_error_m == 180.0 and model.sensor_velocity_bias_mps == (0.02, -0.015)
