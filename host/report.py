@@ -14,6 +14,9 @@ The Bayesian filters' trust figures (``methods.pmf``, ``methods.pf``):
   lies in its two-sided 95 % band [0.051, 7.38];
 - ``false_fixes``: records flagged usable whose error lies beyond 3 sigma (NEES above 11.83);
 - ``usable_fraction``: the share of records flagged usable;
+- ``usable_rms_m``, ``usable_records``: the RMS error after convergence over the records flagged usable alone (what a
+  user who trusts the flag gets; where the terrain holds no information the filter says so, and the plain RMS
+  counts those stretches too);
 - ``ms_per_update``: the median wall time of the estimator's work at a record, milliseconds;
 - ``depth_bias_m``: the single-depth form's last depth-bias estimate (measured minus map), metres;
   None for the patch form, which needs none;
@@ -188,8 +191,17 @@ def summarize(result: NavResult, *, name: str, parameters: dict[str, Any], rule:
             "converged": own is not None,
             "convergence_time_s": None if own is None else float(result.t_s[own] - result.t_s[0]),
             **filter_figures(track, result.truth, own),
+            **_usable_accuracy(error, track.usable, own),
         }
     return summary
+
+
+def _usable_accuracy(error: np.ndarray, usable: np.ndarray, start: int | None) -> dict[str, Any]:
+    """The RMS error after convergence over the records flagged usable (None without convergence or such a record)."""
+    if start is None:
+        return {"usable_rms_m": None, "usable_records": 0}
+    trusted = error[start:][np.asarray(usable[start:], bool) & np.isfinite(error[start:])]
+    return {"usable_rms_m": round(float(np.sqrt(np.mean(trusted**2))), 3) if trusted.size else None, "usable_records": int(trusted.size)}
 
 
 def _accuracy(error: np.ndarray, start: int | None) -> dict[str, Any]:

@@ -167,7 +167,7 @@ def _distributions(table) -> list[dict[str, Any]]:
 
     ok = table[table["error"].isna() & table["estimator"].notna()]
     system = system_of(table)
-    figures = FIGURES[system] + (("rms_nodes",) if system == "nav" else ())
+    figures = FIGURES[system] + (("rms_nodes", "usable_rms_nodes") if system == "nav" else ())
     result = []
     for (case, estimator), group in ok.groupby(["case", "estimator"]):
         entry: dict[str, Any] = {"case": case, "estimator": estimator, "runs": int(len(group))}

@@ -28,7 +28,7 @@ SYSTEMS = ("nav", "track", "usbl")
 
 #: Each system's figures of a row (``summary.json`` gives their median and 90th percentile per case and estimator).
 FIGURES = {
-    "nav": ("rms_m", "p95_m", "max_m", "nees_in_band", "false_fixes", "usable_fraction", "convergence_time_s", "ms_per_update"),
+    "nav": ("rms_m", "p95_m", "max_m", "usable_rms_m", "nees_in_band", "false_fixes", "usable_fraction", "convergence_time_s", "ms_per_update"),
     "track": ("coverage", "first_lock", "identity_switches", "false_tracks", "false_per_hour", "gospa_mean", "gospa_p95", "ms_per_ping"),
     "usbl": ("rms_m", "p95_m", "max_m", "usbl_rms_m", "nees_in_band", "good_rejected", "bad_caught"),
 }
@@ -97,8 +97,9 @@ def _nav_rows(scenario: Any, estimators: tuple[str, ...]) -> list[dict[str, Any]
         row = {name: figures.get(name) for name in FIGURES["nav"]}
         if estimator == "lost":
             row["convergence_time_s"] = summary["convergence"].get("time_s")
-        rms = row["rms_m"]
-        rows.append({"estimator": estimator, "node_m": grid.node_m, "rms_nodes": None if rms is None else rms / grid.node_m, **row,
+        rms, usable_rms = row["rms_m"], row["usable_rms_m"]
+        rows.append({"estimator": estimator, "node_m": grid.node_m, "rms_nodes": None if rms is None else rms / grid.node_m,
+                     "usable_rms_nodes": None if usable_rms is None else usable_rms / grid.node_m, **row,
                      "records": summary["records"], "run_time_s": summary["run_time_s"]})
     return rows
 

@@ -88,3 +88,21 @@ def test_a_filters_figures_carry_its_last_velocity_bias_estimate_with_its_sigma_
     figures = filter_figures(track, None, None)
     assert figures["velocity_bias_mps"] == [0.02, -0.015]  # the last row with both axes
     assert figures["velocity_bias_sigma_mps"] == [0.0072, 0.0076]
+
+
+def test_a_filters_usable_rms_counts_the_records_it_flagged_usable_after_its_convergence():
+    result = _result(8)
+    track = FilterTrack.empty(8)
+    track.position[:] = result.truth + np.array([[100.0, 0.0], [3.0, 4.0], [3.0, 4.0], [3.0, 4.0], [30.0, 40.0], [30.0, 40.0], [0.0, 1.0],
+                                                  [0.0, 1.0]])
+    track.usable[:] = [False, True, True, True, False, False, True, True]
+    summary = summarize(NavResult(**{**result.__dict__, "tracks": {"pmf": track}}), name="hand", parameters={},
+                        rule=ConvergenceRule(radius_m=10.0, hold_s=2.0))
+    pmf = summary["methods"]["pmf"]
+    assert pmf["convergence_time_s"] == 1.0 and pmf["rms_m"] == pytest.approx(np.sqrt((3 * 25 + 2 * 2500 + 2) / 7), abs=1e-3)
+    # the two records 50 m off were flagged not usable: the usable RMS leaves them out
+    assert pmf["usable_records"] == 5 and pmf["usable_rms_m"] == pytest.approx(np.sqrt((3 * 25 + 2) / 5), abs=1e-3)
+    never = FilterTrack.empty(8)
+    never.position[:] = result.truth + 100.0
+    summary = summarize(NavResult(**{**result.__dict__, "tracks": {"pmf": never}}), name="hand", parameters={})
+    assert summary["methods"]["pmf"]["usable_rms_m"] is None and summary["methods"]["pmf"]["usable_records"] == 0
