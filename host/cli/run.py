@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -136,6 +137,17 @@ def _parameters(args: argparse.Namespace, base: dict) -> NavParameters:
     return navigation_parameters(merged)
 
 
+def _seed(text: str) -> int:
+    """A scenario's seed: a whole number of at least 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a seed is a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"a seed is at least 0, got {value}")
+    return value
+
+
 def _scenario_path(text: str) -> Path:
     from ..scenario import builtin_scenario_path
 
@@ -157,12 +169,16 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     from ..scenario import load_scenario, simulate, usbl_profile
 
     scenario = load_scenario(path)
+    if getattr(args, "seed", None) is not None:
+        # a campaign's seed: the scenario drawn anew (its sensors, and its floor and map where it does not fix their seeds)
+        scenario = dataclasses.replace(scenario, seed=args.seed)
     params = _parameters(args, scenario.navigation)
     svp = getattr(args, "svp", None)
     # --svp wins over the scenario's own cast (to see what another profile does to the same replies).
     profile = _svp(svp) if svp is not None else usbl_profile(scenario)
     source = str(svp) if svp is not None else (f"[sensors.usbl] cast {scenario.sensors['usbl'].cast}" if profile is not None else None)
-    out = args.out = out or Path("runs") / scenario.name  # args.out: main names it if the run fails
+    seeded = scenario.name if getattr(args, "seed", None) is None else f"{scenario.name}-seed{args.seed}"
+    out = args.out = out or Path("runs") / seeded  # args.out: main names it if the run fails
     with run_folder(out, replace=args.replace) as folder, warnings_collected() as warnings:
         grid, records = simulate(scenario)
         usbl = scenario.sensors["usbl"]
@@ -187,6 +203,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"{name:<18} {description}")
         return 0
     survey_options = [f"--{name.replace('_', '-')}" for name in _SURVEY_ONLY if getattr(args, name) is not None]
+    if args.seed is not None and args.scenario is None:
+        raise UsageError("--seed draws a simulated scenario anew: give a scenario (a recorded tow has no seed)")
     if args.survey:
         if args.scenario is not None or args.log:
             raise UsageError("give one of a scenario, --log or --survey")
@@ -357,6 +375,8 @@ def register(commands, parents: list[argparse.ArgumentParser]) -> None:
     run = commands.add_parser("run", parents=parents, help="navigate a simulated or recorded tow")
     run.add_argument("scenario", nargs="?", help="scenario TOML file, or a built-in scenario's name")
     run.add_argument("--list", action="store_true", help="list the built-in scenarios with their descriptions, and stop")
+    run.add_argument("--seed", type=_seed, default=None, metavar="N",
+                     help="run the scenario with this seed (a campaign's seed: its sensors, and its floor and map unless it fixes their seeds)")
     run.add_argument("--log", help="navigation log CSV (lost.host.navlog)")
     run.add_argument("--bathy", help="bathymetry grid file (lost.host.io.read_grid)")
     run.add_argument("--sonar", help="sonar soundings side file of the log")

@@ -79,7 +79,8 @@ def test_set_overrides_the_scenarios_navigation_parameters(tmp_path, capsys):
     (["--log", "nav.csv"], "--log needs the map it is navigated on: --bathy grid.nc"),
     (["--bathy", "grid.nc"], "give its navigation log (--log nav.csv) or survey files (--survey FILE...)"),
     ([], "give a scenario (a TOML file, or a shipped one's name: lost run --list), or --log nav.csv and --bathy grid.nc, or --survey"),
-], ids=["log_alone", "bathy_alone", "nothing"])
+    (["--log", "nav.csv", "--bathy", "grid.nc", "--seed", "3"], "--seed draws a simulated scenario anew: give a scenario"),
+], ids=["log_alone", "bathy_alone", "nothing", "seed_of_a_log"])
 def test_run_needs_a_scenario_or_log_and_bathy(capsys, argv, message):
     assert main(["run", *argv]) == 2
     assert message in capsys.readouterr().err
@@ -241,3 +242,27 @@ def test_correlate_gives_no_ratio_against_an_exact_fit(tmp_path, capsys):
     assert main(["correlate", str(tmp_path / "map.npz"), str(tmp_path / "noisy.npy")]) == 0
     ratio = float(capsys.readouterr().out.split("ratio ")[1].split()[0])
     assert ratio > 1.0
+
+
+def test_a_negative_seed_is_refused_by_name(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "short", "--seed", "-1"])
+    assert exit_.value.code == 2 and "a seed is at least 0, got -1" in capsys.readouterr().err
+
+
+def test_a_scenario_runs_with_a_campaigns_seed_into_its_own_folder(tmp_path, monkeypatch, capsys):
+    from lost.host.campaign import scenario_with
+    from lost.host.nav import NavParameters, navigate
+    from lost.host.report import summarize
+    from lost.host.scenario import load_scenario, simulate
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "short", "--seed", "3", "--estimator", "pmf", "--no-plots", "--set", "pmf_cells=48"]) == 0
+    summary = json.loads((tmp_path / "runs" / "short-seed3" / "summary.json").read_text())
+    scenario = scenario_with(load_scenario(builtin_scenario_path("short")), {"seed": 3, "navigation.pmf_cells": 48})
+    grid, records = simulate(scenario)
+    expected = summarize(navigate(records, grid, NavParameters(**scenario.navigation), estimators=("pmf",)), name="short", parameters={})
+    assert summary["methods"]["pmf"]["rms_m"] == expected["methods"]["pmf"]["rms_m"]  # the campaign's run of seed 3
+    assert main(["run", "short", "--estimator", "pmf", "--no-plots", "--set", "pmf_cells=48"]) == 0
+    shipped = json.loads((tmp_path / "runs" / "short" / "summary.json").read_text())
+    assert shipped["methods"]["pmf"]["rms_m"] != summary["methods"]["pmf"]["rms_m"]
