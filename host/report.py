@@ -200,8 +200,8 @@ def _usable_accuracy(error: np.ndarray, usable: np.ndarray, start: int | None) -
     """The RMS error after convergence over the records flagged usable (None without convergence or such a record)."""
     if start is None:
         return {"usable_rms_m": None, "usable_records": 0}
-    trusted = error[start:][np.asarray(usable[start:], bool) & np.isfinite(error[start:])]
-    return {"usable_rms_m": round(float(np.sqrt(np.mean(trusted**2))), 3) if trusted.size else None, "usable_records": int(trusted.size)}
+    trusted = error_stats(np.where(np.asarray(usable, bool), error, np.nan)[start:])
+    return {"usable_rms_m": trusted["rms_m"], "usable_records": trusted["records"]}
 
 
 def _accuracy(error: np.ndarray, start: int | None) -> dict[str, Any]:

@@ -169,16 +169,16 @@ def _run_scenario(path: Path, args: argparse.Namespace, out: Path | None) -> int
     from ..scenario import load_scenario, simulate, usbl_profile
 
     scenario = load_scenario(path)
-    if getattr(args, "seed", None) is not None:
+    seed = getattr(args, "seed", None)  # lost demo has no --seed
+    if seed is not None:
         # a campaign's seed: the scenario drawn anew (its sensors, and its floor and map where it does not fix their seeds)
-        scenario = dataclasses.replace(scenario, seed=args.seed)
+        scenario = dataclasses.replace(scenario, seed=seed)
     params = _parameters(args, scenario.navigation)
     svp = getattr(args, "svp", None)
     # --svp wins over the scenario's own cast (to see what another profile does to the same replies).
     profile = _svp(svp) if svp is not None else usbl_profile(scenario)
     source = str(svp) if svp is not None else (f"[sensors.usbl] cast {scenario.sensors['usbl'].cast}" if profile is not None else None)
-    seeded = scenario.name if getattr(args, "seed", None) is None else f"{scenario.name}-seed{args.seed}"
-    out = args.out = out or Path("runs") / seeded  # args.out: main names it if the run fails
+    out = args.out = out or Path("runs") / (scenario.name if seed is None else f"{scenario.name}-seed{seed}")  # args.out: main names it if the run fails
     with run_folder(out, replace=args.replace) as folder, warnings_collected() as warnings:
         grid, records = simulate(scenario)
         usbl = scenario.sensors["usbl"]

@@ -206,6 +206,8 @@ class _Lock:
         self.p_fix, self.last_fix, self.fixed = model.initial_sigma_m**2 / 2, t0, False
         self._bias = VelocityBiasFilter(model.velocity_bias_sigma_mps, model.velocity_bias_walk_mps) if model.velocity_bias_sigma_mps > 0 else None
         self._fixes_in_row, self._last_learned = 0, t0
+        bias = model.sensor_velocity_bias_mps
+        self._true_bias_ms = None if bias is None else np.square(np.asarray(bias, dtype=np.float64))  # per axis, (m/s)^2
 
     def advance(self, time_s: float, step: float, first: bool, usable: bool, bound: float) -> float:
         """The density's variance per axis at ``time_s``: grown since the last fix, and a fix there if ``usable``."""
@@ -236,7 +238,6 @@ class _Lock:
             self._last_learned = time_s
         return p
 
-
     def held_growth_ms(self, since_s: float, step: float) -> float | None:
         """How far the error held has grown (horizontal mean square, m^2) ``since_s`` after its fix, by the velocity
         sensor's own errors (None where the model does not know them: the density's growth stands for it).
@@ -251,7 +252,7 @@ class _Lock:
             return None
         noise = model.velocity_noise_mps if model.sensor_velocity_noise_mps is None else model.sensor_velocity_noise_mps
         ins = float(ins_position_sigma(since_s, gyro_bias_rps=model.gyro_bias_rps, accel_bias_mps2=model.accel_bias_mps2))
-        true_bias_ms = None if model.sensor_velocity_bias_mps is None else np.square(np.asarray(model.sensor_velocity_bias_mps, dtype=np.float64))
+        true_bias_ms = self._true_bias_ms
         if self._bias is None:
             left = np.zeros(2) if true_bias_ms is None else true_bias_ms
         else:
