@@ -155,7 +155,7 @@ verilog: setup
 lint: verilog
 	$(BIN)/python -m lost.sim.verilator lint build/verilog/*.v
 
-# The recursive core and the 1-lane window core at full size on Verilator: too slow for `make test` (pytest marker `slow`).
+# The recursive core and both window cores (1 and 4 lanes) at full size on Verilator: too slow for `make test` (pytest marker `slow`).
 sim-full: setup
 	$(BIN)/python -m pytest -m slow tests/sim
 

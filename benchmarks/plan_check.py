@@ -103,7 +103,7 @@ def prepare(name: str, seeds: int, workers: int, cache: Path | None = None) -> F
     sigma = map_sigma(grid, params.survey_sigma_m)
     t = np.asarray(runs[0]["t_s"])
     model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), patch_lag_m=sonar.lag_m(grid.node_m),
-                                       initial_error_m=float(runs[0]["error"][0]), **scenario_motion(scenario))
+                                       initial_error_m=float(runs[0]["error"][0]), **scenario_motion(scenario, grid.node_m))
     sonar_times = t[::max(int(round(spec.interval_s / max(np.median(np.diff(t)), 1e-9))), 1)]
     sonar_xy = np.asarray(runs[0]["truth"])[np.searchsorted(t, sonar_times)]
     return Floor(name, runs, grid, sonar, sigma, params.lookalike_radius_m, accuracy_grid(grid, sonar, sigma),

@@ -20,15 +20,20 @@ from .common import output_options, positive_metres, warnings_collected
 __all__ = ["register", "run_plan", "scenario_motion"]
 
 
-def scenario_motion(scenario) -> dict:
-    """What a scenario tells the route model beside its navigation: the ship's speed, the sonar's interval, and the
+def scenario_motion(scenario, node_m: float | None = None) -> dict:
+    """What a scenario tells the route model beside its navigation: the ship's speed, the sonar's interval, the
     velocity sensor's own noise and bias where the vehicle carries one (else the ship's velocity, whose errors are
-    the tow's, not a sensor's)."""
-    motion = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": scenario.sensors["sonar"].interval_s}
+    the tow's, not a sensor's), and, on a map of ``node_m``, how a real-time swath sweeps its patch."""
+    from ..plan import Sweep
+
+    spec = scenario.sensors["sonar"]
+    motion = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": spec.interval_s}
     velocity = scenario.sensors.get("velocity")
     if scenario.vehicle.has_velocity_sensor and velocity is not None:
         bias = np.broadcast_to(np.asarray(velocity.bias, dtype=np.float64), (2,))
         motion.update(sensor_velocity_noise_mps=float(velocity.noise), sensor_velocity_bias_mps=(float(bias[0]), float(bias[1])))
+    if node_m is not None and spec.mode == "swath" and spec.realtime:
+        motion["sweep"] = Sweep(shape=tuple(spec.shape), node_m=node_m, swath_width_m=spec.swath_width_m, max_window_s=spec.max_window_s)
     return motion
 
 
@@ -45,7 +50,7 @@ def _models(args: argparse.Namespace, node_m: float):
         spec = scenario.sensors["sonar"]
         params = NavParameters(**scenario.navigation)
         sonar = {"shape": tuple(spec.shape), "noise_m": max(spec.noise, 1e-3), "binned": spec.mode == "swath", "realtime": spec.realtime}
-        motion = scenario_motion(scenario)
+        motion = scenario_motion(scenario, node_m)
     if args.sonar_noise_m is not None:
         sonar["noise_m"] = args.sonar_noise_m
     if args.speed_mps is not None:

@@ -8,7 +8,8 @@ along a route, the lock acquired, lost and regained, with the dead reckoning's g
 
 from .accuracy import SonarModel, accuracy_grid, held_grid, held_sigma, information, map_sigma, survey_sigma
 from .ambiguity import Lookalike, lookalike_grid
+from .fill import Sweep, patch_fill
 from .route import RouteModel, predict_along, predict_route, read_route, route_points
 
 __all__ = ["Lookalike", "lookalike_grid", "SonarModel", "accuracy_grid", "information", "map_sigma", "survey_sigma", "held_sigma", "held_grid",
-           "RouteModel", "predict_along", "predict_route", "read_route", "route_points"]
+           "RouteModel", "predict_along", "predict_route", "read_route", "route_points", "Sweep", "patch_fill"]

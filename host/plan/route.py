@@ -26,8 +26,9 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   distance); both drift with the dead reckoning.
 
 The map is read where the patch lies: ``patch_lag_m`` behind the vehicle along the track for a real-time patch, which
-also fills over its first patch length (the pings received since the start): its bound is wider and its separations
-from the look-alikes smaller by the share of it sounded.
+holds only the pings received so far (swept by its swath where ``sweep`` says how, :mod:`lost.host.plan.fill`; else
+taken to fill over its first patch length): its bound is wider and its separations from the look-alikes smaller by the
+share of it sounded, and under ``min_valid_fraction`` of it (the navigation's) there is no terrain update.
 
 The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr``, distance and
 the ring's rivals, one per basin of the misfit) move the probability between the states:
@@ -65,6 +66,7 @@ from scipy.special import ndtr
 
 from ..grid import Grid
 from .ambiguity import Lookalike
+from .fill import Sweep, patch_fill
 
 __all__ = ["RouteModel", "read_route", "route_points", "predict_route", "predict_along", "false_lock_probability"]
 
@@ -85,7 +87,9 @@ class RouteModel:
     the bias the filters have not learned, while the density (the look-alikes' odds) grows by the filters' assumptions.
     Unknown (None), the filters' assumptions are taken as the truth. ``initial_error_m`` is the start's expected horizontal
     error (a lay-back model's, a fix's), which the estimate shows while the filters search (held within dead reckoning's
-    reach); None: the filters' prior (``initial_sigma_m`` each axis).
+    reach); None: the filters' prior (``initial_sigma_m`` each axis). ``min_valid_fraction`` is the share of a patch's
+    nodes the navigation needs to correlate it (``NavParameters.min_valid_fraction``); ``sweep`` a real-time swath's
+    geometry (:class:`lost.host.plan.fill.Sweep`; ``lost.host.cli.plan.scenario_motion`` takes it from a scenario).
     """
 
     speed_mps: float = 1.5
@@ -102,6 +106,8 @@ class RouteModel:
     velocity_bias_sigma_mps: float = 0.0
     velocity_bias_walk_mps: float = 0.0
     bias_learning_updates: int = 5
+    min_valid_fraction: float = 0.0
+    sweep: Sweep | None = None
     sensor_velocity_noise_mps: float | None = None
     sensor_velocity_bias_mps: tuple[float, float] | None = None
     initial_error_m: float | None = None
@@ -115,7 +121,8 @@ class RouteModel:
                    gyro_bias_rps=params.gyro_bias_rps, accel_bias_mps2=params.accel_bias_mps2, usable_sigma_m=params.usable_sigma_nodes * node_m,
                    floor_m=float(np.hypot(params.position_floor_nodes * node_m, params.position_floor_tracking_m)), patch_length_m=patch_nodes * node_m,
                    **({"velocity_bias_sigma_mps": params.velocity_bias_sigma_mps, "velocity_bias_walk_mps": params.velocity_bias_walk_mps,
-                       "bias_learning_updates": params.bias_learning_updates} if params.estimate_velocity_bias else {}))
+                       "bias_learning_updates": params.bias_learning_updates} if params.estimate_velocity_bias else {}),
+                   min_valid_fraction=params.min_valid_fraction)
 
     def __post_init__(self) -> None:
         for name in ("speed_mps", "interval_s", "initial_sigma_m", "usable_sigma_m", "patch_length_m", "acquisitions_per_patch"):
@@ -130,6 +137,8 @@ class RouteModel:
             bias = np.asarray(self.sensor_velocity_bias_mps, dtype=np.float64)
             if bias.shape != (2,) or not np.isfinite(bias).all():
                 raise ValueError(f"sensor_velocity_bias_mps must be two finite numbers (east, north), got {self.sensor_velocity_bias_mps!r}")
+        if not (np.isfinite(self.min_valid_fraction) and 0.0 <= self.min_valid_fraction <= 1.0):
+            raise ValueError(f"min_valid_fraction must lie in [0, 1], got {self.min_valid_fraction!r}")
         if isinstance(self.bias_learning_updates, bool) or not (isinstance(self.bias_learning_updates, (int, np.integer)) and self.bias_learning_updates >= 1):
             raise ValueError(f"bias_learning_updates must be a whole number of at least 1, got {self.bias_learning_updates!r}")
 
@@ -321,6 +330,7 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
     fill = _filled(np.asarray(xy, np.float64), model)
     with np.errstate(divide="ignore"):
         thinned = 1.0 / np.sqrt(fill)  # a patch of a fraction of its nodes: its bound that much wider
+    on_map = on_map & (fill >= model.min_valid_fraction)  # a patch under this share of its nodes is not correlated
     bound = np.full(len(t), np.inf)
     bound[on_map] = accuracy.depth_m[r[on_map], c[on_map]] * thinned[on_map]
     held_bound = np.full(len(t), np.inf)
@@ -363,9 +373,12 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
 
 def _filled(xy: np.ndarray, model: RouteModel) -> np.ndarray:
     """The share of a patch's nodes sounded at each update: a real-time patch (``patch_lag_m`` > 0) holds only the pings
-    received since the start, so it fills over its first patch length along the track; any other patch is whole."""
+    received since the start, swept by its swath where the model knows it (``sweep``, :func:`lost.host.plan.fill.patch_fill`),
+    else taken to fill over its first patch length along the track; any other patch is whole."""
     if model.patch_lag_m <= 0 or len(xy) < 2:
         return np.ones(len(xy))
+    if model.sweep is not None:
+        return patch_fill(xy, model.interval_s, model.sweep)
     along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
     return np.minimum(along / model.patch_length_m, 1.0)
 

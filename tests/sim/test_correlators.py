@@ -1,10 +1,10 @@
 """Each correlator variant's generated Verilog on Verilator with cocotb 2 (``lost.sim.cocotb.correlator``).
 
 Every surface value and the best fit are compared with ``lost.model``; with ready held high every
-beat's cycle is compared with the variant's cycle model. The window core runs at the paper's full
-size (501 x 501 map, 10 x 10 patch) with 4 lanes, with 1 lane at 64 x 70, and at a small size whose rows end on
-a partial beat; the recursive core at a reduced size. ``make sim-full`` runs the recursive core and the 1-lane
-window core at full size (each about 4-8 minutes here).
+beat's cycle is compared with the variant's cycle model. The window core runs with 4 lanes at 160 x 170 (a 10 x 10
+patch; 161 placements a row, the last beat partial) and at a small size, with 1 lane at 64 x 70; the recursive core
+at a reduced size. ``make sim-full`` runs the recursive core and both window cores at the paper's full size (501 x 501
+map, 10 x 10 patch; each about 4-8 minutes here).
 """
 
 from pathlib import Path
@@ -23,7 +23,9 @@ CASES = [
     pytest.param(BenchConfig(variant="window", map_shape=(64, 70), patch_shape=(10, 10), lanes=1, seed=6),
                  id="window-l1-64x70-10x10"),
     pytest.param(BenchConfig(variant="window", map_shape=(501, 501), patch_shape=(10, 10), lanes=4, seed=2),
-                 id="window-l4-501x501-10x10"),
+                 id="window-l4-501x501-10x10", marks=pytest.mark.slow),
+    pytest.param(BenchConfig(variant="window", map_shape=(160, 170), patch_shape=(10, 10), lanes=4, seed=7),
+                 id="window-l4-160x170-10x10"),
     # 27 placements per row: every row ends on a beat of 3 values out of 4.
     pytest.param(BenchConfig(variant="window", map_shape=(23, 30), patch_shape=(5, 4), lanes=4,
                              exclusion_radius=2, seed=3),

@@ -71,3 +71,9 @@ def test_a_route_model_of_no_lag_or_bias_is_named(field, bad):
 def test_a_route_model_learning_the_bias_after_no_whole_number_of_fixes_is_named(bad):
     with pytest.raises(ValueError, match="bias_learning_updates must be a whole number of at least 1"):
         RouteModel(bias_learning_updates=bad)
+
+
+@pytest.mark.parametrize("bad", [-0.1, 1.5, float("nan")])
+def test_a_route_model_needing_an_impossible_share_of_the_patch_is_named(bad):
+    with pytest.raises(ValueError, match="min_valid_fraction must lie in"):
+        RouteModel(min_valid_fraction=bad)

@@ -168,6 +168,7 @@ def test_a_scenario_gives_the_route_model_its_velocity_sensors_errors_and_the_st
     assert motion["interval_s"] == 1.0 and motion["speed_mps"] == pytest.approx(3.0 * 1852.0 / 3600.0)
     towed_blind = dataclasses.replace(demo, vehicle=dataclasses.replace(demo.vehicle, has_velocity_sensor=False))
     assert "sensor_velocity_bias_mps" not in scenario_motion(towed_blind)  # the ship's velocity: no sensor's errors
+    assert "sweep" not in motion and scenario_motion(demo, 30.0)["sweep"].shape == (10, 10)  # a real-time swath, on a map's nodes
     args = argparse.Namespace(config=builtin_scenario_path("demo"), sonar_noise_m=None, speed_mps=None, initial_error_m=180.0,
                               lookalike_radius_m=None)
     _, model, _ = _models(args, 30.0)
