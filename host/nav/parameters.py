@@ -22,6 +22,9 @@ __all__ = ["NavParameters", "navigation_parameters", "MATCHING", "LAYBACK_MODELS
 MATCHING = ("patch", "point")
 LAYBACK_MODELS = ("cable", "depth_ratio")
 MAP_ERROR_MODELS = ("per_node", "uniform")
+#: An INS/DVL's velocity-bias walk, m/s per square-root second: the default, and the least the particle filter's
+#: adapted walk takes (``lost.host.nav.pf``).
+INS_VELOCITY_BIAS_WALK_MPS = 0.0005
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -133,7 +136,9 @@ class NavParameters:
         gathered over tens of seconds undone. Default True.
     velocity_bias_sigma_mps, velocity_bias_walk_mps : float
         The prior on the velocity bias (1-sigma, m/s) and its random walk (m/s per square-root second),
-        for both filters: the particles' bias state and the point-mass filter's bias filter.
+        for both filters: the particles' bias state and the point-mass filter's bias filter. A walk above an
+        INS/DVL's (0.0005) is the particle filter's while it acquires; once settled it adapts to the terrain's
+        corrections (:mod:`lost.host.nav.pf`).
     depth_bias_sigma_m, depth_bias_walk_m : float
         The single-depth (point) form's depth bias, measured ocean depth minus the map (tide, a
         pressure-depth error, a datum): its prior 1-sigma, metres, and its random walk, metres per
@@ -263,7 +268,7 @@ class NavParameters:
     bias_learning_updates: int = 5
     compensate_patch_motion: bool = True
     velocity_bias_sigma_mps: float = 0.05
-    velocity_bias_walk_mps: float = 0.0005
+    velocity_bias_walk_mps: float = INS_VELOCITY_BIAS_WALK_MPS
     depth_bias_sigma_m: float = 3.0
     depth_bias_walk_m: float = 0.002
     slant_range_sigma_m: float = 3.0

@@ -23,6 +23,7 @@ from ..grid import Grid
 from .bayes import BayesFilter
 from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
+from .parameters import INS_VELOCITY_BIAS_WALK_MPS
 from .trust import eigenvalues_2x2, moments
 
 __all__ = ["ParticleFilter", "systematic_resample"]
@@ -30,6 +31,9 @@ __all__ = ["ParticleFilter", "systematic_resample"]
 ROUGHENING_K = 0.2
 #: A resampled cloud narrower than this along an axis (metres) has collapsed onto one particle.
 COLLAPSED_M = 1e-6
+#: The adapted walk's memory (terrain updates) and its least share of the configured walk (see ``_adapt_walk``).
+WALK_MEMORY = 30.0
+WALK_SCALE_MIN = 0.3
 
 
 def systematic_resample(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -63,6 +67,7 @@ class ParticleFilter(BayesFilter):
         self._acquiring = True
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
         self._search: tuple[np.ndarray, float, float | None] | None = None  # after a re-initialization: the square to search, the prior
+        self._walk_scale = 1.0
 
     def _spawn(self, centre: np.ndarray, half_width_m: float | None, sigma_m: float | None, depth_bias_m: float = 0.0,
                velocity_bias: np.ndarray | None = None) -> None:
@@ -117,7 +122,7 @@ class ParticleFilter(BayesFilter):
         v = np.asarray(motion.velocity_mps, float)
         sigma = math.sqrt(self._trust.growth_variance(dt) + self._pending_var)
         self._pending_var, self._cached = 0.0, None
-        walk = self._p.velocity_bias_walk_mps * math.sqrt(dt)
+        walk = self._adapt_walk() * math.sqrt(dt)
         noise = self._rng.standard_normal((4 if walk > 0 else 2, self._n))  # rows contiguous: one draw a step
         self._x += (v[0] - self._b[0]) * dt + sigma * noise[0]
         self._y += (v[1] - self._b[1]) * dt + sigma * noise[1]
@@ -125,6 +130,25 @@ class ParticleFilter(BayesFilter):
             self._b += walk * noise[2:]
         self._depth_bias_var += self._p.depth_bias_walk_m**2 * dt
         self._moved(dt, float(np.hypot(*v)) * dt)
+
+    def _adapt_walk(self) -> float:
+        """The bias's walk for the next prediction, m/s per square-root second: the configured one while acquiring;
+        once settled, scaled to the terrain's corrections (covariance matching: the drift window's shifts against their
+        expected spread, :meth:`Trust.shift_share`, about 1 for a consistent cloud).
+
+        A walk set far above an INS/DVL's (a tow moved by the ship's velocity, whose towfish lags and catches up) lets the
+        cloud follow the lag at the start, and holds it several times wider than its error for the rest of the tow
+        (``short``: NEES in band 0.62, median NEES 0.09). The scale follows the shifts' share (its memory
+        ``WALK_MEMORY`` updates), between ``WALK_SCALE_MIN`` and 1, and never takes the walk under an INS/DVL's: there the
+        particles' biases, never roughened, would lose their spread.
+        """
+        configured = self._p.velocity_bias_walk_mps
+        share = self._trust.shift_share()
+        if not self._trust.settled or not np.isfinite(share):
+            self._walk_scale = 1.0
+        else:
+            self._walk_scale = min(max(self._walk_scale * share ** (1.0 / WALK_MEMORY), WALK_SCALE_MIN), 1.0)
+        return max(configured * self._walk_scale, min(configured, INS_VELOCITY_BIAS_WALK_MPS))
 
     def _keep_floor(self, covariance: np.ndarray) -> None:
         """Owe the cloud the variance an update took below the floor's width; the next prediction spreads it.

@@ -319,6 +319,15 @@ class Trust:
         self.drift = float((syy * tx * tx - 2.0 * sxy * tx * ty + sxx * ty * ty) / det) if det > 0 else float("nan")
         return self.drift
 
+    def shift_share(self) -> float:
+        """The drift window's shifts against their expected spread: ``sum |d|^2 / sum trace(P_prior - P_post)``, about 1
+        for a consistent filter, under it for a density wider than its error (NaN until the window is full)."""
+        if self._n_corrections < len(self._corrections):
+            return float("nan")
+        window = self._corrections
+        expected = float(np.sum(window[:, 2] + window[:, 4]))
+        return float(np.sum(window[:, 0] ** 2 + window[:, 1] ** 2)) / expected if expected > 0 else float("nan")
+
     def _one_way(self, sums: np.ndarray) -> bool:
         """Whether the drift window's shifts say the density trails the truth (see ``TRAIL_SIGMAS``).
 

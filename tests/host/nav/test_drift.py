@@ -123,3 +123,24 @@ def test_the_range_gate_learns_how_far_the_stated_innovation_variance_overstates
         trust.note_range_innovation(1e-6)
     trust.note_range_innovation(float("nan"))
     assert trust.range_scale == RANGE_SCALE_MIN
+
+
+def test_the_shift_share_is_one_for_a_consistent_filter_and_small_for_a_density_wider_than_its_error():
+    rng = np.random.default_rng(5)
+    consistent, too_wide = _trust(usable_updates=30), _trust(usable_updates=30)
+    shares = []
+    for _ in range(200):
+        consistent.note_correction(rng.normal(0.0, 3.0, 2), PRIOR, POST)  # as P_prior - P_post says: 9 m**2 an axis
+        too_wide.note_correction(rng.normal(0.0, 1.0, 2), PRIOR, POST)  # a ninth of it
+        shares.append(consistent.shift_share())
+    assert abs(np.nanmean(shares) - 1.0) < 0.1
+    assert too_wide.shift_share() < 0.25
+
+
+def test_the_shift_share_waits_for_a_full_window():
+    trust = _trust(usable_updates=5)
+    for _ in range(4):
+        trust.note_correction(np.array([3.0, 0.0]), PRIOR, POST)
+        assert np.isnan(trust.shift_share())
+    trust.note_correction(np.array([3.0, 0.0]), PRIOR, POST)
+    assert abs(trust.shift_share() - 45.0 / 90.0) < 1e-4  # |d|^2 of 9 against a trace of 18, five times

@@ -478,3 +478,31 @@ def test_the_bias_misplacement_floor_widens_only_the_directions_narrower_than_it
     after = pmf.estimate().covariance
     assert math.sqrt(after[0, 0]) == pytest.approx(3.0, rel=0.1)  # east lifted to the misplacement
     assert after[1, 1] == pytest.approx(before[1, 1], rel=0.05)  # north, already wider, left as it was
+
+
+def test_a_settled_cloud_whose_corrections_are_small_walks_its_bias_slower_and_an_ins_walk_is_kept():
+    """Covariance matching of the bias's walk (``ParticleFilter._adapt_walk``): shifts a ninth of their expected spread
+    take a walk set far above an INS/DVL's down to its least share; corrections as expected keep it; an INS/DVL's walk
+    is never adapted under itself."""
+    from lost.host.nav.parameters import INS_VELOCITY_BIAS_WALK_MPS
+    from lost.host.nav.pf import WALK_SCALE_MIN
+
+    grid = _map()
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    prior, post = np.diag([25.0, 25.0]), np.diag([16.0, 16.0])
+
+    def walked(walk: float, shift_sigma: float, settled: bool = True) -> float:
+        pf = ParticleFilter(likelihood, _quiet(pf_particles=100, usable_updates=30, velocity_bias_walk_mps=walk), grid=grid, seed=1)
+        pf.start(0.0, np.array([400.0, 400.0]), _observation())
+        pf._trust.settled = settled
+        rng = np.random.default_rng(3)
+        for _ in range(400):
+            pf._trust.note_correction(rng.normal(0.0, shift_sigma, 2), prior, post)
+            last = pf._adapt_walk()
+        return last
+
+    assert walked(0.1, 1.0) == pytest.approx(0.1 * WALK_SCALE_MIN)
+    assert walked(0.1, 1.0, settled=False) == 0.1  # acquiring: the walk as configured, to follow the tow's lag
+    assert walked(0.1, 3.0) > 0.5 * 0.1
+    assert walked(INS_VELOCITY_BIAS_WALK_MPS, 1.0) == INS_VELOCITY_BIAS_WALK_MPS
+    assert walked(0.0, 1.0) == 0.0
