@@ -33,7 +33,8 @@ share of it sounded, and under ``min_valid_fraction`` of it (the navigation's) t
 The look-alikes (:mod:`lost.host.plan.ambiguity`: per distance ring, the runner-up's separation ``snr``, distance and
 the ring's rivals, one per basin of the misfit) move the probability between the states:
 
-- The search ends on accumulated evidence: per ring, the new share of each patch times the ring's smallest separation
+- The search ends on accumulated evidence: per ring, the new share of each patch (the track run since the last terrain
+  update over the patch length, as the filters temper it: the first patch wholly) times the ring's smallest separation
   adds up, and each of the ring's look-alikes as good as its best is still ahead of the truth with
   ``Phi(-sqrt(evidence) / 2)`` (:func:`_still_searching`). Rough ground ends it within a patch length, repeated
   terrain never; a hole adds nothing, and a search over a hole narrows (a patch length of such updates) into a wrong
@@ -286,6 +287,7 @@ class _Unlocked:
         self.slipped, self.slip_ms = 0.0, 0.0
         self._evidence = np.zeros(len(lookalike.ring_edges_m))  # per ring, against its best look-alike
         self._nearest_m = 0.0  # the nearest look-alike as good as the truth, last seen (none: 0)
+        self._untempered_m = np.inf  # track run since the last terrain update (the first patch is wholly new)
 
     def advance(self, step: float, p: float, usable: bool, on_map: bool, snr: np.ndarray, distance_m: np.ndarray,
                 rivals: np.ndarray) -> tuple[float, float]:
@@ -304,7 +306,12 @@ class _Unlocked:
             narrowed = self.searching * share
             self.slip_ms = (self.slipped * self.slip_ms + narrowed * _wrong_place_ms(self.search_ms, self._nearest_m)) / (self.slipped + narrowed)
             self.slipped, self.searching = self.slipped + narrowed, self.searching - narrowed
-        self._evidence += share * np.nan_to_num(snr, nan=0.0, posinf=0.0)  # the filters temper every patch, the first too
+        # the filters temper each patch by the track run since their last terrain update (the first takes all of it)
+        self._untempered_m += model.speed_mps * step
+        weight = share
+        if on_map:
+            weight, self._untempered_m = min(1.0, self._untempered_m / model.patch_length_m), 0.0
+        self._evidence += weight * np.nan_to_num(snr, nan=0.0, posinf=0.0)
         self.searching = min(self.searching, _still_searching(snr, rivals, self._evidence, lookalike.evidence_scale))
         lose, lose_ms = _loss(snr, distance_m, p, lookalike.evidence_scale)
         gain = _acquisition(rivals, self.slip_ms, lookalike.ring_edges_m) if usable else 0.0

@@ -171,3 +171,21 @@ def test_a_search_on_a_repeated_tile_narrows_over_a_hole_onto_a_copy_beyond_the_
     assert nearest == pytest.approx(100.0) or nearest == pytest.approx(100.0 * np.sqrt(2))
     assert route["unlocked"][hole_end].min() > 0.99
     assert route["predicted_m"][hole_end][-1] == pytest.approx(np.sqrt(nearest**2 + 2 * 60.0**2), rel=0.02)
+
+
+def test_the_first_terrain_update_weighs_all_the_track_run_before_it():
+    """The filters temper a patch by the track run since their last terrain update, the first wholly: a first update
+    that waits for the patch to fill ends the search as a patch length of updates would, not as one update's share."""
+    from lost.host.plan import Sweep, accuracy_grid
+
+    grid = _rough((60, 200), seed=3, relief=5.0)
+    sonar = SonarModel(noise_m=0.3)
+    accuracy, lookalike = accuracy_grid(grid, sonar, 0.1), lookalike_grid(grid, sonar, 0.1, radius_m=150.0, work=3e6)
+    model = RouteModel(speed_mps=1.5, interval_s=1.0, initial_sigma_m=100.0, usable_sigma_m=10.0, floor_m=1.0, patch_length_m=100.0,
+                       patch_lag_m=70.0, sweep=Sweep(shape=(10, 10), node_m=10.0), min_valid_fraction=0.5)
+    t = np.arange(0.0, 300.0, 1.0)
+    xy = np.column_stack([500.0 + 1.5 * t, np.full(t.size, 300.0)])
+    route = predict_along(accuracy, t, xy, model, lookalike)
+    first = int(np.flatnonzero(np.isfinite(route["bound_m"]))[0])
+    assert first > 10 and route["unlocked"][first - 1] == 1.0  # no update while the patch is under half full
+    assert route["unlocked"][first] < 0.01  # the first update, a whole patch's evidence, ends the search (one share: 0.7)
