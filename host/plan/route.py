@@ -20,7 +20,7 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   cannot show are the same on every pass over a place and the patches of one stretch share them. Where there is no fix
   it grows from the last one by the velocity sensor's own noise and the part of its bias the filters have not learned
   where those are known (``sensor_velocity_noise_mps``, ``sensor_velocity_bias_mps``: :meth:`_Lock.held_growth_ms`),
-  else as the density does.
+  else as the density does; on one axis of the two where a slant range holds the other (``slant_range``).
 - Not holding it (probability ``unlocked``): still searching (the error shown is the start's, ``initial_error_m``, or
   the initial search's ``2 initial_sigma_m^2`` where the start is not given), or holding a wrong place (a look-alike's
   distance); both drift with the dead reckoning.
@@ -91,6 +91,8 @@ class RouteModel:
     reach); None: the filters' prior (``initial_sigma_m`` each axis). ``min_valid_fraction`` is the share of a patch's
     nodes the navigation needs to correlate it (``NavParameters.min_valid_fraction``); ``sweep`` a real-time swath's
     geometry (:class:`lost.host.plan.fill.Sweep`; ``lost.host.cli.plan.scenario_motion`` takes it from a scenario).
+    ``slant_range``: the filters take the ship's slant range to the vehicle, which holds the error along it (a metre or
+    two), so that the error held grows between fixes on the axis across it alone.
     """
 
     speed_mps: float = 1.5
@@ -109,6 +111,7 @@ class RouteModel:
     bias_learning_updates: int = 5
     min_valid_fraction: float = 0.0
     sweep: Sweep | None = None
+    slant_range: bool = False
     sensor_velocity_noise_mps: float | None = None
     sensor_velocity_bias_mps: tuple[float, float] | None = None
     initial_error_m: float | None = None
@@ -370,6 +373,8 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
         # sensor's own errors where the model knows them, else as the density grew); the lower
         growth = lock.held_growth_ms(time_s - held_since, step) if np.isfinite(error_ms) else None
         growth = max(2.0 * p - grown_from, 0.0) if growth is None else growth
+        if model.slant_range:
+            growth *= 0.5  # the ship's slant range holds the axis along it: the error held grows across it alone
         held_ms[n] = 2.0 * p if held is None or not np.isfinite(error_ms) else min(error_ms + growth, 2.0 * p)
     predicted = np.sqrt((1.0 - unlocked) * held_ms + unlocked * unlocked_ms)
     result = {"t_s": np.asarray(t), "east_m": xy[:, 0], "north_m": xy[:, 1], "bound_m": bound, "usable": usable, "predicted_m": predicted}

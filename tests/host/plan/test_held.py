@@ -92,6 +92,9 @@ def test_the_held_error_is_one_patchs_bound_below_the_density_floor_and_grows_th
     # it grows as the density does from the last fix: the same increase of the mean square
     assert grown[-1] ** 2 - 0.6**2 == pytest.approx(density["predicted_m"][blind][-1] ** 2 - density["predicted_m"][np.flatnonzero(blind)[0] - 1] ** 2,
                                                     rel=1e-6)
+    # with a slant range holding the axis along it, the error held grows across it alone: half the mean square
+    ranged = predict_along(accuracy, t, xy, RouteModel(**{**model.__dict__, "slant_range": True}), held=held)["predicted_m"][blind]
+    assert ranged[-1] ** 2 - 0.6**2 == pytest.approx(0.5 * (grown[-1] ** 2 - 0.6**2), rel=1e-6)
 
 
 def test_the_held_bound_on_rough_ground_is_below_the_filters_bound():

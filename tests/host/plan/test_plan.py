@@ -169,6 +169,7 @@ def test_a_scenario_gives_the_route_model_its_velocity_sensors_errors_and_the_st
     towed_blind = dataclasses.replace(demo, vehicle=dataclasses.replace(demo.vehicle, has_velocity_sensor=False))
     assert "sensor_velocity_bias_mps" not in scenario_motion(towed_blind)  # the ship's velocity: no sensor's errors
     assert "sweep" not in motion and scenario_motion(demo, 30.0)["sweep"].shape == (10, 10)  # a real-time swath, on a map's nodes
+    assert motion["slant_range"] and "slant_range" not in scenario_motion(load_scenario(builtin_scenario_path("short")))  # short has none
     args = argparse.Namespace(config=builtin_scenario_path("demo"), sonar_noise_m=None, speed_mps=None, initial_error_m=180.0,
                               lookalike_radius_m=None)
     _, model, _ = _models(args, 30.0)
