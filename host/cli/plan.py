@@ -25,6 +25,7 @@ def scenario_motion(scenario, node_m: float | None = None) -> dict:
     velocity sensor's own noise and bias where the vehicle carries one (else the ship's velocity, whose errors are
     the tow's, not a sensor's), whether the filters take a slant range, and, on a map of ``node_m``, how a real-time
     swath sweeps its patch."""
+    from ..nav import NavParameters
     from ..plan import Sweep
 
     spec = scenario.sensors["sonar"]
@@ -34,7 +35,7 @@ def scenario_motion(scenario, node_m: float | None = None) -> dict:
         bias = np.broadcast_to(np.asarray(velocity.bias, dtype=np.float64), (2,))
         motion.update(sensor_velocity_noise_mps=float(velocity.noise), sensor_velocity_bias_mps=(float(bias[0]), float(bias[1])))
     ranges = scenario.sensors.get("slant_range")
-    if ranges is not None and ranges.enabled and scenario.navigation.get("use_slant_range", True):
+    if ranges is not None and ranges.enabled and NavParameters(**scenario.navigation).use_slant_range:
         motion["slant_range"] = True
     if node_m is not None and spec.mode == "swath" and spec.realtime:
         motion["sweep"] = Sweep(shape=tuple(spec.shape), node_m=node_m, swath_width_m=spec.swath_width_m, max_window_s=spec.max_window_s)

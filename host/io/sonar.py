@@ -22,7 +22,7 @@ import numpy as np
 
 from ..records import PatchSoundings, SonarPatch
 
-__all__ = ["GriddedSoundings", "grid_soundings", "soundings_centre"]
+__all__ = ["GriddedSoundings", "grid_soundings", "patch_pings", "soundings_centre"]
 
 
 @dataclass(frozen=True)
@@ -117,6 +117,23 @@ def grid_soundings(
         used=int(inside.sum()),
         outside=int((~inside).sum()),
     )
+
+
+def patch_pings(positions: np.ndarray, record: int, window: int, half_diagonal_m: float, realtime: bool = True) -> tuple[int, np.ndarray]:
+    """The pings a swath patch of ``record`` gathers, by their ``positions`` (one row a ping, metres): its centre ping and
+    the pings within ``half_diagonal_m`` of it, looked for at most ``window`` pings away.
+
+    A real-time patch holds only the pings up to ``record`` and is centred on the latest earlier ping at least half a
+    diagonal behind it (where the vehicle has not gone that far within ``window``, the earliest in the window: a partly
+    filled patch); any other is centred on ``record`` and takes later pings too.
+    """
+    centre, last = record, len(positions) - 1
+    if realtime:
+        earlier = np.arange(max(record - window, 0), record + 1)
+        behind = earlier[np.hypot(*(positions[earlier] - positions[record]).T) >= half_diagonal_m]
+        centre, last = (int(behind.max()) if behind.size else int(earlier[0])), record
+    nearby = np.arange(max(centre - window, 0), min(centre + window, last) + 1)
+    return centre, nearby[np.hypot(*(positions[nearby] - positions[centre]).T) <= half_diagonal_m]
 
 
 def soundings_centre(east_m: np.ndarray, north_m: np.ndarray) -> tuple[float, float]:

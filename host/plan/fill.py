@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.sonar import grid_soundings, patch_pings
+
 __all__ = ["Sweep", "patch_fill"]
 
 
@@ -51,7 +53,6 @@ def patch_fill(xy: np.ndarray, interval_s: float, sweep: Sweep) -> np.ndarray:
     n = len(xy)
     if n == 0:
         return np.zeros(0)
-    h, w = sweep.shape
     heading = np.gradient(xy, axis=0) if n > 1 else np.array([[0.0, 1.0]])
     norm = np.hypot(heading[:, 0], heading[:, 1])
     heading = np.where(norm[:, None] > 1e-9, heading / np.maximum(norm, 1e-9)[:, None], (0.0, 1.0))
@@ -63,14 +64,8 @@ def patch_fill(xy: np.ndarray, interval_s: float, sweep: Sweep) -> np.ndarray:
     half = sweep.half_diagonal_m
     fill = np.empty(n)
     for k in range(n):
-        earlier = np.arange(max(k - window, 0), k + 1)
-        behind = earlier[np.hypot(*(xy[earlier] - xy[k]).T) >= half]
-        centre = int(behind.max()) if behind.size else int(earlier[0])
-        nearby = np.arange(max(centre - window, 0), k + 1)
-        pings = nearby[np.hypot(*(xy[nearby] - xy[centre]).T) <= half]
+        centre, pings = patch_pings(xy, k, window, half)
         offsets = spots[pings].reshape(-1, 2) - xy[centre]
-        row = np.floor(offsets[:, 1] / sweep.node_m + (h - 1) / 2 + 0.5).astype(np.int64)
-        col = np.floor(offsets[:, 0] / sweep.node_m + (w - 1) / 2 + 0.5).astype(np.int64)
-        inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
-        fill[k] = np.unique(row[inside] * w + col[inside]).size / (h * w)
+        gridded = grid_soundings(offsets[:, 0], offsets[:, 1], np.zeros(len(offsets)), patch_shape=sweep.shape, node_m=sweep.node_m)
+        fill[k] = np.isfinite(gridded.patch.depth_m).mean()
     return fill

@@ -77,7 +77,7 @@ def _swath_patches(
     rng: np.random.Generator, floor: Grid, node_m: float, truth: np.ndarray, measured_velocity: np.ndarray, spec: SonarSpec, rate_hz: float,
     at: np.ndarray, sounded: list[SwathSoundings] | None,
 ) -> list[SonarPatch | None]:
-    from ..io.sonar import grid_soundings
+    from ..io.sonar import grid_soundings, patch_pings
 
     h, w = spec.shape
     dt = 1.0 / rate_hz
@@ -108,14 +108,7 @@ def _swath_patches(
     soundings = _SoundedBeams(depth, beam_offsets)
     patches: list[SonarPatch | None] = []
     for n in at:
-        centre = n
-        if spec.realtime:
-            earlier = np.arange(max(n - window, 0), n + 1)
-            behind = earlier[np.hypot(*(reckoned[earlier] - reckoned[n]).T) >= half_diagonal]
-            # A vehicle too slow to have gone that far in max_window_s gets a patch as full as it can be.
-            centre = int(behind.max()) if behind.size else int(earlier[0])
-        nearby = np.arange(max(centre - window, 0), min(centre + window, n if spec.realtime else truth.shape[0] - 1) + 1)
-        pings = nearby[np.hypot(*(reckoned[nearby] - reckoned[centre]).T) <= half_diagonal]
+        centre, pings = patch_pings(reckoned, int(n), window, half_diagonal, spec.realtime)
         placed = _PatchPings(soundings, reckoned, pings, int(n), dt)
         east, north, sounded_depth, age = placed.arrays()
         patches.append(grid_soundings(
