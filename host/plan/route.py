@@ -311,10 +311,9 @@ class _Unlocked:
             self.slipped, self.searching = self.slipped + narrowed, self.searching - narrowed
         # the filters temper each patch by the track run since their last terrain update (the first takes all of it)
         self._untempered_m += model.speed_mps * step
-        weight = share
-        if on_map:
-            weight, self._untempered_m = min(1.0, self._untempered_m / model.patch_length_m), 0.0
-        self._evidence += weight * np.nan_to_num(snr, nan=0.0, posinf=0.0)
+        if on_map:  # off it (or under the patch's least share) there is no update, and no separation to add
+            self._evidence += min(1.0, self._untempered_m / model.patch_length_m) * np.nan_to_num(snr, nan=0.0, posinf=0.0)
+            self._untempered_m = 0.0
         self.searching = min(self.searching, _still_searching(snr, rivals, self._evidence, lookalike.evidence_scale))
         lose, lose_ms = _loss(snr, distance_m, p, lookalike.evidence_scale)
         gain = _acquisition(rivals, self.slip_ms, lookalike.ring_edges_m) if usable else 0.0
