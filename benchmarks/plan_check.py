@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from lost.host.campaign import scenario_with
-from lost.host.cli.plan import scenario_motion
+from lost.host.cli.plan import scenario_motion, scenario_sonar
 from lost.host.grid import Grid
 from lost.host.nav import NavParameters, navigate
 from lost.host.plan import Lookalike, RouteModel, SonarModel, accuracy_grid, held_grid, held_sigma, lookalike_grid, map_sigma, predict_along
@@ -99,7 +99,7 @@ def prepare(name: str, seeds: int, workers: int, cache: Path | None = None) -> F
     grid = scenario_grid(scenario)
     params = NavParameters(**scenario.navigation)
     spec = scenario.sensors["sonar"]
-    sonar = SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3), binned=spec.mode == "swath", realtime=spec.realtime)
+    sonar = scenario_sonar(scenario, grid.node_m)
     sigma = map_sigma(grid, params.survey_sigma_m)
     t = np.asarray(runs[0]["t_s"])
     model = RouteModel.from_navigation(params, grid.node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), patch_lag_m=sonar.lag_m(grid.node_m),

@@ -17,7 +17,24 @@ import numpy as np
 from ..runfolder import run_folder, write_summary
 from .common import output_options, positive_metres, warnings_collected
 
-__all__ = ["register", "run_plan", "scenario_motion"]
+__all__ = ["register", "run_plan", "scenario_motion", "scenario_sonar"]
+
+
+def scenario_sonar(scenario, node_m: float):
+    """The sonar model of a scenario's ``[sensors.sonar]`` on a map of ``node_m``: its patch, its noise per sounding, and for
+    a swath binned into the nodes the soundings a node averages (the beams across its width a node holds, times the pings
+    along a node at the ship's speed, less the beams without a return)."""
+    from ..plan import SonarModel
+    from ..plan.fill import Sweep
+
+    spec = scenario.sensors["sonar"]
+    soundings = 1.0
+    if spec.mode == "swath":
+        width_m = Sweep(shape=tuple(spec.shape), node_m=node_m, swath_width_m=spec.swath_width_m).width_m
+        pings = node_m / (scenario.ship.speed_kn * 1852.0 / 3600.0 * spec.interval_s)
+        soundings = max(spec.beams * node_m / width_m * pings * (1.0 - spec.missing_beam_rate), 1.0)
+    return SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3), binned=spec.mode == "swath", realtime=spec.realtime,
+                      soundings_per_node=soundings)
 
 
 def scenario_motion(scenario, node_m: float | None = None) -> dict:
@@ -44,25 +61,25 @@ def scenario_motion(scenario, node_m: float | None = None) -> dict:
 
 def _models(args: argparse.Namespace, node_m: float):
     """The sonar and route models: the defaults, a scenario's sonar, ship and navigation (``--config``), then the options."""
+    import dataclasses
+
     from ..nav import NavParameters
     from ..plan import RouteModel, SonarModel
 
-    sonar, motion, params = {}, {}, NavParameters()
+    sonar, motion, params = SonarModel(), {}, NavParameters()
     if args.config is not None:
         from ..scenario import load_scenario
 
         scenario = load_scenario(args.config)
-        spec = scenario.sensors["sonar"]
         params = NavParameters(**scenario.navigation)
-        sonar = {"shape": tuple(spec.shape), "noise_m": max(spec.noise, 1e-3), "binned": spec.mode == "swath", "realtime": spec.realtime}
+        sonar = scenario_sonar(scenario, node_m)
         motion = scenario_motion(scenario, node_m)
     if args.sonar_noise_m is not None:
-        sonar["noise_m"] = args.sonar_noise_m
+        sonar = dataclasses.replace(sonar, noise_m=args.sonar_noise_m)
     if args.speed_mps is not None:
         motion["speed_mps"] = args.speed_mps
     if args.initial_error_m is not None:
         motion["initial_error_m"] = args.initial_error_m
-    sonar = SonarModel(**sonar)
     model = RouteModel.from_navigation(params, node_m, patch_nodes=float(np.sqrt(np.prod(sonar.shape))), patch_lag_m=sonar.lag_m(node_m), **motion)
     return sonar, model, params.lookalike_radius_m if args.lookalike_radius_m is None else args.lookalike_radius_m
 

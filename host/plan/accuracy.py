@@ -32,12 +32,20 @@ class SonarModel:
     """What the planner assumes of the sonar: the patch (nodes of the map), its depth noise (1 sigma, metres), and whether
     its patch is a swath binned into the map's cells (``binned``, as ``lost.host.io.sonar`` grids soundings: each node the
     mean of its cell's soundings) or sampled at points (a simulator's ``gridded`` patch); ``realtime``: the patch of an
-    update holds only the pings received by then, centred half its diagonal behind the vehicle (:meth:`lag_m`)."""
+    update holds only the pings received by then, centred half its diagonal behind the vehicle (:meth:`lag_m`).
+    ``soundings_per_node``: how many soundings a binned node averages (:attr:`node_noise_m`); ``noise_m`` stays the
+    weight the bound gives a node, as the filters' likelihood takes a node at a sounding's noise or more."""
 
     shape: tuple[int, int] = (10, 10)
     noise_m: float = 0.5
     binned: bool = True
     realtime: bool = False
+    soundings_per_node: float = 1.0
+
+    @property
+    def node_noise_m(self) -> float:
+        """The sonar's own error of a patch node: a binned node is the mean of its soundings, a sampled one a sounding."""
+        return self.noise_m / np.sqrt(self.soundings_per_node) if self.binned else self.noise_m
 
     def lag_m(self, node_m: float) -> float:
         """How far behind the vehicle its patch is centred, metres: half the patch's diagonal for a real-time patch (the
@@ -49,6 +57,8 @@ class SonarModel:
             raise ValueError(f"the sonar patch needs at least 2 x 2 nodes, got {self.shape!r}")
         if not (np.isfinite(self.noise_m) and self.noise_m > 0):
             raise ValueError(f"the sonar's noise must be a positive number of metres, got {self.noise_m!r}")
+        if not (np.isfinite(self.soundings_per_node) and self.soundings_per_node >= 1):
+            raise ValueError(f"a patch node averages at least one sounding, got soundings_per_node = {self.soundings_per_node!r}")
 
 
 def _survey_sigma_given(survey_sigma_m: float | np.ndarray | None) -> float | np.ndarray:
@@ -138,9 +148,10 @@ def held_grid(grid: Grid, sonar: SonarModel, weight_sigma_m: np.ndarray | float,
 
     The weighted least-squares fit of the shift and the depth offset with weights ``w_k = 1 / (s^2 + weight_k^2)`` has the
     covariance ``M^-1 N M^-1`` (the sandwich): ``M`` the information of :func:`information` with those weights and
-    ``N = sum_k w_k^2 v_k c_k c_k^T``, ``v_k = s^2 + error_k^2`` the true variance and ``c_k = g_k - sum w g / sum w`` the
-    gradient less its weighted mean (the offset taken out). With the weights the errors' own it is :func:`accuracy_grid`'s
-    bound; where the filters weigh steep nodes down for the slope they cannot place, the shift rests on the flatter
+    ``N = sum_k w_k^2 v_k c_k c_k^T``, ``v_k = n^2 + error_k^2`` the true variance (``n`` the node's own sonar noise,
+    :attr:`SonarModel.node_noise_m`: a binned node averages its soundings' noise) and ``c_k = g_k - sum w g / sum w`` the
+    gradient less its weighted mean (the offset taken out). With the weights the errors' own (and a node of one sounding) it
+    is :func:`accuracy_grid`'s bound; where the filters weigh steep nodes down for the slope they cannot place, the shift rests on the flatter
     nodes and is worse than the bound of the errors alone. Infinity where :func:`accuracy_grid` has no bound.
 
     Raises
@@ -154,7 +165,7 @@ def held_grid(grid: Grid, sonar: SonarModel, weight_sigma_m: np.ndarray | float,
     error_sigma = np.broadcast_to(np.asarray(error_sigma_m, dtype=np.float64), depth.shape)
     if not np.all(np.isfinite(error_sigma[~holes])) or np.any(error_sigma < 0):
         raise ValueError("the map's error against the patch must be a finite, non-negative number of metres at every node with a depth")
-    error_var = sonar.noise_m**2 + error_sigma**2
+    error_var = sonar.node_noise_m**2 + error_sigma**2
     filled = np.where(holes, np.nanmean(depth) if (~holes).any() else 0.0, depth)
     gy, gx = np.gradient(filled, grid.node_m)
     weight = np.where(holes, 0.0, 1.0 / (sonar.noise_m**2 + weight_sigma**2))
