@@ -201,11 +201,12 @@ class ParticleFilter(BayesFilter):
         w /= w.sum()
         return w, *moments(w, self._x, self._y)
 
-    def _accept(self, posterior: np.ndarray, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool) -> None:
+    def _accept(self, posterior: np.ndarray, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool, floored: bool = True) -> None:
         self._w, self._cached = posterior, None
         if 1.0 / np.sum(posterior * posterior) < 0.5 * self._n:
             self._resample()
-        self._keep_floor(post_cov)
+        if floored:
+            self._keep_floor(post_cov)
 
     def _reinitialize(self) -> None:
         centre, sigma = self._search_prior()

@@ -299,9 +299,10 @@ class PointMassFilter(BayesFilter):
         posterior = posterior / total
         return (posterior, *self._moments_of(posterior))
 
-    def _accept(self, posterior: np.ndarray, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool) -> None:
+    def _accept(self, posterior: np.ndarray, post_cov: np.ndarray, correction_m: np.ndarray, terrain: bool, floored: bool = True) -> None:
         self._p_grid = posterior
-        self._keep_floor(post_cov)
+        if floored:
+            self._keep_floor(post_cov)
         self._correction_since_m = self._correction_since_m + correction_m
         if terrain:
             self._learn_bias(self._correction_since_m, np.diag(post_cov))

@@ -95,3 +95,29 @@ def test_a_range_outlier_inside_the_stated_gate_is_refused_once_the_ranges_have_
     f.update(_observation(slant=truth_range + 17.0, frame=ship))
     assert f.counts["range_rejected_innovation"] == 1 and "innovation" in f.estimate().rejected
     np.testing.assert_allclose(f.estimate().position, before, atol=1e-9)
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_ranges_alone_do_not_widen_the_axis_across_them(kind):
+    """Off the map, ranges from a ship to the west hold the east axis; the floor is not owed after them, so the north axis
+    (no motion noise here) keeps its width, where the shortfall of the east axis blurred into it at every range."""
+    from lost.host.nav.estimator import Motion
+    from lost.host.nav.stages import TrackFrame
+
+    grid = _map(shape=(120, 80))
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(use_slant_range=True, slant_range_sigma_m=1.0, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
+    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=2)
+    f.start(0.0, np.array([400.0, 300.0]), _observation())
+    position = _track(f, grid, (400.0, 300.0), 8)
+    ship = TrackFrame(position[0] - 1000.0, position[1], 90.0)  # due west: the range holds the east axis alone
+    f.predict(Motion(dt_s=1.0, velocity_mps=np.zeros(2)))
+    f.update(_observation(slant=1000.0, frame=ship))
+    north_before = f.estimate().covariance[1, 1]
+    for _ in range(20):
+        f.predict(Motion(dt_s=1.0, velocity_mps=np.zeros(2)))
+        f.update(_observation(slant=1000.0, frame=ship))
+    assert f.counts["range_updates"] == 21
+    estimate = f.estimate()
+    assert estimate.covariance[0, 0] < params.position_floor_nodes**2 * grid.node_m**2  # the range holds east under the floor
+    assert estimate.covariance[1, 1] < 1.5 * north_before
