@@ -13,17 +13,22 @@ from lost.host.nav.pmf import PointMassFilter
 from .test_filters import _map, _observation, _quiet, _track
 
 
+def _tracked(kind: str, **changes):
+    """A filter of ``kind`` over a 120 x 80 map, tracked eight records north from (400, 300) with slant ranges on."""
+    grid = _map(shape=(120, 80))
+    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(use_slant_range=True, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0, **changes)
+    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=2)
+    f.start(0.0, np.array([400.0, 300.0]), _observation())
+    return f, grid, params, _track(f, grid, (400.0, 300.0), 8)
+
+
 @pytest.mark.parametrize("kind", ["pmf", "pf"])
 def test_a_slant_range_outlier_is_refused_by_its_innovation(kind):
     """A range 40 m off (a multipath reply) is refused and counted; a good one is used. The moment NIS alone passed such ranges."""
     from lost.host.nav.stages import TrackFrame
 
-    grid = _map(shape=(120, 80))
-    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
-    params = _quiet(use_slant_range=True, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
-    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=2)
-    f.start(0.0, np.array([400.0, 300.0]), _observation())
-    position = _track(f, grid, (400.0, 300.0), 8)
+    f, grid, params, position = _tracked(kind)
     ship = TrackFrame(400.0, 300.0 + 1000.0, 180.0)  # 1000 m north of the vehicle's start, the vehicle behind it
     before = f.estimate().position
     truth_range = math.hypot(*(position - (ship.ship_x_m, ship.ship_y_m)))
@@ -75,19 +80,12 @@ def test_a_range_outlier_inside_the_stated_gate_is_refused_once_the_ranges_have_
     10-16 m off while usable) is refused after fifty ranges whose innovations were a tenth of what was stated."""
     from lost.host.nav.stages import TrackFrame
 
-    grid = _map(shape=(120, 80))
-    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
-    params = _quiet(use_slant_range=True, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0, slant_range_sigma_m=6.0)
-    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=2)
-    f.start(0.0, np.array([400.0, 300.0]), _observation())
-    position = _track(f, grid, (400.0, 300.0), 8)
+    f, grid, params, position = _tracked(kind, slant_range_sigma_m=6.0)
     ship = TrackFrame(400.0, 300.0 + 1000.0, 180.0)
     truth_range = math.hypot(*(position - (ship.ship_x_m, ship.ship_y_m)))
     f.update(_observation(slant=truth_range + 17.0, frame=ship))  # innovation about 2.8 stated sigmas: inside 10.8
     assert f.counts["range_updates"] == 1 and f.counts["range_rejected_innovation"] == 0
-    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=2)
-    f.start(0.0, np.array([400.0, 300.0]), _observation())
-    position = _track(f, grid, (400.0, 300.0), 8)
+    f, grid, params, position = _tracked(kind, slant_range_sigma_m=6.0)
     truth_range = math.hypot(*(position - (ship.ship_x_m, ship.ship_y_m)))
     for _ in range(50):
         f.update(_observation(slant=truth_range + 0.3, frame=ship))
@@ -104,12 +102,7 @@ def test_ranges_alone_do_not_widen_the_axis_across_them(kind):
     from lost.host.nav.estimator import Motion
     from lost.host.nav.stages import TrackFrame
 
-    grid = _map(shape=(120, 80))
-    lik = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
-    params = _quiet(use_slant_range=True, slant_range_sigma_m=1.0, velocity_bias_sigma_mps=0.0, velocity_bias_walk_mps=0.0)
-    f = PointMassFilter(lik, params, grid=grid) if kind == "pmf" else ParticleFilter(lik, params, grid=grid, seed=2)
-    f.start(0.0, np.array([400.0, 300.0]), _observation())
-    position = _track(f, grid, (400.0, 300.0), 8)
+    f, grid, params, position = _tracked(kind, slant_range_sigma_m=1.0)
     ship = TrackFrame(position[0] - 1000.0, position[1], 90.0)  # due west: the range holds the east axis alone
     f.predict(Motion(dt_s=1.0, velocity_mps=np.zeros(2)))
     f.update(_observation(slant=1000.0, frame=ship))
