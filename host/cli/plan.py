@@ -26,12 +26,13 @@ def scenario_sonar(scenario, node_m: float):
     along a node at the ship's speed, less the beams without a return)."""
     from ..plan import SonarModel
     from ..plan.fill import Sweep
+    from ..scenario.spec import KNOT_MPS
 
     spec = scenario.sensors["sonar"]
     soundings = 1.0
     if spec.mode == "swath":
         width_m = Sweep(shape=tuple(spec.shape), node_m=node_m, swath_width_m=spec.swath_width_m).width_m
-        pings = node_m / (scenario.ship.speed_kn * 1852.0 / 3600.0 * spec.interval_s)
+        pings = node_m / (scenario.ship.speed_kn * KNOT_MPS * spec.interval_s)
         soundings = max(spec.beams * node_m / width_m * pings * (1.0 - spec.missing_beam_rate), 1.0)
     return SonarModel(shape=tuple(spec.shape), noise_m=max(spec.noise, 1e-3), binned=spec.mode == "swath", realtime=spec.realtime,
                       soundings_per_node=soundings)
@@ -44,9 +45,10 @@ def scenario_motion(scenario, node_m: float | None = None) -> dict:
     swath sweeps its patch."""
     from ..nav import NavParameters
     from ..plan import Sweep
+    from ..scenario.spec import KNOT_MPS
 
     spec = scenario.sensors["sonar"]
-    motion = {"speed_mps": scenario.ship.speed_kn * 1852.0 / 3600.0, "interval_s": spec.interval_s}
+    motion = {"speed_mps": scenario.ship.speed_kn * KNOT_MPS, "interval_s": spec.interval_s}
     velocity = scenario.sensors.get("velocity")
     if scenario.vehicle.has_velocity_sensor and velocity is not None:
         bias = np.broadcast_to(np.asarray(velocity.bias, dtype=np.float64), (2,))
