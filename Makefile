@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.lost-installed
 FPGA_STAMP := $(VENV)/.lost-fpga-installed
 
-.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-read-survey-swath bench-live bench-live-memory bench-live-12h synth equiv clean verilog lint sim-full cycles bitstream
+.PHONY: setup demo test check bench bench-sim bench-plan bench-nav bench-nav-goals bench-nav-speed bench-nav-usbl bench-track bench-track-goals bench-usbl bench-read bench-read-survey bench-read-survey-swath bench-live bench-live-memory bench-live-12h synth equiv clean verilog lint sim-full cycles bitstream
 
 setup: $(STAMP)
 
@@ -47,14 +47,15 @@ bench-sim: setup
 bench-plan: setup
 	$(BIN)/python benchmarks/plan_speed.py
 
-# The navigation over ten seeds a case on the campaign engine (two local workers): map = floor and survey-made maps;
-# build/bench/nav-seeds/results.parquet and summary.json (medians and 90th percentiles per case and estimator).
-bench-nav-seeds: setup
+# The navigation over ten seeds a case on the campaign engine (two local workers), every shipped scenario: map = floor
+# and survey-made maps; build/bench/nav-seeds/results.parquet and summary.json (medians and 90th percentiles per case
+# and estimator). Resumable: a run finished is not run again.
+bench-nav: setup
 	$(BIN)/lost campaign benchmarks/campaigns/nav.toml --out build/bench/nav-seeds --workers 2
 
-# The Bayesian navigation's goals on every shipped scenario (a few minutes): tables on stdout,
-# build/bench/nav_filters.json.
-bench-nav: setup
+# The Bayesian navigation's specific goals, one seed a shipped scenario (a few minutes): convergence from a 500 m start,
+# the recovery from a 500 m jump, time per update over a wide area, eq. 5.2 by Monte Carlo; build/bench/nav_filters.json.
+bench-nav-goals: setup
 	$(BIN)/python benchmarks/nav_filters.py
 
 # CPU time per record of the navigation on short (about a minute): PMF alone, PF alone, all three, seven repeats

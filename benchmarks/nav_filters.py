@@ -1,4 +1,4 @@
-"""The Bayesian navigation's goals, measured: `make bench-nav` (python benchmarks/nav_filters.py).
+"""The Bayesian navigation's goals, measured: `make bench-nav-goals` (python benchmarks/nav_filters.py).
 
 For every shipped scenario, the three estimators on the same records: error after each one's
 convergence, NEES in band, false fixes, usable share, time per update. Then the issue's specific
