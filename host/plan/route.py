@@ -17,7 +17,10 @@ mixture of two states, as a Monte Carlo of the filters shows them:
   one patch's fit with the map's error against the sonar's patch alone (:func:`lost.host.plan.accuracy.held_sigma`: no
   slope allowance, no density floor) weighed as the filters weigh the patch's nodes (their allowance included:
   :func:`lost.host.plan.accuracy.held_grid`), not averaged along the track, since the map's errors and the relief a node
-  cannot show are the same on every pass over a place and the patches of one stretch share them. Where there is no fix
+  cannot show are the same on every pass over a place and the patches of one stretch share them. Each fix moves the
+  estimate the update's Kalman gain of the way from the error it held to that patch's (summed as amplitudes: the same
+  errors), so after a gap the error comes back over some 1/gain updates, and along the track it follows the patches'
+  errors smoothed over as many (on ``coarse_map``, 1/gain is about 200 updates). Where there is no fix
   it grows from the last one by the velocity sensor's own noise and the part of its bias the filters have not learned
   where those are known (``sensor_velocity_noise_mps``, ``sensor_velocity_bias_mps``: :meth:`_Lock.held_growth_ms`),
   else as the density does; on one axis of the two where a slant range holds the other (``slant_range``).
@@ -219,6 +222,7 @@ class _Lock:
         self.p_fix, self.last_fix, self.fixed = model.initial_sigma_m**2 / 2, t0, False
         self._bias = VelocityBiasFilter(model.velocity_bias_sigma_mps, model.velocity_bias_walk_mps) if model.velocity_bias_sigma_mps > 0 else None
         self._fixes_in_row, self._last_learned = 0, t0
+        self.gain = 0.0  # the last update's Kalman gain: the share of the way its estimate moved to the fix
         bias = model.sensor_velocity_bias_mps
         self._true_bias_ms = None if bias is None else np.square(np.asarray(bias, dtype=np.float64))  # per axis, (m/s)^2
 
@@ -236,10 +240,11 @@ class _Lock:
         # not known of the velocity bias (its sigma times the time since the fix)
         p = self.p_fix + model.velocity_noise_mps**2 * since * step + ins**2 + bias_var * since**2
         if not usable:
-            self.fixed, self._fixes_in_row = False, 0
+            self.fixed, self._fixes_in_row, self.gain = False, 0, 0.0
             return p
         new = self._share if self.fixed else 1.0 if first else min(1.0, model.speed_mps * since / model.patch_length_m)
         posterior = 1.0 / (1.0 / p + 2.0 * new / bound**2)
+        self.gain = 1.0 - posterior / p  # the mean moves by the gain; the floor widens the density only after
         p = max(posterior, model.floor_m**2 / 2)  # horizontal: half an axis
         self.p_fix, self.last_fix, self.fixed = p, time_s, True
         self._fixes_in_row += 1
@@ -367,7 +372,11 @@ def predict_along(accuracy: Grid, t: np.ndarray, xy: np.ndarray, model: RouteMod
             unlocked[n], unlocked_ms[n] = lost.advance(step, p, bool(usable[n]), bool(on_map[n]), *(ring[:, n] for ring in rings))
         previous = time_s
         if usable[n] and np.isfinite(held_bound[n]):
-            error_ms, grown_from, held_since = held_bound[n] ** 2, 2.0 * p, time_s
+            # the estimate moves the update's gain of the way to this patch's fit; the error it carried keeps the rest,
+            # summed as amplitudes (the map's errors under successive patches are the same errors)
+            carried = held_bound[n] if not np.isfinite(error_ms) else np.sqrt(held_ms[n - 1])
+            error_ms = ((1.0 - lock.gain) * carried + lock.gain * held_bound[n]) ** 2
+            grown_from, held_since = 2.0 * p, time_s
         # two bounds on the error held, each from above: the density's width and one patch's bound grown since (by the
         # sensor's own errors where the model knows them, else as the density grew); the lower
         growth = lock.held_growth_ms(time_s - held_since, step) if np.isfinite(error_ms) else None

@@ -85,7 +85,7 @@ def test_the_held_error_is_one_patchs_bound_below_the_density_floor_and_grows_th
     route = predict_along(accuracy, t, xy, model, held=held)
     column = np.rint(route["east_m"] / 10.0)
     blind = (column >= 80) & (column < 140)
-    assert np.allclose(route["predicted_m"][~blind & (column > 5)], 0.6)  # not the floor's 3 m: that is the density's width
+    assert np.allclose(route["predicted_m"][(column > 5) & (column < 80)], 0.6)  # not the floor's 3 m: that is the density's width
     assert np.all(density["predicted_m"] >= 3.0 - 1e-12)
     grown = route["predicted_m"][blind]
     assert np.all(np.diff(grown) > 0) and grown[-1] > 2 * 0.6
@@ -95,6 +95,27 @@ def test_the_held_error_is_one_patchs_bound_below_the_density_floor_and_grows_th
     # with a slant range holding the axis along it, the error held grows across it alone: half the mean square
     ranged = predict_along(accuracy, t, xy, RouteModel(**{**model.__dict__, "slant_range": True}), held=held)["predicted_m"][blind]
     assert ranged[-1] ** 2 - 0.6**2 == pytest.approx(0.5 * (grown[-1] ** 2 - 0.6**2), rel=1e-6)
+
+
+def test_after_a_hole_the_error_held_returns_to_the_patchs_by_each_updates_gain():
+    bound = np.full((40, 200), 1.0)
+    bound[:, 80:140] = np.inf
+    accuracy = Grid(depth_m=bound, x0_m=0.0, y0_m=0.0, node_m=10.0)
+    held = Grid(depth_m=np.where(np.isfinite(bound), 0.6, np.inf), x0_m=0.0, y0_m=0.0, node_m=10.0)
+    model = RouteModel(speed_mps=2.0, interval_s=1.0, velocity_noise_mps=0.2, initial_sigma_m=100.0, usable_sigma_m=5.0, floor_m=0.5,
+                       patch_length_m=40.0)
+    t = np.arange(0.0, 990.0)
+    xy = np.column_stack([2.0 * t, np.full(t.size, 200.0)])
+    error = predict_along(accuracy, t, xy, model, held=held)["predicted_m"]
+    back = np.flatnonzero(np.rint(xy[:, 0] / 10.0) >= 140)
+    grown, first = error[back[0] - 1], error[back[0]]
+    # the first fix after the hole weighs the whole patch against a density grown wide: most of the way, not all
+    assert 0.6 < first < 0.6 + 0.5 * (grown - 0.6)
+    excess = error[back[:60]] - 0.6
+    assert np.all(np.diff(excess) < 0) and excess[-1] < 0.05 * excess[0]  # each later fix takes its gain of what is left
+    # at a steady density the gain is steady: the excess decays geometrically
+    ratios = excess[40:] / excess[39:-1]
+    assert np.all(ratios < 1.0) and np.ptp(ratios) < 0.01
 
 
 def test_a_binned_node_averages_its_soundings_noise_out_of_the_held_error():
