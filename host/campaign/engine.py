@@ -3,9 +3,9 @@
 The campaign folder (``--out``) is resumable rather than replaced whole: ``rows/RUN_ID.json`` is written (under a
 temporary name, then renamed) the moment a run finishes, so a killed worker, a killed client or a stopped
 machine loses only the runs in flight, and starting the same campaign again runs only what has no row file yet.
-``results.parquet``, ``summary.json`` and the plots are rewritten from all row files at the end of every
-start. The folder is ours only with ``lost-campaign.json``; a second campaign on it while one runs is refused
-(the run folder's lock).
+``results.parquet``, ``summary.json``, ``summary.md`` (:mod:`lost.host.campaign.table`) and the plots are rewritten
+from all row files at the end of every start. The folder is ours only with ``lost-campaign.json``; a second campaign
+on it while one runs is refused (the run folder's lock).
 
 Dask: a ``LocalCluster`` of ``workers`` single-threaded processes on this machine by default, or any running
 cluster by its scheduler's address (``tcp://host:8786``); a task is a whole run and its result is rows
@@ -27,6 +27,7 @@ from typing import Any
 from ..runfolder import RunFolderError, atomic_write, folder_lock, writable_parent, write_summary
 from .run import run_task
 from .spec import CampaignSpec, RunTask
+from .table import markdown_table
 
 __all__ = ["run_campaign", "read_rows", "CAMPAIGN_MARKER"]
 
@@ -156,6 +157,8 @@ def _finish(spec: CampaignSpec, out: Path, runs: int, ran: int) -> dict[str, Any
                "errors": sorted(set(failed["error"].astype(str)))[:20] if len(failed) else [],
                "system": spec.system, "distributions": _distributions(table), "warnings": warnings}
     write_summary(out / "summary.json", summary)
+    text = markdown_table(table, tuple(case.name for case in spec.all_cases()))
+    atomic_write(out / "summary.md", lambda handle: handle.write(text))
     return summary
 
 

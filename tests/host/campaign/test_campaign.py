@@ -128,6 +128,7 @@ def test_a_campaign_runs_on_a_local_cluster_resumes_and_keeps_failures_as_rows(t
     assert not table.profiled.dropna().any()  # the local cluster's workers leave their CPU to the runs
     assert {e["case"]: e["rms_m"]["median"] for e in summary["distributions"]} == {"a": 1.5, "b": 1.5}
     assert (out / "distributions.png").stat().st_size > 0 and json.loads((out / CAMPAIGN_MARKER).read_text())["campaign"] == "c"
+    assert "| a | pmf | 4 | 1.50 / " in (out / "summary.md").read_text()  # the page's table: the successful runs of a case
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "rows").iterdir()}
     again = run_campaign(spec, out, workers=1, task=_quick_with_errors)
     assert again["ran_now"] == 0 and again["finished"] == 16
