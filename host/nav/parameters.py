@@ -169,7 +169,8 @@ class NavParameters:
     pmf_sigmas : float
         The grid's half-width in standard deviations of the density. Default 4.
     pmf_min_cell_m : float or None
-        Smallest cell, metres; None: the coarser of a tenth of a map node and half the density's floor width.
+        Smallest cell, metres; None: the coarser of a tenth of a map node and half the density's floor width, and off
+        the map half the density's narrowest sigma (the slant ranges hold an axis under the floor there).
     pf_particles : int
         Particles of the particle filter. Default 10,000.
     gate_nis : float

@@ -7,6 +7,8 @@ The grid
 ``pmf_min_cell_m`` (default a tenth of a map node or half the floor width, the coarser: a posterior that collapsed into one node-sized
 cell would leave an error floor of a node over sqrt 6). The density is kept at least
 ``position_floor_nodes`` wide (see NavParameters): narrower after an update, the next prediction widens it by a Gaussian blur.
+Off the map (no terrain for ``off_map_usable_s``) the slant ranges alone update it and owe no floor, so the cells
+shrink to half the density's narrowest sigma (``pmf_cells`` bounding them) to resolve the axis the ranges hold.
 The grid follows the density: it is laid anew
 (the density interpolated onto it) when the estimate drifts a quarter of the way to its edge or the
 covariance outgrows or shrinks well inside it. So it widens by itself while no update arrives.
@@ -92,7 +94,8 @@ class PointMassFilter(BayesFilter):
         super().__init__(likelihood, params, grid=grid, name=name)
         floor = math.sqrt(self._floor_var_acquisition)
         # Cells fine enough to resolve the floor's width, a grid wide enough for four of it.
-        self._min_cell = params.pmf_min_cell_m if params.pmf_min_cell_m is not None else max(grid.node_m / PMF_CELLS_PER_NODE, floor / 2.0)
+        self._floor_cell = params.pmf_min_cell_m if params.pmf_min_cell_m is not None else max(grid.node_m / PMF_CELLS_PER_NODE, floor / 2.0)
+        self._min_cell = self._floor_cell
         self._min_half = max(2.0 * grid.node_m, 4.0 * floor)
         self._velocity_bias = VelocityBiasFilter(params.velocity_bias_sigma_mps, params.velocity_bias_walk_mps)
         self._pending_var = 0.0
@@ -155,14 +158,33 @@ class PointMassFilter(BayesFilter):
         return carried[1:-1, 1:-1]
 
     def _follow(self) -> None:
-        """Re-lay the grid when the density drifts toward its edge or its width no longer fits it."""
+        """Re-lay the grid when the density drifts toward its edge, its width no longer fits it, or its cells no
+        longer resolve it (:meth:`_wanted_cell`)."""
         mean, cov = self._moments()
         sigma = largest_sigma(cov)
         wanted = max(self._p.pmf_sigmas * sigma, self._min_half)
         half = self._n * self._cell / 2.0
         drift = float(np.max(np.abs(mean - self._centre)))
-        if drift > 0.25 * half or not 0.6 <= wanted / half <= 1.5:
+        self._min_cell = self._wanted_cell(cov)
+        n = min(self._p.pmf_cells, max(math.ceil(2.0 * wanted / self._min_cell), 8))
+        if drift > 0.25 * half or not 0.6 <= wanted / half <= 1.5 or not 0.7 <= 2.0 * wanted / n / self._cell <= 1.4:
             self._lay(mean, wanted, self._p_grid)
+
+    def _wanted_cell(self, covariance: np.ndarray) -> float:
+        """The finest cell the grid needs: the floor's, or half the density's narrowest sigma off the map.
+
+        On the map every terrain update owes the density its floor, which the floor's cells resolve. Off it (no
+        terrain for ``off_map_usable_s``) only the slant ranges update it, and they owe no floor: they hold the axis
+        along the range to 2 m, under a 4 m cell. The ring, read at the centres of cells as wide as that axis and
+        crossing them obliquely, moved the mean across the track (the axis the ranges do not hold) by more than
+        along it, 0.5 m a range against 0.4 (``seamount_ridges`` seed 2, 700-780 s off the map: 8 -> 17 m across the track). The grid's
+        ``pmf_cells`` over the grid's least width bound the refinement.
+        """
+        if self._p.pmf_min_cell_m is not None or self._trust.since_terrain_s <= self._p.off_map_usable_s:
+            return self._floor_cell
+        narrow, _ = eigenvalues_2x2(covariance - np.eye(2) * self._cell**2 / 12.0)
+        # A density within one row of cells has no measurable width left: the finest grid then.
+        return max(min(self._floor_cell, 0.5 * math.sqrt(max(narrow, 0.0))), 2.0 * self._min_half / self._p.pmf_cells)
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
         return self._moments_of(self._p_grid)

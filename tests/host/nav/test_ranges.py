@@ -114,3 +114,38 @@ def test_ranges_alone_do_not_widen_the_axis_across_them(kind):
     estimate = f.estimate()
     assert estimate.covariance[0, 0] < params.position_floor_nodes**2 * grid.node_m**2  # the range holds east under the floor
     assert estimate.covariance[1, 1] < 1.5 * north_before
+
+
+
+def _off_the_map_with_ranges(**changes):
+    """The PMF tracked on the map, then 60 s without terrain under ranges (1 m) from a ship 1 km away 8 degrees north of
+    east: the RMS of the mean's moves along the range and across it, the last cell width and the narrow axis' sigma."""
+    from lost.host.nav.estimator import Motion
+    from lost.host.nav.stages import TrackFrame
+
+    f, grid, params, position = _tracked("pmf", slant_range_sigma_m=1.0, velocity_noise_mps=0.2, **changes)
+    rng = np.random.default_rng(7)
+    u = np.array([math.cos(math.radians(8.0)), math.sin(math.radians(8.0))])
+    moves = []
+    for _ in range(60):
+        f.predict(Motion(dt_s=1.0, velocity_mps=np.zeros(2)))
+        before = f.estimate().position
+        f.update(_observation(slant=1000.0 + rng.normal(0.0, 1.0), frame=TrackFrame(*(position + 1000.0 * u), 270.0)))
+        moves.append(f.estimate().position - before)
+    moves = np.array(moves)
+    along, across = (float(np.sqrt(np.mean((moves @ axis) ** 2))) for axis in (u, np.array([-u[1], u[0]])))
+    x, _, _ = f.density
+    narrow = math.sqrt(np.linalg.eigvalsh(f.estimate().covariance)[0])
+    assert f.counts["range_updates"] == 60 and f.counts["terrain_updates"] == 8
+    return along, across, float(x[0, 1] - x[0, 0]), narrow
+
+
+def test_off_the_map_the_cells_resolve_the_axis_the_ranges_hold_so_a_range_moves_the_mean_along_itself():
+    """Off the map the ranges hold the axis along them under the floor's cell (1.25 m here). On cells that wide the oblique
+    ring, read at their centres, moved the mean across the range, which it does not measure, more than along it."""
+    along, across, cell, narrow = _off_the_map_with_ranges()
+    assert cell < 1.25 and narrow < 1.25
+    assert across < 0.5 * along
+    along_floor_cells, across_floor_cells, cell_floor, _ = _off_the_map_with_ranges(pmf_min_cell_m=1.25)
+    assert cell_floor == pytest.approx(1.25, rel=0.1)
+    assert across_floor_cells > along_floor_cells
