@@ -207,6 +207,7 @@ class Trust:
         self.misfit_level = 1.0
         self._shares: deque[float] = deque(maxlen=MISFIT_MEMORY)
         self.independent_share = 1.0
+        self._usable_share = 0.0  # the independent share when the flag was last up (the wrong-place threshold's)
         self._narrow_patches = 0
         self.settled = False
         self._range_innovations: deque[float] = deque(maxlen=RANGE_MEMORY)
@@ -394,6 +395,8 @@ class Trust:
         sigma = self.sigma_max(covariance)
         if sigma > self._p.usable_sigma_nodes * self._node_m:
             return False
+        if self.usable:
+            self._usable_share = self.independent_share
         margin = likelihood.margin(mean, patch, radius_m=self._p.lookalike_radius_m, exclusion_m=max(3.0 * sigma, 2.0 * self._node_m))
         if not math.isfinite(margin):
             return False
@@ -404,8 +407,12 @@ class Trust:
         # The margin is a difference of two mean residuals over the patch: its noise goes as 1 / sqrt(N_eff), so the
         # wrong-place threshold grows by 1 / sqrt(independent share). On a smooth shelf under a survey map (share about
         # 0.1) a 0.5 margin elsewhere is the map's correlated error: shelf_canyon (seed 0) re-initialized twice on it
-        # from the right place and locked 700 m off.
-        better_elsewhere = margin < -self._p.elsewhere_margin / math.sqrt(self.independent_share)
+        # from the right place and locked 700 m off. A density locked narrow on a wrong place measures that place's
+        # mismatch as correlation too, and the threshold it raises guards the lock (offset, terrain seed 2003, after the
+        # jump's re-initialization: the share 0.68 -> 0.2, margins of -0.8 to -1.2 against -1.12 for 100 s). The share
+        # the filter had when its flag was last up is the map's where it was trusted: the larger of the two counts.
+        share = max(self.independent_share, self._usable_share)
+        better_elsewhere = margin < -self._p.elsewhere_margin / math.sqrt(share)
         self._elsewhere.append(better_elsewhere)
         if better_elsewhere:
             self.counts["fits_better_elsewhere"] += 1

@@ -138,6 +138,27 @@ def test_the_wrong_place_threshold_grows_as_the_residuals_correlate():
         assert trust.counts["fits_better_elsewhere"] == counted, share
 
 
+
+def test_the_wrong_place_threshold_keeps_the_share_the_filter_had_when_last_usable():
+    """A lock on a wrong place measures its mismatch as correlation (its share falls to 0.2, threshold 1.12): a margin
+    of -0.8 still counts against it where the filter, last usable, measured a share of 0.64 (threshold 0.625)."""
+
+    class Margin:
+        def margin(self, centre, patch, *, radius_m, exclusion_m):
+            return -0.8
+
+    narrow = np.eye(2) * 4.0
+    trust = Trust(NavParameters(), node_m=NODE)
+    trust.independent_share = 0.2
+    trust.look_alike(Margin(), np.zeros(2), narrow, None)
+    assert trust.counts["fits_better_elsewhere"] == 0  # never usable: the measured share stands
+    trust.usable, trust.independent_share = True, 0.64
+    trust.look_alike(Margin(), np.zeros(2), narrow, None)
+    assert trust.counts["fits_better_elsewhere"] == 1
+    trust.usable, trust.independent_share = False, 0.2  # the flag down, the share measured at the wrong lock
+    trust.look_alike(Margin(), np.zeros(2), narrow, None)
+    assert trust.counts["fits_better_elsewhere"] == 2
+
 def _margin_by_mask(lik, grid, centre, patch, radius_m, exclusion_m):
     """The look-alike margin with the near region as a Chebyshev mask over the placements (the definition)."""
     words, mask, _ = lik._prep.quantize_patch(patch.depth_m)
