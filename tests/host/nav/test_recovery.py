@@ -164,3 +164,23 @@ def test_the_wrong_place_check_counts_a_window_of_patches_not_a_run():
     assert trust.counts["lookalike"] == n + 3 * n and trust.counts["reinitializations"] == 1
     # A wide density is not checked at all.
     assert not trust.look_alike(Margins([-5.0]), np.zeros(2), 1e6 * np.eye(2), None)
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_a_search_for_a_better_fit_elsewhere_stays_around_the_estimate_when_the_layback_lies_beyond_the_search(kind):
+    grid = _map(shape=(140, 140))
+    likelihood = TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0)
+    params = _quiet(initial_sigma_m=60.0, pmf_sigmas=4.0)
+    estimate = np.array([700.0, 700.0])
+    for layback, centre in ((np.array([700.0, 200.0]), estimate), (np.array([500.0, 650.0]), np.array([500.0, 650.0]))):
+        f = PointMassFilter(likelihood, params, grid=grid) if kind == "pmf" else ParticleFilter(likelihood, params, grid=grid, seed=3)
+        f.start(0.0, estimate, _observation())
+        f.update(replace(_observation(), layback_m=layback))
+        f._trust.restart_cause = "fits_better_elsewhere"
+        f._reinitialize()
+        mean, cov = f._moments()
+        assert np.hypot(*(mean - centre)) < 5.0, layback
+        np.testing.assert_allclose(np.sqrt(np.diag(cov)), params.initial_sigma_m, rtol=0.05)
+        f._trust.restart_cause = "ranges_refused"  # any other cause: the lay-back, however far
+        f._reinitialize()
+        assert np.hypot(*(f._moments()[0] - layback)) < 5.0
