@@ -10,7 +10,6 @@ are, how a likelihood reweighs them, what accepting a posterior does to it, and 
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 from scipy.stats import chi2
@@ -24,8 +23,6 @@ __all__ = ["BayesFilter", "RANGE_GATE", "ring_log_likelihood"]
 
 #: The slant range's innovation gate: chi-square with one degree of freedom at 99.9 %.
 RANGE_GATE = float(chi2.ppf(0.999, 1))
-#: Terrain updates while usable whose offsets from the lay-back set a re-initialization's anchor (their median).
-LAYBACK_OFFSET_MEMORY = 200
 
 
 def ring_log_likelihood(residual_m: np.ndarray, sigma_m: float, half_width_m: float) -> np.ndarray:
@@ -75,11 +72,9 @@ class BayesFilter:
         self._depth_bias_var = params.depth_bias_sigma_m**2
         self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
         self._layback: np.ndarray | None = None
-        # Where the estimate lay from the lay-back at terrain updates while usable, (along, cross) the ship's track:
-        # the cable model knows neither the current's drift nor the catenary (230-330 m on the shipped tows). Their
-        # median: a dead-reckoning jump moves the estimate for the records before its flag falls, and the offset
-        # learned from those alone centred the PF's search on the jumped place (``offset`` seed 5).
-        self._layback_offsets: deque[tuple[float, float]] = deque(maxlen=LAYBACK_OFFSET_MEMORY)
+        # Where the usable estimate last lay from the lay-back, (along, cross) the ship's track: the cable model
+        # knows neither the current's drift nor the catenary (230-330 m on the shipped tows).
+        self._layback_offset = np.zeros(2)
         self._frame = None
 
     def _search_prior(self) -> tuple[np.ndarray, float | None]:
@@ -104,9 +99,8 @@ class BayesFilter:
         if self._layback is None:
             return estimate, None
         anchor = self._layback.copy()
-        if self._frame is not None and self._layback_offsets:
-            along, cross = np.median(np.asarray(self._layback_offsets), axis=0)
-            anchor = anchor + along * self._frame.along_unit + cross * self._frame.cross_unit
+        if self._frame is not None:
+            anchor = anchor + self._layback_offset[0] * self._frame.along_unit + self._layback_offset[1] * self._frame.cross_unit
         reach = self._p.pmf_sigmas * self._p.initial_sigma_m  # the half width of the search either filter lays
         if self._trust.restart_cause == "fits_better_elsewhere" and np.hypot(*(anchor - estimate)) > reach:
             return estimate, self._p.initial_sigma_m
@@ -192,9 +186,9 @@ class BayesFilter:
                 self._range_update(observation)
         mean, cov = self._moments()
         self._trust.watch(cov)
-        if self._stage == "tracking" and self._layback is not None and observation.frame is not None:
+        if self._trust.usable and self._layback is not None and observation.frame is not None:
             frame, gap = observation.frame, mean - self._layback
-            self._layback_offsets.append((float(gap @ frame.along_unit), float(gap @ frame.cross_unit)))
+            self._layback_offset = np.array([gap @ frame.along_unit, gap @ frame.cross_unit])
         self._frame = observation.frame
 
     def _patch_shift(self, age_s: float) -> tuple[np.ndarray | float, np.ndarray | float]:
