@@ -72,10 +72,6 @@ class BayesFilter:
         self._depth_bias_var = params.depth_bias_sigma_m**2
         self._stage, self._nis, self._rejected = "uninitialized", float("nan"), ""
         self._layback: np.ndarray | None = None
-        # Where the usable estimate last lay from the lay-back, (along, cross) the ship's track: the cable model
-        # knows neither the current's drift nor the catenary (230-330 m on the shipped tows).
-        self._layback_offset = np.zeros(2)
-        self._frame = None
 
     def _search_prior(self) -> tuple[np.ndarray, float | None]:
         """Where a re-initialized search is centred, and its prior's sigma (None: flat, the ML mode of section 5).
@@ -84,9 +80,7 @@ class BayesFilter:
         search is then laid as the first one was, a Gaussian of ``initial_sigma_m`` around it; a flat
         search over kilometres finds the terrain's best match anywhere on the slant range's ring (on
         ``offset``, 900 m off on the ship's far side, which ranges and terrain both accepted for
-        minutes). Without a lay-back, the search is flat around the estimate. The cable model knows neither the
-        current's drift nor the catenary (its lay-back lies 230-330 m from the vehicle on the shipped tows), so the
-        anchor is the lay-back moved by where the usable estimate last lay from it, along and across the ship's track.
+        minutes). Without a lay-back, the search is flat around the estimate.
 
         The cable model's straight line is wrong in a turn (on ``two_hour`` the lay-back lies 1.8 km from the
         vehicle there). When the patches fit better elsewhere, that place lies within ``lookalike_radius_m`` of
@@ -98,13 +92,10 @@ class BayesFilter:
         estimate = self._moments()[0]
         if self._layback is None:
             return estimate, None
-        anchor = self._layback.copy()
-        if self._frame is not None:
-            anchor = anchor + self._layback_offset[0] * self._frame.along_unit + self._layback_offset[1] * self._frame.cross_unit
         reach = self._p.pmf_sigmas * self._p.initial_sigma_m  # the half width of the search either filter lays
-        if self._trust.restart_cause == "fits_better_elsewhere" and np.hypot(*(anchor - estimate)) > reach:
+        if self._trust.restart_cause == "fits_better_elsewhere" and np.hypot(*(self._layback - estimate)) > reach:
             return estimate, self._p.initial_sigma_m
-        return anchor, self._p.initial_sigma_m
+        return self._layback.copy(), self._p.initial_sigma_m
 
     @property
     def _floor_var(self) -> float:
@@ -184,12 +175,7 @@ class BayesFilter:
                 self.counts["range_in_fix"] += 1
             else:
                 self._range_update(observation)
-        mean, cov = self._moments()
-        self._trust.watch(cov)
-        if self._trust.usable and self._layback is not None and observation.frame is not None:
-            frame, gap = observation.frame, mean - self._layback
-            self._layback_offset = np.array([gap @ frame.along_unit, gap @ frame.cross_unit])
-        self._frame = observation.frame
+        self._trust.watch(self._moments()[1])
 
     def _patch_shift(self, age_s: float) -> tuple[np.ndarray | float, np.ndarray | float]:
         """Where a candidate's patch truly lies, less where it was reckoned: the velocity bias times the patch's age.

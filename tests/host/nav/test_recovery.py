@@ -11,7 +11,6 @@ from lost.host.nav.likelihood import TerrainLikelihood
 from lost.host.nav.mapprep import PreparedMap
 from lost.host.nav.pf import ParticleFilter
 from lost.host.nav.pmf import PointMassFilter
-from lost.host.nav.stages import TrackFrame
 from lost.host.terrain import synthetic_terrain
 
 from .test_filters import NODE, _map, _observation, _patch_at, _quiet, _track
@@ -185,21 +184,3 @@ def test_a_search_for_a_better_fit_elsewhere_stays_around_the_estimate_when_the_
         f._trust.restart_cause = "ranges_refused"  # any other cause: the lay-back, however far
         f._reinitialize()
         assert np.hypot(*(f._moments()[0] - layback)) < 5.0
-
-
-def test_a_search_around_the_layback_keeps_where_the_usable_estimate_lay_from_it_along_and_across_the_track():
-    """The cable model knows no current nor catenary: the usable estimate's offset from the lay-back, in the ship's frame."""
-    grid = _map(shape=(140, 140))
-    params = _quiet(initial_sigma_m=3.0)
-    f = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
-    estimate = np.array([700.0, 700.0])
-    f.start(0.0, estimate, _observation())
-    f._trust.usable = True
-    # Ship heading north: the estimate lies 50 m ahead of the lay-back and 80 m to port of it.
-    f.update(replace(_observation(), frame=TrackFrame(700.0, 900.0, 0.0), layback_m=estimate + (80.0, -50.0)))
-    f._trust.usable = False
-    # The ship turned east; the lay-back moved. Along the new track, 50 m ahead is east; 80 m to port is north.
-    f.update(replace(_observation(), frame=TrackFrame(900.0, 500.0, 90.0), layback_m=np.array([500.0, 500.0])))
-    f._trust.restart_cause = "ranges_refused"
-    f._reinitialize()
-    assert np.hypot(*(f._moments()[0] - (550.0, 580.0))) < 2.0
