@@ -89,13 +89,18 @@ class BayesFilter:
         (``two_hour`` seed 0: from 145 m off in a turn, around the lay-back the PMF re-initialized six more times
         up to 1.9 km off; around the estimate it is back within 10 m).
         """
-        estimate = self._moments()[0]
         if self._layback is None:
-            return estimate, None
-        reach = self._p.pmf_sigmas * self._p.initial_sigma_m  # the half width of the search either filter lays
-        if self._trust.restart_cause == "fits_better_elsewhere" and np.hypot(*(self._layback - estimate)) > reach:
-            return estimate, self._p.initial_sigma_m
+            return self._moments()[0], None
+        if self._trust.restart_cause == "fits_better_elsewhere":
+            estimate = self._moments()[0]
+            if np.hypot(*(self._layback - estimate)) > self._search_half_m:
+                return estimate, self._p.initial_sigma_m
         return self._layback.copy(), self._p.initial_sigma_m
+
+    @property
+    def _search_half_m(self) -> float:
+        """The half width of a (re)started search, either filter's: ``pmf_sigmas`` initial sigmas."""
+        return self._p.pmf_sigmas * self._p.initial_sigma_m
 
     @property
     def _floor_var(self) -> float:

@@ -210,7 +210,7 @@ class ParticleFilter(BayesFilter):
 
     def _reinitialize(self) -> None:
         centre, sigma = self._search_prior()
-        half = self._p.pmf_sigmas * self._p.initial_sigma_m
+        half = self._search_half_m
         # The depth bias was learned where the cloud was: its mean stays, its confidence goes. The velocity
         # bias is the sensor's, not the place's: the particles keep the cloud's (drawn by weight) if it was learned.
         learned = None if self._acquiring else self._b[:, systematic_resample(self._w, self._rng)]

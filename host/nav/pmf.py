@@ -208,7 +208,7 @@ class PointMassFilter(BayesFilter):
 
     def _lay_prior(self, centre: np.ndarray, sigma: float | None) -> None:
         """A grid of ``pmf_sigmas`` initial sigmas around ``centre``: a Gaussian prior of ``sigma`` on it, or flat (None)."""
-        self._lay(centre, self._p.pmf_sigmas * self._p.initial_sigma_m, None)
+        self._lay(centre, self._search_half_m, None)
         if sigma is not None:
             x, y = self._cells()
             prior = np.exp(-0.5 * (((x - centre[0]) / sigma) ** 2 + ((y - centre[1]) / sigma) ** 2))

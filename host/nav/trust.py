@@ -407,12 +407,9 @@ class Trust:
         # The margin is a difference of two mean residuals over the patch: its noise goes as 1 / sqrt(N_eff), so the
         # wrong-place threshold grows by 1 / sqrt(independent share). On a smooth shelf under a survey map (share about
         # 0.1) a 0.5 margin elsewhere is the map's correlated error: shelf_canyon (seed 0) re-initialized twice on it
-        # from the right place and locked 700 m off. A density locked narrow on a wrong place measures that place's
-        # mismatch as correlation too, and the threshold it raises guards the lock (offset, terrain seed 2003, after the
-        # jump's re-initialization: the share 0.68 -> 0.2, margins of -0.8 to -1.2 against -1.12 for 100 s). The share
-        # the filter had when its flag was last up is the map's where it was trusted: the larger of the two counts.
-        share = max(self.independent_share, self._usable_share)
-        better_elsewhere = margin < -self._p.elsewhere_margin / math.sqrt(share)
+        # from the right place and locked 700 m off. A wrong lock measures its own mismatch as correlation, raising the
+        # threshold that should undo it (offset seed 2003: share 0.68 -> 0.2), so the share when last usable counts too.
+        better_elsewhere = margin < -self._p.elsewhere_margin / math.sqrt(max(self.independent_share, self._usable_share))
         self._elsewhere.append(better_elsewhere)
         if better_elsewhere:
             self.counts["fits_better_elsewhere"] += 1
