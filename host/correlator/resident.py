@@ -11,11 +11,16 @@ valid placements and best fit as :func:`~lost.host.correlator.correlation` over 
 The union is not known before the first request of a record comes, so the first request is widened to
 the union of the previous record's requests, moved with it (the callers' areas follow the vehicle); a request that still
 falls outside widens the surface once more (counted in ``stats["correlations"]``).
+
+A record may have several patches (the same soundings gridded at sub-node offsets, :mod:`lost.host.nav.motion`), asked
+for in turn by each caller: up to ``patches_held`` are held at once, the least recently used dropped first.
 """
 
 from __future__ import annotations
 
 import itertools
+from collections import OrderedDict
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -41,6 +46,19 @@ def _inside(inner: Area, outer: Area) -> bool:
             and outer[1] <= inner[1] and inner[1] + inner[3] <= outer[1] + outer[3])
 
 
+@dataclass
+class _Held:
+    """One patch's state: its words and mask, and the surface over the area it has been asked for."""
+
+    words: np.ndarray
+    mask: np.ndarray
+    area: Area | None = None
+    surface: np.ndarray | None = None
+    hole_free: np.ndarray | None = None  # over the held area: no valid patch node on a hole
+    first: Area | None = None  # this patch's first request (in-map part)
+    asked: Area | None = None  # the union of this patch's requests (in-map parts)
+
+
 class ResidentCorrelator:
     """One map, held for a run; one correlation per patch over the union of the areas asked for.
 
@@ -54,6 +72,8 @@ class ResidentCorrelator:
     mean_compensation : bool
     max_hole_share : float
         A placement may keep up to this share of the patch's valid nodes on holes (:func:`valid_placements`; 0: none).
+    patches_held : int
+        How many patches (and their surfaces) are held at once: a record's patches asked for in turn.
 
     Attributes
     ----------
@@ -62,7 +82,7 @@ class ResidentCorrelator:
     """
 
     def __init__(self, words: np.ndarray, *, holes: np.ndarray | None = None, backend: str | Backend = "software",
-                 mean_compensation: bool = True, max_hole_share: float = 0.0) -> None:
+                 mean_compensation: bool = True, max_hole_share: float = 0.0, patches_held: int = 1) -> None:
         self._backend = _backend(backend)
         probe = np.zeros((1, 1), np.int16)
         self._words, _, _ = model.check_inputs(words, probe, None, mean_compensation)
@@ -72,15 +92,12 @@ class ResidentCorrelator:
         self._mean_compensation = bool(mean_compensation)
         valid_placements((1, 1), (1, 1), (0, 0, 1, 1), None, None, max_hole_share)  # refuses a share outside [0, 1)
         self._max_hole_share = float(max_hole_share)
+        if int(patches_held) < 1:
+            raise ValueError(f"patches_held must be at least 1, got {patches_held!r}")
+        self._capacity = int(patches_held)
         self._key = ("resident", next(_KEYS))  # the device's tile belongs to this map as long as this object lives
-        self._patch_key: bytes | None = None
-        self._patch: tuple[np.ndarray, np.ndarray] | None = None
-        self._area: Area | None = None
-        self._surface: np.ndarray | None = None
-        self._hole_free: np.ndarray | None = None  # over the held area: no valid patch node on a hole
-        self._first: Area | None = None  # this patch's first request (in-map part)
-        self._asked: Area | None = None  # the union of this patch's requests (in-map parts)
-        self._previous: tuple[Area, Area] | None = None  # the previous patch's first request and union of requests
+        self._held: OrderedDict[bytes, _Held] = OrderedDict()  # most recently used last
+        self._previous: tuple[Area, Area] | None = None  # the last patch asked for before the newest: first request, union
         self.stats = dict.fromkeys(("patches", "correlations", "requests"), 0)
 
     @property
@@ -95,8 +112,8 @@ class ResidentCorrelator:
         ValueError
             Bad patch words or mask, an area without placements.
         """
-        self._load(patch, mask)
-        words, mask = self._patch
+        held = self._load(patch, mask)
+        words = held.words
         (H, W), (h, w) = self._words.shape, words.shape
         i0, j0, rows, cols = (int(v) for v in area)
         if rows < 1 or cols < 1:
@@ -104,41 +121,46 @@ class ResidentCorrelator:
         self.stats["requests"] += 1
         on_map = (max(i0, 0), max(j0, 0), min(i0 + rows, H - h + 1) - max(i0, 0), min(j0 + cols, W - w + 1) - max(j0, 0))
         if on_map[2] > 0 and on_map[3] > 0:
-            self._cover(on_map)
+            self._cover(held, on_map)
         surface = np.zeros((rows, cols), dtype=np.int64)
         valid = np.zeros((rows, cols), dtype=bool)
         if on_map[2] > 0 and on_map[3] > 0:
             a0, b0, n_rows, n_cols = on_map
-            s0, t0 = a0 - self._area[0], b0 - self._area[1]
-            surface[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = self._surface[s0 : s0 + n_rows, t0 : t0 + n_cols]
-            valid[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = self._hole_free[s0 : s0 + n_rows, t0 : t0 + n_cols]
+            s0, t0 = a0 - held.area[0], b0 - held.area[1]
+            surface[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = held.surface[s0 : s0 + n_rows, t0 : t0 + n_cols]
+            valid[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = held.hole_free[s0 : s0 + n_rows, t0 : t0 + n_cols]
         radius = max(h, w) // 2 if exclusion_radius is None else int(exclusion_radius)
         fit = choose_fit(surface, valid, radius)
         best, runner_up = placed(fit, (i0, j0))
         return Correlation(surface, valid, best, runner_up, radius, (i0, j0), self._backend.name, "host", None)
 
-    def _load(self, patch: np.ndarray, mask: np.ndarray) -> None:
-        """Make ``patch`` the held one: validated and its surface forgotten, unless it is the same patch again."""
+    def _load(self, patch: np.ndarray, mask: np.ndarray) -> _Held:
+        """The held state of ``patch``: the same patch's again, or a new one validated (the oldest held dropped)."""
         key = patch.tobytes() + np.asarray(mask).tobytes() + str(patch.shape).encode()
-        if key == self._patch_key:
-            return
+        if key in self._held:
+            self._held.move_to_end(key)
+            return self._held[key]
         # The patch checked against itself (its words, its mask); against the map only by shape: the map was checked once.
         _, words, checked = model.check_inputs(patch, patch, mask, self._mean_compensation)
         if words.shape[0] > self._words.shape[0] or words.shape[1] > self._words.shape[1]:
             raise ValueError(f"patch of shape {words.shape} is larger than the terrain map of shape {self._words.shape}")
-        if self._first is not None and self._asked is not None:
-            self._previous = (self._first, self._asked)
-        self._patch_key, self._patch = key, (words, checked)
-        self._area = self._surface = self._hole_free = self._first = self._asked = None
+        if self._held:
+            newest = next(reversed(self._held.values()))
+            if newest.first is not None and newest.asked is not None:
+                self._previous = (newest.first, newest.asked)
+        while len(self._held) >= self._capacity:
+            self._held.popitem(last=False)
+        self._held[key] = held = _Held(words, checked)
         self.stats["patches"] += 1
+        return held
 
-    def _cover(self, area: Area) -> None:
-        """Make the held surface cover the in-map ``area`` (one backend call when it does not yet)."""
-        self._asked = area if self._asked is None else _union(self._asked, area)
-        if self._area is not None and _inside(area, self._area):
+    def _cover(self, held: _Held, area: Area) -> None:
+        """Make ``held``'s surface cover the in-map ``area`` (one backend call when it does not yet)."""
+        held.asked = area if held.asked is None else _union(held.asked, area)
+        if held.area is not None and _inside(area, held.area):
             return
-        if self._area is None:
-            self._first = area
+        if held.area is None:
+            held.first = area
             wanted = area
             if self._previous is not None:
                 # What the previous patch was asked over, moved as its first request moved to this one.
@@ -146,14 +168,14 @@ class ResidentCorrelator:
                 di, dj = area[0] - p_first[0], area[1] - p_first[1]
                 wanted = _union(area, (p_union[0] + di, p_union[1] + dj, p_union[2], p_union[3]))
         else:
-            wanted = _union(self._area, area)
-        words, mask = self._patch
-        (H, W), (h, w) = self._words.shape, words.shape
+            wanted = _union(held.area, area)
+        (H, W), (h, w) = self._words.shape, held.words.shape
         top, left = max(wanted[0], 0), max(wanted[1], 0)
         bottom, right = min(wanted[0] + wanted[2], H - h + 1), min(wanted[1] + wanted[3], W - w + 1)
         clipped = (top, left, bottom - top, right - left)
-        outcome = self._backend.run(self._words, words, mask, self._mean_compensation, clipped, max(h, w) // 2, map_key=self._key)
+        outcome = self._backend.run(self._words, held.words, held.mask, self._mean_compensation, clipped, max(h, w) // 2,
+                                    map_key=self._key)
         # The hole rule over the held area once per surface: each request is then a slice, as the surface is.
-        self._area, self._surface = clipped, outcome.surface
-        self._hole_free = valid_placements((H, W), (h, w), clipped, self._holes, mask, self._max_hole_share)
+        held.area, held.surface = clipped, outcome.surface
+        held.hole_free = valid_placements((H, W), (h, w), clipped, self._holes, held.mask, self._max_hole_share)
         self.stats["correlations"] += 1

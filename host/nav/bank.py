@@ -113,7 +113,8 @@ class EstimatorBank:
                 map_error = map_error_estimate(prepared.grid.depth_m)
             sigma = math.hypot(params.depth_noise_m, map_error)
             self._likelihood = TerrainLikelihood(prepared, sigma_m=sigma, depth_sigma_m=sigma, form=params.likelihood, backend=params.backend,
-                                                 node_var_m2=node_var, depth_noise_m=params.depth_noise_m)
+                                                 node_var_m2=node_var, depth_noise_m=params.depth_noise_m,
+                                                 phases=params.likelihood_phases)
         return self._likelihood
 
     def __iter__(self):

@@ -19,6 +19,14 @@ is multiplied by a weight w in (0, 1]: the share of the patch that is new since 
 ``w = min(1, distance travelled / patch length)``, times ``likelihood_weight`` (default 1; lower for
 map errors correlated over several nodes).
 
+Between placements. The correlator gives the likelihood at whole-node placements of the patch; the vehicle lies
+anywhere between. A map node and a patch node are block means of the floor; a fraction f of a node apart they differ by
+the relief within that fraction, which grows like a cusp from f = 0, so a surface sampled a node apart and read
+between by a spline peaks near a placement: the estimate locks to the map's lattice (measured on ``demo`` seed 1
+across the track: its error 0.12 node, 0.05 with the locking's share taken out). Where the patch carries its soundings
+they are gridded again on lattices moved by 1/K, ..., (K-1)/K of a node (``phases`` K, :func:`lost.host.nav.motion.lattice_moved`),
+each correlated like the patch, and the spline reads a surface sampled every 1/K node.
+
 No information. A placement that leaves the map or puts a sounding on a hole carries no information about where
 the vehicle is: the terrain there is unknown. Such candidates get the median log-likelihood of the
 placements around (those the candidates span): flat, as likely as a typical wrong placement, so that
@@ -38,10 +46,13 @@ from scipy import ndimage, signal
 from ..records import SonarPatch
 from .maperror import window_variance
 from .mapprep import PreparedMap
+from .motion import lattice_moved
 
-__all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "MIN_INDEPENDENT_SHARE", "map_error_estimate"]
+__all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "MAX_PHASES", "MIN_INDEPENDENT_SHARE", "map_error_estimate"]
 
 LIKELIHOODS = ("laplace", "gaussian")
+#: The most samples per node and axis (each phase is one more correlation of the record's patch).
+MAX_PHASES = 4
 #: The least share of a patch's nodes counted independent (:meth:`TerrainLikelihood.independent_share`).
 MIN_INDEPENDENT_SHARE = 0.2
 
@@ -163,10 +174,13 @@ class TerrainLikelihood:
         their larger sigma, are not favoured for the residuals they excuse. Without it, ``sigma_m`` everywhere.
     depth_noise_m : float
         The sonar's own 1-sigma per patch node, with ``node_var_m2``.
+    phases : int
+        Samples of the likelihood per node and axis where the patch carries its soundings (1: the placements alone).
     """
 
     def __init__(self, prepared: PreparedMap, *, sigma_m: float, depth_sigma_m: float | None = None, form: str = "laplace",
-                 backend: str = "software", node_var_m2: np.ndarray | None = None, depth_noise_m: float = 0.0) -> None:
+                 backend: str = "software", node_var_m2: np.ndarray | None = None, depth_noise_m: float = 0.0,
+                 phases: int = 1) -> None:
         if form not in LIKELIHOODS:
             raise ValueError(f"the likelihood form must be one of {LIKELIHOODS}, got {form!r}")
         if not (math.isfinite(sigma_m) and sigma_m > 0):
@@ -182,6 +196,10 @@ class TerrainLikelihood:
         self._node_var = node_var_m2
         self._depth_noise_var = float(depth_noise_m) ** 2
         self._window_sigma: dict[tuple[int, int], np.ndarray] = {}
+        if int(phases) != phases or not 1 <= phases <= MAX_PHASES:
+            raise ValueError(f"the likelihood's phases per node must be an integer from 1 to {MAX_PHASES}, got {phases!r}")
+        self.phases = int(phases)
+        self._moved: tuple[SonarPatch, dict[tuple[int, int], SonarPatch]] | None = None
 
     def _placement_sigma(self, patch_shape: tuple[int, int], i0: int, i1: int, j0: int, j1: int) -> np.ndarray | float:
         """The residual sigma at placements i0..i1 x j0..j1: per placement with the map's node errors, else ``sigma_m``."""
@@ -227,25 +245,22 @@ class TerrainLikelihood:
             shape = np.shape(x)
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
         inside = (pi >= 0) & (pi <= last_i) & (pj >= 0) & (pj <= last_j)
-        residual, valid = self._residuals(words, mask, i0, i1, j0, j1)
-        sigma = self._placement_sigma((h, w), i0, i1, j0, j1)
-        per_node = residual  # mean |r| (metres, Laplace) or mean r**2 (Gaussian) at each placement
-        if self.form == "laplace":
-            ell = -math.sqrt(2.0) * n * per_node / (sigma * sigma_scale)
-            expected = sigma / math.sqrt(2.0) * (n - 1) / n
-        else:
-            ell = -n * per_node / (2.0 * (sigma * sigma_scale) ** 2)
-            expected = sigma**2 * (n - 1) / n
-        if self._node_var is not None:
-            ell = ell - n * np.log(sigma)  # the normalization, which varies between placements
+        per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
+        ell, sigma = self._log_likelihood(per_node, n, (h, w), (i0, i1, j0, j1), sigma_scale)
         if not valid.any():
             shape = np.shape(x)  # every placement spanned is on the map (clipped to it): the holes refused them
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n, inside)
+        expected = sigma / math.sqrt(2.0) * (n - 1) / n if self.form == "laplace" else sigma**2 * (n - 1) / n
         misfit = float(np.min((per_node / expected)[valid]))
         if self.form == "gaussian" and math.isfinite(misfit):
             misfit = math.sqrt(misfit)  # in residual units, like the Laplace form's
         ell = weight * ell
         size = int(round(spacing_m / grid.node_m))
+        read_i, read_j = np.ravel(pi - i0), np.ravel(pj - j0)  # where the candidates fall on the surface's samples
+        moved = self._lattice_moved(patch) if size <= 1 else {}
+        if moved:
+            ell, valid = self._between_nodes(ell, valid, moved, n, (i0, i1, j0, j1), sigma_scale, weight)
+            read_i, read_j = read_i * self.phases + (self.phases - 1), read_j * self.phases + (self.phases - 1)
         if size > 1:
             top = float(ell[valid].max())
             mass = ndimage.uniform_filter(np.where(valid, np.exp(ell - top), 0.0), size=size, mode="constant")
@@ -253,9 +268,52 @@ class TerrainLikelihood:
             valid = share_of_valid > 0.5
             ell = np.log(np.maximum(mass / np.maximum(share_of_valid, 1e-12), 1e-300)) + top
         neutral = float(np.median(ell[valid]))
-        value, informative = _between_placements(ell, valid, neutral, np.ravel(pi - i0), np.ravel(pj - j0), spline=size <= 1)
+        value, informative = _between_placements(ell, valid, neutral, read_i, read_j, spline=size <= 1)
         log_likelihood = np.where(informative, value, neutral).reshape(np.shape(x))
         return PatchLikelihood(log_likelihood, informative.reshape(np.shape(x)), misfit, weight, n, inside)
+
+    def _log_likelihood(self, per_node: np.ndarray, n: int, shape: tuple[int, int], span: tuple[int, int, int, int],
+                        sigma_scale: float) -> tuple[np.ndarray, np.ndarray | float]:
+        """The untempered log-likelihood of ``n`` nodes whose mean |r| (or r**2) is ``per_node``, and the residual sigma."""
+        sigma = self._placement_sigma(shape, *span)
+        if self.form == "laplace":
+            ell = -math.sqrt(2.0) * n * per_node / (sigma * sigma_scale)
+        else:
+            ell = -n * per_node / (2.0 * (sigma * sigma_scale) ** 2)
+        if self._node_var is not None:
+            ell = ell - n * np.log(sigma)  # the normalization, which varies between placements
+        return ell, sigma
+
+    def _lattice_moved(self, patch: SonarPatch) -> dict[tuple[int, int], SonarPatch]:
+        """The patch gridded on lattices moved by (a/K, b/K) of a node north and east, (a, b) != (0, 0); empty with
+        ``phases`` 1 or a patch without soundings. The record's callers share them."""
+        if self.phases == 1 or patch.soundings is None:
+            return {}
+        if self._moved is None or self._moved[0] is not patch:
+            k = self.phases
+            moved = {(a, b): lattice_moved(patch, b / k, a / k) for a in range(k) for b in range(k) if (a, b) != (0, 0)}
+            self._moved = (patch, moved)
+        return self._moved[1]
+
+    def _between_nodes(self, ell: np.ndarray, valid: np.ndarray, moved: dict[tuple[int, int], SonarPatch], n: int,
+                       span: tuple[int, int, int, int], sigma_scale: float, weight: float) -> tuple[np.ndarray, np.ndarray]:
+        """The tempered log-likelihood every 1/K node over ``span``'s placements, from the patch (``ell``, ``valid``)
+        and its lattice-moved grids: sample (K i + K - 1 - a, K j + K - 1 - b) is placement (i - a/K, j - b/K) of the
+        patch, i and j counted from the span's first. Each moved grid counts as the patch's ``n`` nodes, so that a phase
+        with fewer soundings in its nodes is not favoured for the residuals it lacks."""
+        k = self.phases
+        rows, cols = ell.shape
+        fine = np.zeros((rows * k, cols * k))
+        fine_valid = np.zeros((rows * k, cols * k), bool)
+        fine[k - 1 :: k, k - 1 :: k], fine_valid[k - 1 :: k, k - 1 :: k] = ell, valid
+        for (a, b), grid in moved.items():
+            words, mask, _ = self._prep.quantize_patch(grid.depth_m)
+            if int(mask.sum()) < max(2, n // 2):
+                continue  # too few of the soundings fall inside this lattice's nodes to stand for the patch
+            per_node, ok = self._residuals(words, mask, *span)
+            fine[k - 1 - a :: k, k - 1 - b :: k] = weight * self._log_likelihood(per_node, n, words.shape, span, sigma_scale)[0]
+            fine_valid[k - 1 - a :: k, k - 1 - b :: k] = ok
+        return fine, fine_valid
 
     def margin(self, centre_m: np.ndarray, patch: SonarPatch, *, radius_m: float, exclusion_m: float) -> float:
         """How much better the patch fits near ``centre_m`` than anywhere else within ``radius_m``.

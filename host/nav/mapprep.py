@@ -41,6 +41,8 @@ __all__ = ["PreparedMap", "LSB_CANDIDATES_M", "MAX_HOLE_SHARE"]
 MAX_HOLE_SHARE = 0.1
 
 #: Depth steps tried in order, finest first, when the caller does not fix one.
+#: How many patches a record may correlate: its own and its lattice-moved grids (the likelihood's ``MAX_PHASES`` squared).
+RECORD_PATCHES = 16
 LSB_CANDIDATES_M = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
 
 
@@ -102,7 +104,8 @@ class PreparedMap:
         # The grid's own uncertainty layer (a ``sigma_m`` of the grid, or given here): checked once.
         layer = node_sigma_m if node_sigma_m is not None else getattr(grid, "sigma_m", None)
         self._node_sigma = None if layer is None else check_node_sigma(layer, grid.depth_m)
-        self._last_patch: tuple[np.ndarray, bytes, tuple[np.ndarray, np.ndarray, int]] | None = None
+        # The record's patches quantized, by identity (checked against their bytes): each caller's request reuses them.
+        self._quantized: dict[int, tuple[np.ndarray, bytes, tuple[np.ndarray, np.ndarray, int]]] = {}
 
     @classmethod
     def for_navigation(cls, grid: Grid, params: NavParameters) -> PreparedMap:
@@ -167,8 +170,9 @@ class PreparedMap:
     def resident(self, backend: str) -> ResidentCorrelator:
         """The resident correlator of this map on ``backend`` (made on first use)."""
         if backend not in self._residents:
+            # A record's patch and its lattice-moved grids (``likelihood_phases``) are held together.
             self._residents[backend] = ResidentCorrelator(self._words, holes=self._holes_or_none, backend=backend,
-                                                          max_hole_share=self._max_hole_share)
+                                                          max_hole_share=self._max_hole_share, patches_held=RECORD_PATCHES)
         return self._residents[backend]
 
     def quantize_patch(self, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -183,8 +187,9 @@ class PreparedMap:
         mask : bool array, True where a beam is used.
         out_of_range : int, how many finite soundings were dropped for not fitting a word.
         """
-        if self._last_patch is not None and self._last_patch[0] is depth_m and self._last_patch[1] == depth_m.tobytes():
-            return self._last_patch[2]  # the same record's patch again: quantized once
+        held = self._quantized.get(id(depth_m))
+        if held is not None and held[0] is depth_m and held[1] == depth_m.tobytes():
+            return held[2]  # the same record's patch again: quantized once
         depth = np.asarray(depth_m, dtype=np.float64)
         finite = np.isfinite(depth)
         low_m = self._offset_m + DEPTH_MIN * self._lsb_m
@@ -195,5 +200,7 @@ class PreparedMap:
         quantized = words, fits, int((finite & ~fits).sum())
         if isinstance(depth_m, np.ndarray):
             words.flags.writeable = fits.flags.writeable = False  # shared by the record's callers
-            self._last_patch = (depth_m, depth_m.tobytes(), quantized)
+            if len(self._quantized) >= RECORD_PATCHES:
+                self._quantized.pop(next(iter(self._quantized)))
+            self._quantized[id(depth_m)] = (depth_m, depth_m.tobytes(), quantized)
         return quantized

@@ -7,7 +7,11 @@ mean age; what they cannot undo is the spread of ages inside it: a minute of pin
 patch stretched or sheared by 6 m along the track, and a filter that fits it rigidly holds the error of its
 misfit. :func:`compensated` moves each sounding by b (a - mean age) and grids the patch again (same shape, node and
 centre): the patch a true velocity would have made, still its mean age old, so each filter's own whole-patch
-shift stays its own.
+shift stays its own. The patch it gives carries its soundings as placed.
+
+The same soundings gridded on a lattice moved by a fraction of a node (:func:`lattice_moved`) are what the terrain
+likelihood reads between the correlator's placements (:mod:`lost.host.nav.likelihood`): each of its nodes is then a
+block mean of the floor centred where the map's would be were the vehicle that fraction off.
 
 One bias serves the record, so that every estimator correlates the same patch once (the resident correlator
 keys on the patch): :func:`record_bias` takes it from the estimators' answers at the record before, the usable
@@ -21,10 +25,10 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..io.sonar import grid_soundings
-from ..records import SonarPatch
+from ..records import SonarPatch, SoundingArrays
 from .estimator import Estimate
 
-__all__ = ["compensated", "record_bias", "MIN_SHIFT_NODES"]
+__all__ = ["compensated", "lattice_moved", "record_bias", "MIN_SHIFT_NODES"]
 
 #: Below this largest move (in nodes) a patch is used as reckoned: gridding again would change no node's soundings.
 MIN_SHIFT_NODES = 0.02
@@ -45,9 +49,24 @@ def compensated(patch: SonarPatch, bias_mps: np.ndarray) -> SonarPatch:
     spread = np.asarray(age, dtype=np.float64) - patch.age_s
     if float(np.abs(bias).max()) * float(np.abs(spread).max()) < MIN_SHIFT_NODES * patch.node_m:
         return patch
-    gridded = grid_soundings(east + bias[0] * spread, north + bias[1] * spread, depth, patch_shape=patch.depth_m.shape,
-                             node_m=patch.node_m, centre_m=patch.centre_offset_m, age_s=age, soundings=patch.soundings)
+    placed = SoundingArrays(east + bias[0] * spread, north + bias[1] * spread, depth, age)
+    gridded = grid_soundings(placed.east_m, placed.north_m, depth, patch_shape=patch.depth_m.shape, node_m=patch.node_m,
+                             centre_m=patch.centre_offset_m, age_s=age, soundings=placed)
     return gridded.patch
+
+
+def lattice_moved(patch: SonarPatch, east_nodes: float, north_nodes: float) -> SonarPatch | None:
+    """``patch``'s soundings gridded with its centre (and so every node) moved by fractions of a node east and north.
+
+    Placed on the map's placement (i, j), the moved patch stands for the vehicle at placement (i - north_nodes,
+    j - east_nodes) of ``patch``. None for a patch without its soundings (a snapshot, a patch read from a file).
+    """
+    if patch.soundings is None:
+        return None
+    east, north, depth, age = patch.soundings.arrays()
+    centre = (patch.centre_offset_m[0] + east_nodes * patch.node_m, patch.centre_offset_m[1] + north_nodes * patch.node_m)
+    return grid_soundings(east, north, depth, patch_shape=patch.depth_m.shape, node_m=patch.node_m, centre_m=centre,
+                          age_s=age, soundings=patch.soundings).patch
 
 
 def record_bias(answers: Iterable[Estimate]) -> np.ndarray:

@@ -13,7 +13,7 @@ from typing import Any
 
 from ..config import ConfigError, validate_fields
 from ..correlator import BACKENDS
-from .likelihood import LIKELIHOODS
+from .likelihood import LIKELIHOODS, MAX_PHASES
 from .mapprep import MAX_HOLE_SHARE
 from .stages import CrossTrackTracker
 
@@ -109,6 +109,10 @@ class NavParameters:
         hardware gives it; Gaussian is eq. 3.4 (a sum of squares on the host).
     likelihood_weight : float
         Multiplies every terrain log-likelihood (after the new-share tempering). Default 1.
+    likelihood_phases : int
+        Samples of the terrain likelihood per map node and axis between the correlator's whole-node placements, from the
+        patch's soundings gridded again on lattices moved by 1/K of a node (K - 1 more correlations of the record per
+        axis: K**2 in all; patches without soundings read the placements alone). Default 3; 1 to 4.
     temper_by_correlation : bool
         Temper each terrain log-likelihood by the share of the patch's nodes whose residuals are independent
         (N_eff / n, learned from the residuals at the estimate while the density is narrow;
@@ -260,6 +264,7 @@ class NavParameters:
     survey_sigma_m: float = 0.5
     likelihood: str = "laplace"
     likelihood_weight: float = 1.0
+    likelihood_phases: int = 3
     temper_by_correlation: bool = True
     initial_sigma_m: float = 300.0
     velocity_noise_mps: float = 0.05
@@ -329,10 +334,12 @@ class NavParameters:
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number or None, got {value!r}.")
         for name, low in (("pmf_cells", 8), ("pf_particles", 10), ("usable_updates", 1), ("usable_updates_point", 1),
-                          ("reinit_after", 1), ("bias_learning_updates", 1)):
+                          ("reinit_after", 1), ("bias_learning_updates", 1), ("likelihood_phases", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ValueError(f"{name} must be a whole number of at least {low}, got {value!r}.")
+        if self.likelihood_phases > MAX_PHASES:
+            raise ValueError(f"likelihood_phases must be at most {MAX_PHASES} (each is a correlation per axis), got {self.likelihood_phases!r}.")
         if not (math.isfinite(self.min_distinctness) and self.min_distinctness >= 0.0):
             raise ValueError(f"min_distinctness must be a finite number, at least 0 (0 disables the test), got {self.min_distinctness!r}.")
         if not (isinstance(self.max_hole_share, (int, float)) and 0.0 <= self.max_hole_share < 1.0):

@@ -36,7 +36,12 @@ def test_a_patch_placed_by_the_true_bias_is_the_truth_placed_patch_moved_by_the_
     expected = grid_soundings(true_east - bias[0] * mean_age, true_north - bias[1] * mean_age, depth, patch_shape=(9, 14),
                               node_m=NODE_M, centre_m=centre, age_s=age).patch
     np.testing.assert_allclose(placed.depth_m, expected.depth_m, rtol=0, atol=1e-9)
-    assert placed.centre_offset_m == reckoned.centre_offset_m and placed.soundings is reckoned.soundings
+    assert placed.centre_offset_m == reckoned.centre_offset_m
+    # It carries its soundings as placed, so that a grid of them on a moved lattice is placed alike.
+    placed_east, placed_north, _, placed_age = placed.soundings.arrays()
+    np.testing.assert_allclose(placed_east, east + bias[0] * (age - mean_age), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(placed_north, north + bias[1] * (age - mean_age), rtol=0, atol=1e-12)
+    assert np.array_equal(placed_age, age)
     # The reckoned patch is another one: a 12 m stretch along the track moves soundings across nodes.
     assert np.nanmax(np.abs(reckoned.depth_m - expected.depth_m)) > 0.5
 
