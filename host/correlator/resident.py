@@ -13,7 +13,9 @@ the union of the previous record's requests, moved with it (the callers' areas f
 falls outside widens the surface once more (counted in ``stats["correlations"]``).
 
 A record may have several patches (the same soundings gridded at sub-node offsets, :mod:`lost.host.nav.motion`), asked
-for in turn by each caller: up to ``patches_held`` are held at once, the least recently used dropped first.
+for in turn by each caller: up to ``patches_held`` are held at once, the least recently used dropped first. Each comes
+with its ``line`` (the record's own patch, one moved lattice), and a new patch is widened by its own line's previous
+requests: a moved lattice's callers ask for less than the look-alike checks ask of the record's own patch.
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ class _Held:
     hole_free: np.ndarray | None = None  # over the held area: no valid patch node on a hole
     first: Area | None = None  # this patch's first request (in-map part)
     asked: Area | None = None  # the union of this patch's requests (in-map parts)
+    line: object = None  # which of a record's patches it is: its line's next patch is widened by these requests
 
 
 class ResidentCorrelator:
@@ -97,44 +100,52 @@ class ResidentCorrelator:
         self._capacity = int(patches_held)
         self._key = ("resident", next(_KEYS))  # the device's tile belongs to this map as long as this object lives
         self._held: OrderedDict[bytes, _Held] = OrderedDict()  # most recently used last
-        self._previous: tuple[Area, Area] | None = None  # the last patch asked for before the newest: first request, union
+        self._previous: dict[object, tuple[Area, Area]] = {}  # per line, its last patch's first request and union
         self.stats = dict.fromkeys(("patches", "correlations", "requests"), 0)
 
     @property
     def shape(self) -> tuple[int, int]:
         return self._words.shape
 
-    def correlation(self, patch: np.ndarray, mask: np.ndarray, area: Area, *, exclusion_radius: int | None = None) -> Correlation:
+    def correlation(self, patch: np.ndarray, mask: np.ndarray, area: Area, *, exclusion_radius: int | None = None,
+                    line: object = None) -> Correlation:
         """The patch's correlation over ``area`` (which may reach past the map), as :func:`correlation` gives it.
+
+        ``line``: which of a record's patches this is (None: the record's own), for the widening of its first request.
 
         Raises
         ------
         ValueError
             Bad patch words or mask, an area without placements.
         """
-        held = self._load(patch, mask)
-        words = held.words
-        (H, W), (h, w) = self._words.shape, words.shape
+        surface, valid = self.surface(patch, mask, area, line=line)
+        h, w = np.shape(patch)
+        radius = max(h, w) // 2 if exclusion_radius is None else int(exclusion_radius)
+        fit = choose_fit(surface, valid, radius)
+        best, runner_up = placed(fit, area[:2])
+        return Correlation(surface, valid, best, runner_up, radius, (int(area[0]), int(area[1])), self._backend.name, "host", None)
+
+    def surface(self, patch: np.ndarray, mask: np.ndarray, area: Area, *, line: object = None) -> tuple[np.ndarray, np.ndarray]:
+        """The patch's surface over ``area`` and its valid placements, as :meth:`correlation` gives them, without the
+        best fit (a likelihood reads the whole surface)."""
+        held = self._load(patch, mask, line)
+        (H, W), (h, w) = self._words.shape, held.words.shape
         i0, j0, rows, cols = (int(v) for v in area)
         if rows < 1 or cols < 1:
             raise ValueError(f"area must have at least one placement, got rows={rows}, cols={cols}")
         self.stats["requests"] += 1
         on_map = (max(i0, 0), max(j0, 0), min(i0 + rows, H - h + 1) - max(i0, 0), min(j0 + cols, W - w + 1) - max(j0, 0))
-        if on_map[2] > 0 and on_map[3] > 0:
-            self._cover(held, on_map)
         surface = np.zeros((rows, cols), dtype=np.int64)
         valid = np.zeros((rows, cols), dtype=bool)
         if on_map[2] > 0 and on_map[3] > 0:
+            self._cover(held, on_map)
             a0, b0, n_rows, n_cols = on_map
             s0, t0 = a0 - held.area[0], b0 - held.area[1]
             surface[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = held.surface[s0 : s0 + n_rows, t0 : t0 + n_cols]
             valid[a0 - i0 : a0 - i0 + n_rows, b0 - j0 : b0 - j0 + n_cols] = held.hole_free[s0 : s0 + n_rows, t0 : t0 + n_cols]
-        radius = max(h, w) // 2 if exclusion_radius is None else int(exclusion_radius)
-        fit = choose_fit(surface, valid, radius)
-        best, runner_up = placed(fit, (i0, j0))
-        return Correlation(surface, valid, best, runner_up, radius, (i0, j0), self._backend.name, "host", None)
+        return surface, valid
 
-    def _load(self, patch: np.ndarray, mask: np.ndarray) -> _Held:
+    def _load(self, patch: np.ndarray, mask: np.ndarray, line: object) -> _Held:
         """The held state of ``patch``: the same patch's again, or a new one validated (the oldest held dropped)."""
         key = patch.tobytes() + np.asarray(mask).tobytes() + str(patch.shape).encode()
         if key in self._held:
@@ -144,13 +155,9 @@ class ResidentCorrelator:
         _, words, checked = model.check_inputs(patch, patch, mask, self._mean_compensation)
         if words.shape[0] > self._words.shape[0] or words.shape[1] > self._words.shape[1]:
             raise ValueError(f"patch of shape {words.shape} is larger than the terrain map of shape {self._words.shape}")
-        if self._held:
-            newest = next(reversed(self._held.values()))
-            if newest.first is not None and newest.asked is not None:
-                self._previous = (newest.first, newest.asked)
         while len(self._held) >= self._capacity:
             self._held.popitem(last=False)
-        self._held[key] = held = _Held(words, checked)
+        self._held[key] = held = _Held(words, checked, line=line)
         self.stats["patches"] += 1
         return held
 
@@ -158,13 +165,14 @@ class ResidentCorrelator:
         """Make ``held``'s surface cover the in-map ``area`` (one backend call when it does not yet)."""
         held.asked = area if held.asked is None else _union(held.asked, area)
         if held.area is not None and _inside(area, held.area):
+            self._previous[held.line] = (held.first, held.asked)
             return
         if held.area is None:
             held.first = area
             wanted = area
-            if self._previous is not None:
-                # What the previous patch was asked over, moved as its first request moved to this one.
-                (p_first, p_union) = self._previous
+            if held.line in self._previous:
+                # What the line's previous patch was asked over, moved as its first request moved to this one.
+                (p_first, p_union) = self._previous[held.line]
                 di, dj = area[0] - p_first[0], area[1] - p_first[1]
                 wanted = _union(area, (p_union[0] + di, p_union[1] + dj, p_union[2], p_union[3]))
         else:
@@ -178,4 +186,5 @@ class ResidentCorrelator:
         # The hole rule over the held area once per surface: each request is then a slice, as the surface is.
         held.area, held.surface = clipped, outcome.surface
         held.hole_free = valid_placements((H, W), (h, w), clipped, self._holes, held.mask, self._max_hole_share)
+        self._previous[held.line] = (held.first, held.asked)
         self.stats["correlations"] += 1

@@ -132,8 +132,8 @@ def valid_placements(
             raise ValueError(f"mask must be a boolean array of the patch's shape {(h, w)}, got {mask.dtype} {mask.shape}")
     if not holes.any() or not valid.any():
         return valid
-    r0, r1 = (int(np.clip(v, 0, H - h)) for v in (i0, i0 + rows - 1))
-    c0, c1 = (int(np.clip(v, 0, W - w)) for v in (j0, j0 + cols - 1))
+    r0, r1 = (min(max(int(v), 0), H - h) for v in (i0, i0 + rows - 1))  # scalars: np.clip's dispatch is most of a call
+    c0, c1 = (min(max(int(v), 0), W - w) for v in (j0, j0 + cols - 1))
     covered = holes[r0 : r1 + h, c0 : c1 + w]
     if not covered.any():
         return valid

@@ -290,9 +290,7 @@ class TerrainLikelihood:
         if self.phases == 1 or patch.soundings is None:
             return {}
         if self._moved is None or self._moved[0] is not patch:
-            k = self.phases
-            moved = {(a, b): lattice_moved(patch, b / k, a / k) for a in range(k) for b in range(k) if (a, b) != (0, 0)}
-            self._moved = (patch, moved)
+            self._moved = (patch, lattice_moved(patch, self.phases))
         return self._moved[1]
 
     def _between_nodes(self, ell: np.ndarray, valid: np.ndarray, moved: dict[tuple[int, int], SonarPatch], n: int,
@@ -310,7 +308,7 @@ class TerrainLikelihood:
             words, mask, _ = self._prep.quantize_patch(grid.depth_m)
             if int(mask.sum()) < max(2, n // 2):
                 continue  # too few of the soundings fall inside this lattice's nodes to stand for the patch
-            per_node, ok = self._residuals(words, mask, *span)
+            per_node, ok = self._residuals(words, mask, *span, line=(a, b))
             fine[k - 1 - a :: k, k - 1 - b :: k] = weight * self._log_likelihood(per_node, n, words.shape, span, sigma_scale)[0]
             fine_valid[k - 1 - a :: k, k - 1 - b :: k] = ok
         return fine, fine_valid
@@ -407,14 +405,16 @@ class TerrainLikelihood:
             share *= (1.0 - rho) / (1.0 + rho)
         return max(share, MIN_INDEPENDENT_SHARE)
 
-    def _residuals(self, words: np.ndarray, mask: np.ndarray, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, np.ndarray]:
+    def _residuals(self, words: np.ndarray, mask: np.ndarray, i0: int, i1: int, j0: int, j1: int, *,
+                   line: object = None) -> tuple[np.ndarray, np.ndarray]:
         """Over placements i0..i1 x j0..j1: the mean |residual| (Laplace, from the correlator) or mean residual**2
-        (Gaussian, on the host), metres, and which placements are valid (the map's holes)."""
+        (Gaussian, on the host), metres, and which placements are valid (the map's holes). ``line``: which of the
+        record's patches (None: its own; a moved lattice's (a, b))."""
         prep = self._prep
         n = int(mask.sum())
         if self.form == "laplace":
-            result = prep.correlation(words, mask, (i0, j0, i1 - i0 + 1, j1 - j0 + 1), backend=self._backend)
-            return result.surface.astype(np.float64) * prep.lsb_m / float(n) ** 2, result.valid
+            surface, valid = prep.surface(words, mask, (i0, j0, i1 - i0 + 1, j1 - j0 + 1), backend=self._backend, line=line)
+            return surface.astype(np.float64) * prep.lsb_m / float(n) ** 2, valid
         h, w = words.shape
         valid = ~prep.placements_touching_holes((h, w), (i0, j0, i1 - i0 + 1, j1 - j0 + 1), mask)
         sub = prep.words[i0 : i1 + h, j0 : j1 + w]

@@ -158,14 +158,21 @@ class PreparedMap:
         on_map = valid_placements((rows, cols), (h, w), area)
         return on_map & ~valid_placements((rows, cols), (h, w), area, self._holes_or_none, mask, self._max_hole_share)
 
-    def correlation(self, words: np.ndarray, mask: np.ndarray, area: tuple[int, int, int, int], *, backend: str) -> Correlation:
+    def correlation(self, words: np.ndarray, mask: np.ndarray, area: tuple[int, int, int, int], *, backend: str,
+                    line: object = None) -> Correlation:
         """The patch's correlation over ``area`` = (i0, j0, rows, cols) of the map's placements, the map's holes applied.
 
         Served by the map's resident correlator for ``backend`` (:class:`~lost.host.correlator.resident.ResidentCorrelator`):
         a record's patch is correlated once over the union of the areas its callers ask for, and each
-        gets its slice, identical to a correlation of its own area.
+        gets its slice, identical to a correlation of its own area. ``line``: which of the record's patches this is
+        (None: its own; a moved lattice's phase), as :meth:`ResidentCorrelator.correlation` takes it.
         """
-        return self.resident(backend).correlation(words, mask, area)
+        return self.resident(backend).correlation(words, mask, area, line=line)
+
+    def surface(self, words: np.ndarray, mask: np.ndarray, area: tuple[int, int, int, int], *, backend: str,
+                line: object = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`correlation`'s surface and valid placements alone (no best fit), from the same resident correlator."""
+        return self.resident(backend).surface(words, mask, area, line=line)
 
     def resident(self, backend: str) -> ResidentCorrelator:
         """The resident correlator of this map on ``backend`` (made on first use)."""

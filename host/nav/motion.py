@@ -55,18 +55,47 @@ def compensated(patch: SonarPatch, bias_mps: np.ndarray) -> SonarPatch:
     return gridded.patch
 
 
-def lattice_moved(patch: SonarPatch, east_nodes: float, north_nodes: float) -> SonarPatch | None:
-    """``patch``'s soundings gridded with its centre (and so every node) moved by fractions of a node east and north.
+def lattice_moved(patch: SonarPatch, phases: int) -> dict[tuple[int, int], SonarPatch]:
+    """``patch``'s soundings gridded on lattices moved by (a / phases, b / phases) of a node north and east, for every
+    (a, b) in 0..phases-1 but (0, 0): each grid's centre, and so every node, moved by that much.
 
-    Placed on the map's placement (i, j), the moved patch stands for the vehicle at placement (i - north_nodes,
-    j - east_nodes) of ``patch``. None for a patch without its soundings (a snapshot, a patch read from a file).
+    Placed on the map's placement (i, j), grid (a, b) stands for the vehicle at placement (i - a / phases,
+    j - b / phases) of ``patch``. The soundings are binned once on a lattice ``phases`` times finer and each grid sums
+    its cells' blocks. Each grid's ``age_s`` is the patch's. Empty for a patch without its soundings (a snapshot, a
+    patch read from a file).
     """
-    if patch.soundings is None:
-        return None
-    east, north, depth, age = patch.soundings.arrays()
-    centre = (patch.centre_offset_m[0] + east_nodes * patch.node_m, patch.centre_offset_m[1] + north_nodes * patch.node_m)
-    return grid_soundings(east, north, depth, patch_shape=patch.depth_m.shape, node_m=patch.node_m, centre_m=centre,
-                          age_s=age, soundings=patch.soundings).patch
+    if patch.soundings is None or phases < 2:
+        return {}
+    east, north, depth, _ = patch.soundings.arrays()
+    h, w = patch.depth_m.shape
+    k = int(phases)
+    # Sub-cell s of a sounding: node floor((s - a) / k) of grid a, as grid_soundings bins it with the centre moved a / k.
+    sub_n = np.floor(((np.asarray(north) - patch.centre_offset_m[1]) / patch.node_m + (h - 1) / 2 + 0.5) * k).astype(np.int64)
+    sub_e = np.floor(((np.asarray(east) - patch.centre_offset_m[0]) / patch.node_m + (w - 1) / 2 + 0.5) * k).astype(np.int64)
+    rows, cols = h * k + k - 1, w * k + k - 1
+    inside = (sub_n >= 0) & (sub_n < rows) & (sub_e >= 0) & (sub_e < cols)
+    cell = sub_n[inside] * cols + sub_e[inside]
+    # Block sums of the cells by their integral images: grid (a, b)'s node (i, j) holds cells a + i k .. a + i k + k - 1.
+    corner_rows = np.arange(k)[:, None] + k * np.arange(h + 1)[None, :]
+    corner_cols = np.arange(k)[:, None] + k * np.arange(w + 1)[None, :]
+    def block_sums(weights: np.ndarray | None) -> np.ndarray:
+        """(k, k, h, w): grid (a, b)'s node sums of ``weights`` (None: counts)."""
+        integral = np.pad(np.bincount(cell, weights=weights, minlength=rows * cols).reshape(rows, cols).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+        corners = integral[corner_rows[:, None, :, None], corner_cols[None, :, None, :]]
+        return np.diff(np.diff(corners, axis=2), axis=3)
+
+    n, total = block_sums(None), block_sums(np.asarray(depth, dtype=np.float64)[inside])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = np.where(n > 0.5, total / np.maximum(n, 1), np.nan)  # (k, k, h, w): grid (a, b)'s nodes
+    grids = {}
+    for a in range(k):
+        for b in range(k):
+            if a == 0 and b == 0:
+                continue
+            centre = (patch.centre_offset_m[0] + b / k * patch.node_m, patch.centre_offset_m[1] + a / k * patch.node_m)
+            grids[(a, b)] = SonarPatch(depth_m=means[a, b], node_m=patch.node_m, centre_offset_m=centre, age_s=patch.age_s,
+                                       soundings=patch.soundings)
+    return grids
 
 
 def record_bias(answers: Iterable[Estimate]) -> np.ndarray:
