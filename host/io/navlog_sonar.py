@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..records import SonarPatch
+from ..records import SonarPatch, SoundingArrays
 from .csvtable import _Lines, _numeric, _read_table, _seconds, _where
 from .filecheck import DEEPEST_M
 from .navlog_checks import SOUNDING_ABOVE_SURFACE_M
@@ -65,7 +65,10 @@ def _read_sonar(path: Path, *, record_times, epoch, convergence_deg, kept_rows, 
         else:
             centre = (0.0, 0.0)
         age = float(age_s[record]) if age_s is not None and np.isfinite(age_s[record]) else 0.0
-        gridded = grid_soundings(east, north, v["depth_m"][group], patch_shape=patch_shape, node_m=node_m, centre_m=centre, age_s=age)
+        depth = v["depth_m"][group]
+        # The patch carries its soundings: the filters grid them again on lattices moved by fractions of a node.
+        held = SoundingArrays(np.asarray(east, float), np.asarray(north, float), np.asarray(depth, float), np.full(len(depth), age))
+        gridded = grid_soundings(east, north, depth, patch_shape=patch_shape, node_m=node_m, centre_m=centre, age_s=age, soundings=held)
         used += gridded.used
         outside += gridded.outside
         if gridded.used:

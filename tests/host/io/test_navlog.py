@@ -179,6 +179,9 @@ def test_sonar_by_time_is_gridded_per_record_and_every_sounding_accounted(tmp_pa
     assert patch0[2, 2] == 321.0 and patch0[4, 0] == 330.0 and np.isfinite(patch0).sum() == 2
     assert records.sonar[1] is None and records.sonar[3] is None
     assert records.sonar[2].depth_m[2, 2] == 340.0 and records.sonar[2].node_m == 2.0
+    # Each patch carries its soundings (the filters grid them again between nodes), beyond-the-patch ones included.
+    east, north, depth, age = records.sonar[2].soundings.arrays()
+    assert sorted(depth) == [340.0, 999.0] and np.all(age == 0.0)
     assert (report.soundings, report.soundings_used, report.records_with_sonar) == (8, 4, 2)
     assert (report.soundings_unmatched, report.soundings_without_value, report.soundings_outside_patch) == (2, 1, 1)
     summary = report.summary()
