@@ -53,7 +53,7 @@ bench-plan: setup
 bench-nav: setup
 	$(BIN)/lost campaign benchmarks/campaigns/nav.toml --out build/bench/nav-seeds --workers 2
 
-# The Bayesian navigation's specific goals, one seed a shipped scenario (a few minutes): convergence from a 500 m start,
+# The Bayesian navigation's specific goals, one seed a shipped scenario (about 13 minutes): convergence from a 500 m start,
 # the recovery from a 500 m jump, time per update over a wide area, eq. 5.2 by Monte Carlo; build/bench/nav_filters.json.
 bench-nav-goals: setup
 	$(BIN)/python benchmarks/nav_filters.py
