@@ -164,19 +164,24 @@ class ResidentCorrelator:
     def _cover(self, held: _Held, area: Area) -> None:
         """Make ``held``'s surface cover the in-map ``area`` (one backend call when it does not yet)."""
         held.asked = area if held.asked is None else _union(held.asked, area)
-        if held.area is not None and _inside(area, held.area):
-            self._previous[held.line] = (held.first, held.asked)
-            return
         if held.area is None:
             held.first = area
-            wanted = area
-            if held.line in self._previous:
-                # What the line's previous patch was asked over, moved as its first request moved to this one.
-                (p_first, p_union) = self._previous[held.line]
-                di, dj = area[0] - p_first[0], area[1] - p_first[1]
-                wanted = _union(area, (p_union[0] + di, p_union[1] + dj, p_union[2], p_union[3]))
-        else:
-            wanted = _union(held.area, area)
+            self._correlate(held, self._widened(area, held.line))
+        elif not _inside(area, held.area):
+            self._correlate(held, _union(held.area, area))
+        self._previous[held.line] = (held.first, held.asked)
+
+    def _widened(self, first: Area, line: object) -> Area:
+        """A new patch's first request widened by what its line's previous patch was asked over, moved as its first
+        request moved to this one."""
+        if line not in self._previous:
+            return first
+        p_first, p_union = self._previous[line]
+        di, dj = first[0] - p_first[0], first[1] - p_first[1]
+        return _union(first, (p_union[0] + di, p_union[1] + dj, p_union[2], p_union[3]))
+
+    def _correlate(self, held: _Held, wanted: Area) -> None:
+        """One backend call: ``held``'s surface and hole rule over ``wanted``, clipped to the map's placements."""
         (H, W), (h, w) = self._words.shape, held.words.shape
         top, left = max(wanted[0], 0), max(wanted[1], 0)
         bottom, right = min(wanted[0] + wanted[2], H - h + 1), min(wanted[1] + wanted[3], W - w + 1)
@@ -186,5 +191,4 @@ class ResidentCorrelator:
         # The hole rule over the held area once per surface: each request is then a slice, as the surface is.
         held.area, held.surface = clipped, outcome.surface
         held.hole_free = valid_placements((H, W), (h, w), clipped, self._holes, held.mask, self._max_hole_share)
-        self._previous[held.line] = (held.first, held.asked)
         self.stats["correlations"] += 1

@@ -46,13 +46,11 @@ from scipy import ndimage, signal
 from ..records import SonarPatch
 from .maperror import window_variance
 from .mapprep import PreparedMap
-from .motion import lattice_moved
+from .motion import MAX_PHASES, lattice_moved
 
 __all__ = ["TerrainLikelihood", "PatchLikelihood", "LIKELIHOODS", "MAX_PHASES", "MIN_INDEPENDENT_SHARE", "map_error_estimate"]
 
 LIKELIHOODS = ("laplace", "gaussian")
-#: The most samples per node and axis (each phase is one more correlation of the record's patch).
-MAX_PHASES = 4
 #: The least share of a patch's nodes counted independent (:meth:`TerrainLikelihood.independent_share`).
 MIN_INDEPENDENT_SHARE = 0.2
 
@@ -246,7 +244,8 @@ class TerrainLikelihood:
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
         inside = (pi >= 0) & (pi <= last_i) & (pj >= 0) & (pj <= last_j)
         per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
-        ell, sigma = self._log_likelihood(per_node, n, (h, w), (i0, i1, j0, j1), sigma_scale)
+        sigma = self._placement_sigma((h, w), i0, i1, j0, j1)
+        ell = self._log_likelihood(per_node, n, sigma, sigma_scale)
         if not valid.any():
             shape = np.shape(x)  # every placement spanned is on the map (clipped to it): the holes refused them
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n, inside)
@@ -259,7 +258,7 @@ class TerrainLikelihood:
         read_i, read_j = np.ravel(pi - i0), np.ravel(pj - j0)  # where the candidates fall on the surface's samples
         moved = self._lattice_moved(patch) if size <= 1 else {}
         if moved:
-            ell, valid = self._between_nodes(ell, valid, moved, n, (i0, i1, j0, j1), sigma_scale, weight)
+            ell, valid = self._between_nodes(ell, valid, moved, n, (i0, i1, j0, j1), sigma, sigma_scale, weight)
             read_i, read_j = read_i * self.phases + (self.phases - 1), read_j * self.phases + (self.phases - 1)
         if size > 1:
             top = float(ell[valid].max())
@@ -272,17 +271,15 @@ class TerrainLikelihood:
         log_likelihood = np.where(informative, value, neutral).reshape(np.shape(x))
         return PatchLikelihood(log_likelihood, informative.reshape(np.shape(x)), misfit, weight, n, inside)
 
-    def _log_likelihood(self, per_node: np.ndarray, n: int, shape: tuple[int, int], span: tuple[int, int, int, int],
-                        sigma_scale: float) -> tuple[np.ndarray, np.ndarray | float]:
-        """The untempered log-likelihood of ``n`` nodes whose mean |r| (or r**2) is ``per_node``, and the residual sigma."""
-        sigma = self._placement_sigma(shape, *span)
+    def _log_likelihood(self, per_node: np.ndarray, n: int, sigma: np.ndarray | float, sigma_scale: float) -> np.ndarray:
+        """The untempered log-likelihood of ``n`` nodes whose mean |r| (or r**2) is ``per_node``, residual sigma ``sigma``."""
         if self.form == "laplace":
             ell = -math.sqrt(2.0) * n * per_node / (sigma * sigma_scale)
         else:
             ell = -n * per_node / (2.0 * (sigma * sigma_scale) ** 2)
         if self._node_var is not None:
             ell = ell - n * np.log(sigma)  # the normalization, which varies between placements
-        return ell, sigma
+        return ell
 
     def _lattice_moved(self, patch: SonarPatch) -> dict[tuple[int, int], SonarPatch]:
         """The patch gridded on lattices moved by (a/K, b/K) of a node north and east, (a, b) != (0, 0); empty with
@@ -294,10 +291,11 @@ class TerrainLikelihood:
         return self._moved[1]
 
     def _between_nodes(self, ell: np.ndarray, valid: np.ndarray, moved: dict[tuple[int, int], SonarPatch], n: int,
-                       span: tuple[int, int, int, int], sigma_scale: float, weight: float) -> tuple[np.ndarray, np.ndarray]:
+                       span: tuple[int, int, int, int], sigma: np.ndarray | float, sigma_scale: float,
+                       weight: float) -> tuple[np.ndarray, np.ndarray]:
         """The tempered log-likelihood every 1/K node over ``span``'s placements, from the patch (``ell``, ``valid``)
         and its lattice-moved grids: sample (K i + K - 1 - a, K j + K - 1 - b) is placement (i - a/K, j - b/K) of the
-        patch, i and j counted from the span's first. Each moved grid counts as the patch's ``n`` nodes, so that a phase
+        patch, i and j counted from the span's first; ``sigma`` the residual sigma there. Each moved grid counts as the patch's ``n`` nodes, so that a phase
         with fewer soundings in its nodes is not favoured for the residuals it lacks."""
         k = self.phases
         rows, cols = ell.shape
@@ -309,7 +307,7 @@ class TerrainLikelihood:
             if int(mask.sum()) < max(2, n // 2):
                 continue  # too few of the soundings fall inside this lattice's nodes to stand for the patch
             per_node, ok = self._residuals(words, mask, *span, line=(a, b))
-            fine[k - 1 - a :: k, k - 1 - b :: k] = weight * self._log_likelihood(per_node, n, words.shape, span, sigma_scale)[0]
+            fine[k - 1 - a :: k, k - 1 - b :: k] = weight * self._log_likelihood(per_node, n, sigma, sigma_scale)
             fine_valid[k - 1 - a :: k, k - 1 - b :: k] = ok
         return fine, fine_valid
 

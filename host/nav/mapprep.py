@@ -26,6 +26,7 @@ from ..correlator import Area, Correlation, valid_placements
 from ..correlator.resident import ResidentCorrelator
 from ..grid import Grid
 from .maperror import check_node_sigma
+from .motion import MAX_PHASES
 
 if TYPE_CHECKING:
     from .parameters import NavParameters
@@ -40,9 +41,10 @@ __all__ = ["PreparedMap", "LSB_CANDIDATES_M", "MAX_HOLE_SHARE"]
 #: 15.4 at 0.2 (the PMF's 0.65, 1.14, 1.89).
 MAX_HOLE_SHARE = 0.1
 
+#: How many patches a record may correlate: its own and its lattice-moved grids.
+RECORD_PATCHES = MAX_PHASES**2
+
 #: Depth steps tried in order, finest first, when the caller does not fix one.
-#: How many patches a record may correlate: its own and its lattice-moved grids (the likelihood's ``MAX_PHASES`` squared).
-RECORD_PATCHES = 16
 LSB_CANDIDATES_M = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
 
 

@@ -28,10 +28,13 @@ from ..io.sonar import grid_soundings
 from ..records import SonarPatch, SoundingArrays
 from .estimator import Estimate
 
-__all__ = ["compensated", "lattice_moved", "record_bias", "MIN_SHIFT_NODES"]
+__all__ = ["compensated", "lattice_moved", "record_bias", "MAX_PHASES", "MIN_SHIFT_NODES"]
 
 #: Below this largest move (in nodes) a patch is used as reckoned: gridding again would change no node's soundings.
 MIN_SHIFT_NODES = 0.02
+#: The most lattices a node is divided into per axis (``phases`` of :func:`lattice_moved`; each grid is one more
+#: correlation of the record).
+MAX_PHASES = 4
 
 
 def compensated(patch: SonarPatch, bias_mps: np.ndarray) -> SonarPatch:
