@@ -145,6 +145,8 @@ def valid_placements(
 
 #: Output rows of hole counts made per FFT by :func:`_touching`: its memory is a block's, not a whole map's.
 _HOLE_BLOCK_ROWS = 512
+#: Up to this many holes under the placements' windows, :func:`_touching` counts them one by one rather than by FFT.
+_FEW_HOLES = 48
 
 
 def _touching(covered: np.ndarray, mask: np.ndarray | None, patch_shape: tuple[int, int], allowed: int = 0) -> np.ndarray:
@@ -162,6 +164,16 @@ def _touching(covered: np.ndarray, mask: np.ndarray | None, patch_shape: tuple[i
     touching = np.zeros((rows, cols), dtype=bool)
     if not mask.any() or not in_window.any():
         return touching  # holes under the valid nodes are at most the window's: none over the allowed, none under them
+    hole_rows, hole_cols = np.nonzero(covered)
+    if hole_rows.size <= _FEW_HOLES:
+        # A few holes: each adds the mask, turned about, to the placements whose window covers it (integers, exact).
+        counts = np.zeros((rows, cols), dtype=np.int32)
+        turned = mask[::-1, ::-1].astype(np.int32)
+        for r, c in zip(hole_rows.tolist(), hole_cols.tolist()):
+            top, left = max(r - h + 1, 0), max(c - w + 1, 0)
+            bottom, right = min(r, rows - 1) + 1, min(c, cols - 1) + 1
+            counts[top:bottom, left:right] += turned[top - r + h - 1 : bottom - r + h - 1, left - c + w - 1 : right - c + w - 1]
+        return counts > allowed
     # The count of holes under the valid nodes is the hole mask correlated with the patch's mask: an FFT's
     # rounding error is some 1e-12 of a count of at most h * w, so "more than half a hole over" is exact.
     kernel = mask[::-1, ::-1].astype(np.float64)

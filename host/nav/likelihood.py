@@ -198,6 +198,7 @@ class TerrainLikelihood:
             raise ValueError(f"the likelihood's phases per node must be an integer from 1 to {MAX_PHASES}, got {phases!r}")
         self.phases = int(phases)
         self._moved: tuple[SonarPatch, dict[tuple[int, int], SonarPatch]] | None = None
+        self._fine: tuple[SonarPatch, tuple[int, int, int, int], np.ndarray, np.ndarray] | None = None
 
     def _placement_sigma(self, patch_shape: tuple[int, int], i0: int, i1: int, j0: int, j1: int) -> np.ndarray | float:
         """The residual sigma at placements i0..i1 x j0..j1: per placement with the map's node errors, else ``sigma_m``."""
@@ -243,23 +244,29 @@ class TerrainLikelihood:
             shape = np.shape(x)
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n)
         inside = (pi >= 0) & (pi <= last_i) & (pj >= 0) & (pj <= last_j)
-        per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
+        size = int(round(spacing_m / grid.node_m))
+        moved = self._lattice_moved(patch) if size <= 1 else {}
         sigma = self._placement_sigma((h, w), i0, i1, j0, j1)
-        ell = self._log_likelihood(per_node, n, sigma, sigma_scale)
-        if not valid.any():
+        if moved:
+            k = self.phases
+            per_node, valid = self._between_nodes(patch, words, mask, moved, (i0, i1, j0, j1))
+            whole_per_node, whole_valid = per_node[k - 1 :: k, k - 1 :: k], valid[k - 1 :: k, k - 1 :: k]
+        else:
+            per_node, valid = self._residuals(words, mask, i0, i1, j0, j1)
+            whole_per_node, whole_valid = per_node, valid
+        if not whole_valid.any():
             shape = np.shape(x)  # every placement spanned is on the map (clipped to it): the holes refused them
             return PatchLikelihood(np.zeros(shape), np.zeros(shape, bool), float("nan"), weight, n, inside)
         expected = sigma / math.sqrt(2.0) * (n - 1) / n if self.form == "laplace" else sigma**2 * (n - 1) / n
-        misfit = float(np.min((per_node / expected)[valid]))
+        misfit = float(np.min((whole_per_node / expected)[whole_valid]))
         if self.form == "gaussian" and math.isfinite(misfit):
             misfit = math.sqrt(misfit)  # in residual units, like the Laplace form's
-        ell = weight * ell
-        size = int(round(spacing_m / grid.node_m))
         read_i, read_j = np.ravel(pi - i0), np.ravel(pj - j0)  # where the candidates fall on the surface's samples
-        moved = self._lattice_moved(patch) if size <= 1 else {}
         if moved:
-            ell, valid = self._between_nodes(ell, valid, moved, n, (i0, i1, j0, j1), sigma, sigma_scale, weight)
-            read_i, read_j = read_i * self.phases + (self.phases - 1), read_j * self.phases + (self.phases - 1)
+            # Sample (K i + K - 1 - a, K j + K - 1 - b) is placement (i - a/K, j - b/K): its sigma is placement i's.
+            sigma = np.repeat(np.repeat(sigma, k, axis=0), k, axis=1) if np.ndim(sigma) else sigma
+            read_i, read_j = read_i * k + (k - 1), read_j * k + (k - 1)
+        ell = weight * self._log_likelihood(per_node, n, sigma, sigma_scale)
         if size > 1:
             top = float(ell[valid].max())
             mass = ndimage.uniform_filter(np.where(valid, np.exp(ell - top), 0.0), size=size, mode="constant")
@@ -290,26 +297,39 @@ class TerrainLikelihood:
             self._moved = (patch, lattice_moved(patch, self.phases))
         return self._moved[1]
 
-    def _between_nodes(self, ell: np.ndarray, valid: np.ndarray, moved: dict[tuple[int, int], SonarPatch], n: int,
-                       span: tuple[int, int, int, int], sigma: np.ndarray | float, sigma_scale: float,
-                       weight: float) -> tuple[np.ndarray, np.ndarray]:
-        """The tempered log-likelihood every 1/K node over ``span``'s placements, from the patch (``ell``, ``valid``)
-        and its lattice-moved grids: sample (K i + K - 1 - a, K j + K - 1 - b) is placement (i - a/K, j - b/K) of the
-        patch, i and j counted from the span's first; ``sigma`` the residual sigma there. Each moved grid counts as the patch's ``n`` nodes, so that a phase
-        with fewer soundings in its nodes is not favoured for the residuals it lacks."""
+    def _between_nodes(self, patch: SonarPatch, words: np.ndarray, mask: np.ndarray, moved: dict[tuple[int, int], SonarPatch],
+                       span: tuple[int, int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """The mean |residual| (or residual**2) every 1/K node over ``span``'s placements (i0, i1, j0, j1), from the
+        patch (``words``, ``mask``) and its lattice-moved grids, and which samples are valid: sample
+        (K i + K - 1 - a, K j + K - 1 - b) is placement (i - a/K, j - b/K) of the patch, i and j counted from the span's
+        first. A moved grid holding under half the patch's nodes is left out (its samples not valid).
+
+        A record's filters ask for the same patch in turn: the samples are kept for the last patch and a request
+        inside the span already computed is a slice of it; one beyond it is computed over the union.
+        """
         k = self.phases
-        rows, cols = ell.shape
-        fine = np.zeros((rows * k, cols * k))
-        fine_valid = np.zeros((rows * k, cols * k), bool)
-        fine[k - 1 :: k, k - 1 :: k], fine_valid[k - 1 :: k, k - 1 :: k] = ell, valid
+        requested = span
+        if self._fine is not None and self._fine[0] is patch:
+            (c0, c1, d0, d1), kept, kept_valid = self._fine[1:]
+            i0, i1, j0, j1 = span
+            if c0 <= i0 and i1 <= c1 and d0 <= j0 and j1 <= d1:
+                rows, cols = slice(k * (i0 - c0), k * (i1 - c0 + 1)), slice(k * (j0 - d0), k * (j1 - d0 + 1))
+                return kept[rows, cols], kept_valid[rows, cols]
+            span = (min(c0, i0), max(c1, i1), min(d0, j0), max(d1, j1))
+        i0, i1, j0, j1 = span
+        n = int(mask.sum())
+        fine = np.zeros(((i1 - i0 + 1) * k, (j1 - j0 + 1) * k))
+        fine_valid = np.zeros(fine.shape, bool)
+        fine[k - 1 :: k, k - 1 :: k], fine_valid[k - 1 :: k, k - 1 :: k] = self._residuals(words, mask, *span)
         for (a, b), grid in moved.items():
-            words, mask, _ = self._prep.quantize_patch(grid.depth_m)
-            if int(mask.sum()) < max(2, n // 2):
+            moved_words, moved_mask, _ = self._prep.quantize_patch(grid.depth_m)
+            if int(moved_mask.sum()) < max(2, n // 2):
                 continue  # too few of the soundings fall inside this lattice's nodes to stand for the patch
-            per_node, ok = self._residuals(words, mask, *span, line=(a, b))
-            fine[k - 1 - a :: k, k - 1 - b :: k] = weight * self._log_likelihood(per_node, n, sigma, sigma_scale)
-            fine_valid[k - 1 - a :: k, k - 1 - b :: k] = ok
-        return fine, fine_valid
+            # Each moved grid counts as the patch's own n nodes: the mean residual over its nodes times n.
+            fine[k - 1 - a :: k, k - 1 - b :: k], fine_valid[k - 1 - a :: k, k - 1 - b :: k] = self._residuals(
+                moved_words, moved_mask, *span, line=(a, b))
+        self._fine = (patch, span, fine, fine_valid)
+        return self._between_nodes(patch, words, mask, moved, requested)
 
     def margin(self, centre_m: np.ndarray, patch: SonarPatch, *, radius_m: float, exclusion_m: float) -> float:
         """How much better the patch fits near ``centre_m`` than anywhere else within ``radius_m``.

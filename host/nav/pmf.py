@@ -104,6 +104,7 @@ class PointMassFilter(BayesFilter):
         self._correction_since_m = np.zeros(2)
         self._patch_age_s = 0.0
         self._patch_weight = 1.0
+        self._moments_kept: tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray] | None = None
 
     # -- the grid ---------------------------------------------------------------------------------
 
@@ -187,7 +188,12 @@ class PointMassFilter(BayesFilter):
         return max(min(self._floor_cell, 0.5 * math.sqrt(max(narrow, 0.0))), 2.0 * self._min_half / self._p.pmf_cells)
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
-        return self._moments_of(self._p_grid)
+        # Asked several times a record (gates, ranges, the trust, the estimate) between changes of the density: the
+        # grid and its centre are replaced, never changed in place, so they name the density's state.
+        kept = self._moments_kept
+        if kept is None or kept[0] is not self._p_grid or kept[1] is not self._centre or kept[2] != self._cell:
+            kept = self._moments_kept = (self._p_grid, self._centre, self._cell, *self._moments_of(self._p_grid))
+        return kept[3].copy(), kept[4].copy()
 
     def _moments_of(self, density: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # The cells are a regular grid: the moments from the marginals and one product, without n x n coordinate arrays.

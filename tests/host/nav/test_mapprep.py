@@ -80,6 +80,23 @@ def test_touching_holes_matches_a_naive_scan(holes, h, w):
     assert np.array_equal(touching, naive.reshape(rows - h + 1, cols - w + 1))
 
 
+@given(
+    holes=hnp.arrays(bool, st.tuples(st.integers(1, 20), st.integers(1, 20)), elements=st.booleans()),
+    mask=hnp.arrays(bool, st.tuples(st.integers(1, 6), st.integers(1, 6)), elements=st.booleans()),
+    share=st.sampled_from([0.0, 0.1, 0.3]),
+)
+def test_holes_under_the_patchs_valid_nodes_match_a_naive_count_few_or_many(holes, mask, share):
+    from lost.host.correlator import valid_placements
+    (rows, cols), (h, w) = holes.shape, mask.shape
+    if h > rows or w > cols:
+        return
+    valid = valid_placements(holes.shape, mask.shape, (0, 0, rows - h + 1, cols - w + 1), holes, mask, share)
+    allowed = int(share * mask.sum())
+    naive = np.array([[(holes[i : i + h, j : j + w] & mask).sum() <= allowed for j in range(cols - w + 1)]
+                      for i in range(rows - h + 1)])
+    assert np.array_equal(valid, naive)
+
+
 def test_a_share_of_the_patchs_soundings_may_lie_on_holes():
     depth = np.arange(100, dtype=float).reshape(10, 10)
     depth[4, 4] = depth[4, 5] = np.nan

@@ -107,6 +107,26 @@ def test_a_records_patches_are_held_together_and_each_correlated_once():
         ResidentCorrelator(terrain, patches_held=0)
 
 
+def test_a_second_filter_asking_for_the_same_patch_within_the_first_span_reads_the_kept_samples():
+    floor = _floor()
+    prepared = PreparedMap(grid=_map(floor))
+    shared = TerrainLikelihood(prepared, sigma_m=0.5, phases=3)
+    patch = _patch(floor, 203.0, 196.0)
+    wide_x, wide_y = np.meshgrid(np.arange(185.0, 222.0, 1.1), np.arange(180.0, 215.0, 1.1))
+    shared.patch(wide_x, wide_y, patch)
+    requests = prepared.resident("software").stats["requests"]
+    x, y = np.meshgrid(np.arange(195.0, 208.0, 0.7), np.arange(190.0, 203.0, 0.7))
+    second = shared.patch(x, y, patch, weight=0.3, sigma_scale=1.7)
+    assert prepared.resident("software").stats["requests"] == requests  # no correlator request for the second caller
+    fresh = TerrainLikelihood(PreparedMap(grid=_map(floor)), sigma_m=0.5, phases=3).patch(x, y, patch, weight=0.3, sigma_scale=1.7)
+    np.testing.assert_array_equal(second.log_likelihood, fresh.log_likelihood)
+    np.testing.assert_array_equal(second.informative, fresh.informative)
+    assert second.misfit == fresh.misfit
+    beyond = shared.patch(x + 40.0, y, patch)  # past the kept span: computed over the union, as a fresh one computes it
+    np.testing.assert_array_equal(beyond.log_likelihood, TerrainLikelihood(PreparedMap(grid=_map(floor)), sigma_m=0.5, phases=3)
+                                  .patch(x + 40.0, y, patch).log_likelihood)
+
+
 @pytest.mark.parametrize("phases", [0, 5, 2.5, True])
 def test_likelihood_phases_outside_one_to_four_whole_are_refused(phases):
     with pytest.raises(ValueError, match="likelihood_phases"):
