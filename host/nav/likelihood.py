@@ -71,23 +71,39 @@ def map_error_estimate(depth_m: np.ndarray) -> float:
     return 0.5 * float(np.sqrt(np.mean(difference**2))) if difference.size else 0.0
 
 
+def _corners(shape: tuple[int, int], row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each fractional (row, col)'s cell on a ``shape`` lattice of at least 2 x 2: the flat index of its first corner,
+    the fractions across it, and whether it lies inside."""
+    rows, cols = shape
+    r0 = np.minimum(np.floor(row), rows - 2)  # a point on the last row or column uses the cell before it
+    c0 = np.minimum(np.floor(col), cols - 2)
+    fr, fc = row - r0, col - c0
+    inside = (r0 >= 0) & (c0 >= 0) & (fr <= 1.0) & (fc <= 1.0)
+    return np.where(inside, r0 * cols + c0, 0).astype(np.intp), fr, fc, inside
+
+
 def _bilinear(values: np.ndarray, valid: np.ndarray, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bilinear interpolation at fractional (row, col), and whether all four nodes around are inside and valid."""
     if values.shape[0] == 1 or values.shape[1] == 1:
         # One row (or column) of placements: doubled, a point on it interpolates with a zero far weight.
         reps = (2 if values.shape[0] == 1 else 1, 2 if values.shape[1] == 1 else 1)
         values, valid = np.tile(values, reps), np.tile(valid, reps)
-    rows, cols = values.shape
+    cols = values.shape[1]
     # Invalid nodes as NaN: one gather per corner carries both the value and its validity.
     flat = np.where(valid, values, np.nan).ravel()
-    r0 = np.minimum(np.floor(row), rows - 2)  # a point on the last row or column uses the cell before it
-    c0 = np.minimum(np.floor(col), cols - 2)
-    fr, fc = row - r0, col - c0
-    inside = (r0 >= 0) & (c0 >= 0) & (fr <= 1.0) & (fc <= 1.0)
-    k = np.where(inside, r0 * cols + c0, 0).astype(np.intp)
+    k, fr, fc, inside = _corners(values.shape, row, col)
     value = ((1 - fr) * ((1 - fc) * flat[k] + fc * flat[k + 1]) + fr * ((1 - fc) * flat[k + cols] + fc * flat[k + cols + 1]))
     ok = inside & np.isfinite(value)
     return np.where(ok, value, 0.0), ok
+
+
+def _four_valid(valid: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+    """Whether the four nodes around each fractional (row, col) are inside and valid (``_bilinear``'s rule, without
+    its values), on a lattice of at least 2 x 2."""
+    flat = valid.ravel()
+    k, _, _, inside = _corners(valid.shape, row, col)
+    cols = valid.shape[1]
+    return inside & flat[k] & flat[k + 1] & flat[k + cols] & flat[k + cols + 1]
 
 
 def _between_placements(ell: np.ndarray, valid: np.ndarray, neutral: float, row: np.ndarray, col: np.ndarray, *,
@@ -102,11 +118,13 @@ def _between_placements(ell: np.ndarray, valid: np.ndarray, neutral: float, row:
     is False (candidates coarser than the nodes read a cell-averaged surface, whose underflowed
     cells would make a spline ring) and with fewer than four placements a side.
     """
-    value, informative = _bilinear(np.where(valid, ell, 0.0), valid, row, col)
-    if not spline or min(ell.shape) < 4 or not informative.any():
-        return value, informative
-    spline = ndimage.map_coordinates(np.where(valid, ell, neutral), np.stack([row[informative], col[informative]]), order=3, mode="nearest")
-    value[informative] = spline
+    if not spline or min(ell.shape) < 4:
+        return _bilinear(np.where(valid, ell, 0.0), valid, row, col)
+    informative = _four_valid(valid, row, col)
+    value = np.zeros(np.shape(row))  # read only where informative
+    if informative.any():
+        value[informative] = ndimage.map_coordinates(np.where(valid, ell, neutral), np.stack([row[informative], col[informative]]),
+                                                     order=3, mode="nearest")
     return value, informative
 
 
