@@ -313,22 +313,30 @@ class BayesFilter:
         return (horizontal_m - predicted) ** 2 / variance
 
     def _fix_update(self, observation: Observation) -> bool:
-        """The USBL fix as a Gaussian position measurement with its covariance, gated like a range; True when used.
+        """The USBL fix as a position measurement with its covariance, gated like a range; True when used.
 
-        The fix's innovation NIS, ``(z - m)' (P + R)^-1 (z - m)`` with the density's moments, is gated first
-        (the same ``gate_nis``): exact for a Gaussian fix, and a particle cloud cannot represent a posterior far
-        from itself, so the moment NIS of ``_apply`` alone would understate a far outlier (a multipath reply).
+        Read as a Student-t of ``usbl_fix_dof`` degrees of freedom with the fix's covariance as its scale: a fix three
+        or four times its sigma off (multipath, a refraction the processing's cast does not hold) pulls a density far
+        less than a Gaussian's would, and one near the density counts about as much. The fix's innovation NIS,
+        ``(z - m)' (P + R)^-1 (z - m)`` with the density's moments, is gated first (``gate_nis``; while usable scaled by
+        what the fixes showed, ``Trust.note_fix_innovation``): a particle cloud cannot represent a posterior far from
+        itself, so the moment NIS of ``_apply`` alone would understate a far outlier (a multipath reply).
         """
         mean, cov = self._moments()
         fix, fix_cov = observation.fix_position_m, observation.fix_covariance_m2
         innovation = fix - mean
-        if float(innovation @ np.linalg.solve(cov + fix_cov, innovation)) > self._p.gate_nis:
+        value = float(innovation @ np.linalg.solve(cov + fix_cov, innovation))
+        # While usable the gate takes what the fixes showed (learned over every fix, as the ranges' gate is).
+        scale = self._trust.note_fix_innovation(value)
+        if value > self._p.gate_nis * (scale if self._trust.usable else 1.0):
             self._reject("gate", False, "fix")
             return False
         x, y, _ = self._candidates()
         dx, dy = x - fix[0], y - fix[1]
         info = np.linalg.inv(fix_cov)
-        return self._apply(-0.5 * (info[0, 0] * dx * dx + 2.0 * info[0, 1] * dx * dy + info[1, 1] * dy * dy), terrain=False, kind="fix")
+        q = info[0, 0] * dx * dx + 2.0 * info[0, 1] * dx * dy + info[1, 1] * dy * dy
+        dof = self._p.usbl_fix_dof
+        return self._apply(-0.5 * q if math.isinf(dof) else -0.5 * (dof + 2.0) * np.log1p(q / dof), terrain=False, kind="fix")
 
     def _no_information(self, reason: str) -> None:
         self.counts[reason] += 1

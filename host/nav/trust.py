@@ -82,6 +82,8 @@ from collections import Counter, deque
 
 import numpy as np
 
+from .gate import CHI2_1_MEDIAN, CHI2_2_MEDIAN, GATE_MEMORY, GATE_SCALE_MIN, LearnedGate
+
 __all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "RESTART_CAUSES", "ins_position_sigma", "nis", "moments", "eigenvalues_2x2", "largest_sigma",
            "Trust"]
 
@@ -94,11 +96,9 @@ EDGE_MASS = 0.9
 #: A wide density with less than this share on the map straddles its edge.
 WIDE_EDGE_MASS = 0.5
 #: Slant ranges whose innovations set the range gate's learned scale (``Trust.note_range_innovation``).
-RANGE_MEMORY = 50
-#: The median of chi-square with one degree of freedom: a consistent range innovation's squared, normalized.
-CHI2_1_MEDIAN = 0.454936
+RANGE_MEMORY = GATE_MEMORY
 #: The least learned scale of the range gate (see ``Trust.note_range_innovation``).
-RANGE_SCALE_MIN = 0.2
+RANGE_SCALE_MIN = GATE_SCALE_MIN
 #: The share of the drift window's shifts one way along an axis that says they trail (25 of 30: a sign test at
 #: p = 1.6e-4 per axis and side for shifts that are equally likely either way).
 ONE_WAY_SHARE = 5.0 / 6.0
@@ -210,8 +210,8 @@ class Trust:
         self._usable_share = 0.0  # the independent share when the flag was last up (the wrong-place threshold's)
         self._narrow_patches = 0
         self.settled = False
-        self._range_innovations: deque[float] = deque(maxlen=RANGE_MEMORY)
-        self.range_scale = 1.0
+        self._range_gate = LearnedGate(CHI2_1_MEDIAN, RANGE_MEMORY, RANGE_SCALE_MIN)
+        self._fix_gate = LearnedGate(CHI2_2_MEDIAN)
         # The drift window, one row an accepted terrain update: shift (2), its expected covariance (xx, xy, yy), gain (2).
         self._corrections = np.zeros((max(int(params.usable_updates), 1), 7))
         self._n_corrections = 0
@@ -430,23 +430,27 @@ class Trust:
         return on_map_mass < (EDGE_MASS if narrow else WIDE_EDGE_MASS)
 
     def note_range_innovation(self, value: float) -> float:
-        """A slant range's normalized innovation squared joins the running median; the gate's scale while usable.
+        """A slant range's normalized innovation squared joins its gate's window; the gate's scale while usable
+        (:class:`~lost.host.nav.gate.LearnedGate`).
 
-        The innovation's variance (the density's along the line of sight plus ``slant_range_sigma_m``) is stated for
-        the worst case: the density carries its floor, the range sigma its worst geometry. Where the ranges agree
-        with the density far better than that, a range a few metres off (an outlier of the sonar's own size) passes a
-        gate set for the stated variance and pulls a narrow density with it for a record: on ``seamount_ridges``
-        (seeds 2, 3, 8, 9) a 14 m outlier in a median NIS of 0.14 took both filters 10-16 m off while usable. The
-        median of the last ``RANGE_MEMORY`` values (refused ones too, so that the scale does not feed on its own
-        gate; a median, so that the outliers themselves hardly move it) over chi-square's median is how far the
-        stated variance overstates the real one; the gate is scaled by it, between ``RANGE_SCALE_MIN`` and 1
-        (never looser than stated).
+        On ``seamount_ridges`` (seeds 2, 3, 8, 9) a 14 m outlier in a median NIS of 0.14 passed the stated gate and
+        took both filters 10-16 m off while usable.
         """
-        if math.isfinite(value):
-            self._range_innovations.append(value)
-            if len(self._range_innovations) == self._range_innovations.maxlen:
-                self.range_scale = min(max(statistics.median(self._range_innovations) / CHI2_1_MEDIAN, RANGE_SCALE_MIN), 1.0)
-        return self.range_scale
+        return self._range_gate.note(value)
+
+    @property
+    def range_scale(self) -> float:
+        """The range gate's learned scale."""
+        return self._range_gate.scale
+
+    def note_fix_innovation(self, value: float) -> float:
+        """A USBL fix's normalized innovation squared joins its gate's window; the gate's scale while usable.
+
+        A fix's stated covariance is its device's figure; fixes off by three or four times it (multipath, refraction
+        the processing's cast does not hold) passed the stated gate on ``usbl_nav`` (seed 1, the PF off its map:
+        innovation NIS 12-13 where the fixes' median was 0.94) and took a narrow cloud 6-12 m off for a record.
+        """
+        return self._fix_gate.note(value)
 
     def range_outcome(self, refused: bool) -> bool:
         """A slant range was used or refused; several refused lower the usable flag. True: re-initialize now.

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import replace
 
@@ -51,7 +52,7 @@ def _filter(kind, params, grid):
 @pytest.mark.parametrize("kind", ["pmf", "pf"])
 def test_a_fix_is_a_kalman_update_of_a_gaussian_prior(kind):
     grid = _grid()
-    params = _quiet(initial_sigma_m=30.0, position_floor_m=0.0, position_floor_nodes=0.0, pf_particles=40_000)
+    params = _quiet(initial_sigma_m=30.0, position_floor_m=0.0, position_floor_nodes=0.0, pf_particles=40_000, usbl_fix_dof=math.inf)
     f = _filter(kind, params, grid)
     start = np.array([400.0, 400.0])
     f.start(0.0, start, _fix_observation(start, np.eye(2)))  # start() ignores the fix
@@ -66,6 +67,46 @@ def test_a_fix_is_a_kalman_update_of_a_gaussian_prior(kind):
     np.testing.assert_allclose(answer.position, expected_mean, atol=tolerance)
     np.testing.assert_allclose(answer.covariance, expected_cov, rtol=0.1 if kind == "pf" else 0.02, atol=2.0)
     assert f.counts["fix_updates"] == 1 and f.counts["fix_rejected_gate"] == 0
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_a_fix_far_off_pulls_less_than_a_gaussian_would_and_one_near_about_as_much(kind):
+    grid = _grid()
+    start, cov = np.array([400.0, 400.0]), 9.0 * np.eye(2)  # a 3 m fix on a 3 m density
+    outcome = {}
+    for dof in (math.inf, 6.0):
+        for offset in (2.0, 8.0, 12.0):  # the innovation's NIS 0.2, 3.6 and 8 against the stated variance: inside its gate
+            f = _filter(kind, _quiet(initial_sigma_m=3.0, position_floor_m=0.0, position_floor_nodes=0.0, pf_particles=40_000,
+                                     usbl_fix_dof=dof), grid)
+            f.start(0.0, start, _fix_observation(start, np.eye(2)))
+            f.update(_fix_observation(start + np.array([offset, 0.0]), cov))
+            outcome[dof, offset] = float(f.estimate().position[0] - start[0]), f.counts["fix_updates"]
+    assert all(outcome[math.inf, offset][1] == 1 for offset in (2.0, 8.0, 12.0))  # the Gaussian takes all three, half way
+    assert abs(outcome[6.0, 2.0][0] - outcome[math.inf, 2.0][0]) < 0.1 * outcome[math.inf, 2.0][0]
+    assert outcome[6.0, 8.0][1] == 1 and outcome[6.0, 8.0][0] < 0.93 * outcome[math.inf, 8.0][0]
+    # Four sigmas off, the t's update moves the mean by more than the little it narrows allows: its NIS refuses it.
+    assert outcome[6.0, 12.0][1] == 0
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_a_usable_filter_gates_fixes_by_what_the_fixes_showed(kind):
+    grid = _grid()
+    f = _filter(kind, _quiet(initial_sigma_m=3.0, position_floor_m=0.0, position_floor_nodes=0.0), grid)
+    start = np.array([400.0, 400.0])
+    f.start(0.0, start, _fix_observation(start, np.eye(2)))
+    for _ in range(60):
+        f._trust.note_fix_innovation(0.35)  # fixes four times as good as stated: the gate's scale is a quarter
+    outlier = start + np.array([15.0, 0.0])  # NIS 8.6 against the stated variance: under gate_nis (13.8), over a quarter of it
+    f._trust.usable = False
+    f.update(_fix_observation(outlier, 16.0 * np.eye(2)))
+    assert f.counts["fix_updates"] == 1  # while acquiring the stated gate stands
+    f = _filter(kind, _quiet(initial_sigma_m=3.0, position_floor_m=0.0, position_floor_nodes=0.0), grid)
+    f.start(0.0, start, _fix_observation(start, np.eye(2)))
+    for _ in range(60):
+        f._trust.note_fix_innovation(0.35)
+    f._trust.usable = True
+    f.update(_fix_observation(outlier, 16.0 * np.eye(2)))
+    assert f.counts["fix_rejected_gate"] == 1 and f.counts["fix_updates"] == 0
 
 
 @pytest.mark.parametrize("kind", ["pmf", "pf"])
