@@ -55,8 +55,9 @@ These rules are shared by the point-mass and the particle filter, and kept as na
   (``patch_at_map_edge``) and the filter dead-reckons.
   Off the map or at its edge, the filter is no longer usable once it has had neither a terrain update
   nor a position fix for ``off_map_usable_s`` (``unusable_off_map``): dead reckoning is not a terrain fix.
-- Slant ranges: the range gate of a usable filter is scaled by how far the ranges' innovations fall under their stated
-  variance (``Trust.note_range_innovation``), so that an outlier of a few metres is not taken by a narrow density.
+- Slant ranges and USBL fixes: the gates of a usable filter are scaled by how far the innovations fall under their stated
+  variance (``Trust.note_range_innovation``, ``Trust.note_fix_innovation``; :mod:`lost.host.nav.gate`), so that an
+  outlier of a few metres is not taken by a narrow density.
 - Recovery: when ``reinit_after`` of the last ``2 reinit_after`` terrain updates were refused the
   filter re-initializes, its search widened to ``initial_sigma_m`` around its current estimate
   (a window rather than a run, so that a chance fit at the wrong place does not reset the count).
