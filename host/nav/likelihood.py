@@ -328,11 +328,9 @@ class TerrainLikelihood:
         k = self.phases
         requested = span
         if self._fine is not None and self._fine[0] is patch:
-            (c0, c1, d0, d1), kept, kept_valid = self._fine[1:]
-            i0, i1, j0, j1 = span
+            (c0, c1, d0, d1), (i0, i1, j0, j1) = self._fine[1], span
             if c0 <= i0 and i1 <= c1 and d0 <= j0 and j1 <= d1:
-                rows, cols = slice(k * (i0 - c0), k * (i1 - c0 + 1)), slice(k * (j0 - d0), k * (j1 - d0 + 1))
-                return kept[rows, cols], kept_valid[rows, cols]
+                return self._kept_samples(span)
             span = (min(c0, i0), max(c1, i1), min(d0, j0), max(d1, j1))
         i0, i1, j0, j1 = span
         n = int(mask.sum())
@@ -347,7 +345,14 @@ class TerrainLikelihood:
             fine[k - 1 - a :: k, k - 1 - b :: k], fine_valid[k - 1 - a :: k, k - 1 - b :: k] = self._residuals(
                 moved_words, moved_mask, *span, line=(a, b))
         self._fine = (patch, span, fine, fine_valid)
-        return self._between_nodes(patch, words, mask, moved, requested)
+        return self._kept_samples(requested)
+
+    def _kept_samples(self, span: tuple[int, int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """The kept samples (and their validity) of ``span``'s placements, a span inside the one kept."""
+        k, (c0, _, d0, _), kept, kept_valid = self.phases, *self._fine[1:]
+        i0, i1, j0, j1 = span
+        rows, cols = slice(k * (i0 - c0), k * (i1 - c0 + 1)), slice(k * (j0 - d0), k * (j1 - d0 + 1))
+        return kept[rows, cols], kept_valid[rows, cols]
 
     def margin(self, centre_m: np.ndarray, patch: SonarPatch, *, radius_m: float, exclusion_m: float) -> float:
         """How much better the patch fits near ``centre_m`` than anywhere else within ``radius_m``.

@@ -83,7 +83,7 @@ from collections import Counter, deque
 
 import numpy as np
 
-from .gate import CHI2_1_MEDIAN, CHI2_2_MEDIAN, GATE_MEMORY, GATE_SCALE_MIN, LearnedGate
+from .gate import CHI2_1_MEDIAN, CHI2_2_MEDIAN, LearnedGate
 
 __all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "RESTART_CAUSES", "ins_position_sigma", "nis", "moments", "eigenvalues_2x2", "largest_sigma",
            "Trust"]
@@ -96,10 +96,6 @@ SHARE_EVERY = 5
 EDGE_MASS = 0.9
 #: A wide density with less than this share on the map straddles its edge.
 WIDE_EDGE_MASS = 0.5
-#: Slant ranges whose innovations set the range gate's learned scale (``Trust.note_range_innovation``).
-RANGE_MEMORY = GATE_MEMORY
-#: The least learned scale of the range gate (see ``Trust.note_range_innovation``).
-RANGE_SCALE_MIN = GATE_SCALE_MIN
 #: The share of the drift window's shifts one way along an axis that says they trail (25 of 30: a sign test at
 #: p = 1.6e-4 per axis and side for shifts that are equally likely either way).
 ONE_WAY_SHARE = 5.0 / 6.0
@@ -211,7 +207,7 @@ class Trust:
         self._usable_share = 0.0  # the independent share when the flag was last up (the wrong-place threshold's)
         self._narrow_patches = 0
         self.settled = False
-        self._range_gate = LearnedGate(CHI2_1_MEDIAN, RANGE_MEMORY, RANGE_SCALE_MIN)
+        self._range_gate = LearnedGate(CHI2_1_MEDIAN)
         self._fix_gate = LearnedGate(CHI2_2_MEDIAN)
         # The drift window, one row an accepted terrain update: shift (2), its expected covariance (xx, xy, yy), gain (2).
         self._corrections = np.zeros((max(int(params.usable_updates), 1), 7))

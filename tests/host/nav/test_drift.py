@@ -101,7 +101,9 @@ def test_the_trail_test_needs_a_window_of_twenty_and_a_restart_clears_it():
 
 
 def test_the_range_gate_learns_how_far_the_stated_innovation_variance_overstates_the_real_one():
-    from lost.host.nav.trust import CHI2_1_MEDIAN, RANGE_MEMORY, RANGE_SCALE_MIN
+    from lost.host.nav.gate import CHI2_1_MEDIAN
+    from lost.host.nav.gate import GATE_MEMORY as RANGE_MEMORY
+    from lost.host.nav.gate import GATE_SCALE_MIN as RANGE_SCALE_MIN
 
     rng = np.random.default_rng(6)
     trust = _trust()
