@@ -25,7 +25,7 @@ __all__ = ["BayesFilter", "RANGE_GATE", "ring_log_likelihood"]
 RANGE_GATE = float(chi2.ppf(0.999, 1))
 
 
-def ring_log_likelihood(residual_m: np.ndarray, sigma_m: float, half_width_m: float) -> np.ndarray:
+def ring_log_likelihood(residual_m: np.ndarray, sigma_m: float, half_width_m: float, dof: float = math.inf) -> np.ndarray:
     """Log-likelihood of a range's residual (a candidate's range less the measured) for cells of ``half_width_m``.
 
     Where a cell is no wider than the range's sigma, the Gaussian at its centre. Where it is wider, the
@@ -36,11 +36,14 @@ def ring_log_likelihood(residual_m: np.ndarray, sigma_m: float, half_width_m: fl
     true place's cells lost a factor of 500 in 8 ranges to places 200 m along the ring, and the search
     locked there. An average over the cell does not stop that (it compounds, range after range). The
     grid narrows to cells finer than the ring once the terrain has spoken.
+
+    ``dof`` finite: beyond the flat top a Student-t of that many degrees of freedom, ``sigma_m`` its scale.
     """
     r = np.abs(np.asarray(residual_m, float))
     if half_width_m > sigma_m:
         r = np.maximum(r - half_width_m, 0.0)
-    return -0.5 * (r / sigma_m) ** 2
+    q = (r / sigma_m) ** 2
+    return -0.5 * q if math.isinf(dof) else -0.5 * (dof + 1.0) * np.log1p(q / dof)
 
 
 class BayesFilter:
@@ -294,7 +297,10 @@ class BayesFilter:
             return
         x, y, _ = self._candidates()
         distance = np.hypot(x - frame.ship_x_m, y - frame.ship_y_m)
-        self._apply(ring_log_likelihood(distance - horizontal, self._p.slant_range_sigma_m, self._cell_half_width()), terrain=False)
+        # A t only while usable: a narrow density is where a range 3-4 sigma off (a ray bent by a cast not known) would
+        # move it far; while acquiring the ring must rule places out.
+        dof = self._p.slant_range_dof if self._trust.usable else math.inf
+        self._apply(ring_log_likelihood(distance - horizontal, self._p.slant_range_sigma_m, self._cell_half_width(), dof), terrain=False)
 
     def _range_innovation_nis(self, frame, horizontal_m: float) -> float:
         """The range's innovation squared over its variance, linearized at the density's mean (chi-square, 1 dof).

@@ -151,6 +151,10 @@ class NavParameters:
     slant_range_sigma_m : float
         1-sigma of a slant range for the filters, which take it as a measurement (gated), not as the
         patent's correction.
+    slant_range_dof : float
+        Degrees of freedom of the Student-t a slant range is read with while the filter is usable (``inf``:
+        Gaussian; while acquiring, always Gaussian: there the ranges must move a wide density, and a t's heavy
+        tails keep the places the ring rules out). Default 6; more than 2.
     position_floor_nodes, position_floor_m : float
         The density is kept at least ``hypot(position_floor_nodes * node, position_floor_m)`` wide
         (1-sigma, each axis): the map says nothing of the terrain between its nodes, and a real-time
@@ -307,6 +311,7 @@ class NavParameters:
     seed: int = 0
     use_usbl_fix: bool = True
     usbl_fix_dof: float = 6.0
+    slant_range_dof: float = 6.0
 
     def __post_init__(self) -> None:
         if self.matching not in MATCHING:
@@ -346,8 +351,10 @@ class NavParameters:
                 raise ValueError(f"{name} must be a whole number of at least {low}, got {value!r}.")
         if self.likelihood_phases > MAX_PHASES:
             raise ValueError(f"likelihood_phases must be at most {MAX_PHASES} (each is a correlation per axis), got {self.likelihood_phases!r}.")
-        if not (isinstance(self.usbl_fix_dof, (int, float)) and self.usbl_fix_dof > 2.0):
-            raise ValueError(f"usbl_fix_dof must be a number of degrees of freedom over 2 (inf: Gaussian), got {self.usbl_fix_dof!r}.")
+        for name in ("usbl_fix_dof", "slant_range_dof"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and value > 2.0):
+                raise ValueError(f"{name} must be a number of degrees of freedom over 2 (inf: Gaussian), got {value!r}.")
         if not (math.isfinite(self.min_distinctness) and self.min_distinctness >= 0.0):
             raise ValueError(f"min_distinctness must be a finite number, at least 0 (0 disables the test), got {self.min_distinctness!r}.")
         if not (isinstance(self.max_hole_share, (int, float)) and 0.0 <= self.max_hole_share < 1.0):

@@ -123,7 +123,8 @@ def _off_the_map_with_ranges(**changes):
     from lost.host.nav.estimator import Motion
     from lost.host.nav.stages import TrackFrame
 
-    f, grid, params, position = _tracked("pmf", slant_range_sigma_m=1.0, velocity_noise_mps=0.2, **changes)
+    # The Gaussian ring: what is measured is the cells' geometry, not the range's tails.
+    f, grid, params, position = _tracked("pmf", slant_range_sigma_m=1.0, velocity_noise_mps=0.2, slant_range_dof=math.inf, **changes)
     rng = np.random.default_rng(7)
     u = np.array([math.cos(math.radians(8.0)), math.sin(math.radians(8.0))])
     moves = []
@@ -149,3 +150,52 @@ def test_off_the_map_the_cells_resolve_the_axis_the_ranges_hold_so_a_range_moves
     along_floor_cells, across_floor_cells, cell_floor, _ = _off_the_map_with_ranges(pmf_min_cell_m=1.25)
     assert cell_floor == pytest.approx(1.25, rel=0.1)
     assert across_floor_cells > along_floor_cells
+
+
+def test_a_range_read_as_a_student_t_keeps_the_flat_top_and_pulls_less_far_out():
+    from lost.host.nav.bayes import ring_log_likelihood
+
+    sigma, r = 3.0, np.array([0.0, 1.0, 3.0, 12.0, 30.0])
+    gaussian, t = ring_log_likelihood(r, sigma, 2.5), ring_log_likelihood(r, sigma, 2.5, dof=6.0)
+    assert np.array_equal(ring_log_likelihood(r, sigma, 2.5, dof=math.inf), gaussian)
+    np.testing.assert_allclose(t[:2], gaussian[:2], atol=0.01)  # near: about the Gaussian
+    assert t[-1] > gaussian[-1] / 4  # ten sigma off: a quarter of the Gaussian's penalty at most
+    assert np.all(np.diff(t) < 0)
+    assert np.all(ring_log_likelihood(np.array([-10.0, 5.0, 10.0]), sigma, 12.5, dof=6.0)[:] == 0.0)  # the flat top kept
+
+
+@pytest.mark.parametrize("kind", ["pmf", "pf"])
+def test_a_usable_filter_reads_a_range_as_a_t_and_an_acquiring_one_as_a_gaussian(kind):
+    """A range 2.5 stated sigmas off (inside the 99.9 % gate) moves a usable density less when read as a t; before the
+    flag rises the t is not used (the ring must rule places out), whatever ``slant_range_dof`` says."""
+    from lost.host.nav.stages import TrackFrame
+
+    moves = {}
+    for dof in (math.inf, 6.0):
+        f, grid, params, position = _tracked(kind, slant_range_dof=dof)
+        assert f.estimate().usable
+        ship = TrackFrame(400.0, 300.0 + 1000.0, 180.0)
+        truth_range = math.hypot(*(position - (ship.ship_x_m, ship.ship_y_m)))
+        before = f.estimate().position
+        f.update(_observation(slant=truth_range + 2.5 * params.slant_range_sigma_m, frame=ship))
+        assert f.counts["range_updates"] == 1
+        moves[dof] = float(np.hypot(*(f.estimate().position - before)))
+    assert moves[6.0] < 0.75 * moves[math.inf]
+    acquiring = {}
+    for dof in (math.inf, 6.0):
+        grid = _map(shape=(120, 80))
+        params = _quiet(use_slant_range=True, slant_range_dof=dof, initial_sigma_m=60.0)
+        f = PointMassFilter(TerrainLikelihood(PreparedMap(grid=grid), sigma_m=1.0), params, grid=grid)
+        f.start(0.0, np.array([400.0, 300.0]), _observation())
+        f.update(_observation(slant=1000.0, frame=TrackFrame(400.0, 1300.0, 180.0)))
+        assert not f.estimate().usable
+        acquiring[dof] = f.density[2]
+    assert np.array_equal(acquiring[6.0], acquiring[math.inf])
+
+
+def test_the_range_degrees_of_freedom_are_validated():
+    from lost.host.nav import NavParameters
+
+    for bad in (2.0, 0.5, -1.0, float("nan"), "6"):
+        with pytest.raises(ValueError, match="slant_range_dof"):
+            NavParameters(slant_range_dof=bad)
