@@ -8,6 +8,7 @@ spilling into the int64 output.
 
 from __future__ import annotations
 
+import functools
 import os
 
 import numpy as np
@@ -29,8 +30,10 @@ KERNEL: str = _sad.KERNEL
 _LANE_MAX = 2**32 - 1
 
 
+@functools.lru_cache(maxsize=256)
 def _terms_per_chunk(h: int, w: int, mean_compensation: bool) -> int:
-    """How many terms the 32-bit lane accumulator adds exactly before spilling to int64."""
+    """How many terms the 32-bit lane accumulator adds exactly before spilling to int64 (kept per shape: a swath record
+    asks nine times for the same one, and the bounds cost more than a small correlation)."""
     widths = correlator_widths(h, w)
     if widths.abs_term.hi >= 2**31:
         raise ValueError(f"a {h} x {w} patch is too large for the software correlator's 32-bit terms")
