@@ -118,9 +118,14 @@ def valid_placements(
     if not (isinstance(max_hole_share, (int, float)) and 0.0 <= max_hole_share < 1.0):
         raise ValueError(f"max_hole_share must be a number in [0, 1), got {max_hole_share!r}")
     i0, j0, rows, cols = area
-    i = np.arange(i0, i0 + rows)[:, None]
-    j = np.arange(j0, j0 + cols)[None, :]
-    valid = (i >= 0) & (i <= H - h) & (j >= 0) & (j <= W - w)
+    # The placements inside the map are one rectangle of the area: slices, not index arrays (a record asks this nine
+    # times, once for each of its patches).
+    top, bottom = max(i0, 0), min(i0 + rows, H - h + 1)
+    left, right = max(j0, 0), min(j0 + cols, W - w + 1)
+    valid = np.zeros((rows, cols), dtype=bool)
+    inside = (slice(top - i0, bottom - i0), slice(left - j0, right - j0))
+    if bottom > top and right > left:
+        valid[inside] = True
     if holes is None:
         return valid
     if not isinstance(holes, np.ndarray) or holes.dtype != np.bool_ or holes.shape != (H, W):
@@ -130,23 +135,24 @@ def valid_placements(
         mask = np.asarray(mask)
         if mask.dtype != np.bool_ or mask.shape != (h, w):
             raise ValueError(f"mask must be a boolean array of the patch's shape {(h, w)}, got {mask.dtype} {mask.shape}")
-    if not holes.any() or not valid.any():
+    if not (bottom > top and right > left) or not holes.any():
         return valid
-    r0, r1 = (min(max(int(v), 0), H - h) for v in (i0, i0 + rows - 1))  # scalars: np.clip's dispatch is most of a call
-    c0, c1 = (min(max(int(v), 0), W - w) for v in (j0, j0 + cols - 1))
-    covered = holes[r0 : r1 + h, c0 : c1 + w]
+    covered = holes[top : bottom - 1 + h, left : right - 1 + w]
     if not covered.any():
         return valid
     nodes = h * w if mask is None else int(mask.sum())
-    touching = _touching(covered, mask, (h, w), int(max_hole_share * nodes))
-    inside = np.clip(i, 0, H - h) - r0, np.clip(j, 0, W - w) - c0
-    return valid & ~touching[inside]
+    valid[inside] = ~_touching(covered, mask, (h, w), int(max_hole_share * nodes))
+    return valid
 
 
 #: Output rows of hole counts made per FFT by :func:`_touching`: its memory is a block's, not a whole map's.
 _HOLE_BLOCK_ROWS = 512
 #: Up to this many holes under the placements' windows, :func:`_touching` counts them one by one rather than by FFT.
 _FEW_HOLES = 48
+#: Beyond them, a mask of up to this many valid nodes is counted node by node (one shifted window sum each) while that
+#: adds at most ``_NODE_ADDS`` counts; an FFT beyond (it costs about as much at a 500 x 500 area).
+_FEW_NODES = 64
+_NODE_ADDS = 2_000_000
 
 
 def _touching(covered: np.ndarray, mask: np.ndarray | None, patch_shape: tuple[int, int], allowed: int = 0) -> np.ndarray:
@@ -165,6 +171,13 @@ def _touching(covered: np.ndarray, mask: np.ndarray | None, patch_shape: tuple[i
     if not mask.any() or not in_window.any():
         return touching  # holes under the valid nodes are at most the window's: none over the allowed, none under them
     hole_rows, hole_cols = np.nonzero(covered)
+    node_rows, node_cols = np.nonzero(mask)
+    if hole_rows.size > _FEW_HOLES and node_rows.size <= _FEW_NODES and node_rows.size * rows * cols <= _NODE_ADDS:
+        # Many holes under a sparse mask (a swath's patch): each valid node adds the holes under it, shifted.
+        counts = np.zeros((rows, cols), dtype=np.int32)
+        for r, c in zip(node_rows.tolist(), node_cols.tolist()):
+            counts += covered[r : r + rows, c : c + cols]
+        return counts > allowed
     if hole_rows.size <= _FEW_HOLES:
         # A few holes: each adds the mask, turned about, to the placements whose window covers it (integers, exact).
         counts = np.zeros((rows, cols), dtype=np.int32)

@@ -120,11 +120,17 @@ def test_choose_fit_block_by_block_is_the_models_best_fit_on_the_masked_surface(
     assert got.runner_up == ru
 
 
-def test_valid_placements_count_only_the_holes_under_the_patchs_valid_nodes(monkeypatch):
-    """Against a node-by-node check, over areas reaching off the map and FFT blocks of a few rows."""
+@pytest.mark.parametrize("counting", ["as shipped", "hole by hole", "node by node", "fft"])
+def test_valid_placements_count_only_the_holes_under_the_patchs_valid_nodes(monkeypatch, counting):
+    """Against a node-by-node check, over areas reaching off the map and FFT blocks of a few rows, each way of counting
+    the holes forced in turn."""
     from lost.host.correlator import result as result_module
 
     monkeypatch.setattr(result_module, "_HOLE_BLOCK_ROWS", 3)
+    forced = {"hole by hole": (10**9, 0), "node by node": (-1, 10**9), "fft": (-1, -1)}.get(counting)
+    if forced is not None:
+        monkeypatch.setattr(result_module, "_FEW_HOLES", forced[0])
+        monkeypatch.setattr(result_module, "_FEW_NODES", forced[1])
     rng = np.random.default_rng(11)
     for _ in range(200):
         H, W = (int(v) for v in rng.integers(5, 30, 2))
