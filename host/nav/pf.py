@@ -23,8 +23,8 @@ from ..grid import Grid
 from .bayes import BayesFilter
 from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
+from .moments import eigenvalues_2x2, moments
 from .parameters import INS_VELOCITY_BIAS_WALK_MPS
-from .trust import eigenvalues_2x2, moments
 
 __all__ = ["ParticleFilter", "systematic_resample"]
 

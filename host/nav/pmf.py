@@ -62,7 +62,7 @@ from ..grid import Grid
 from .bayes import BayesFilter
 from .estimator import Motion, Observation
 from .likelihood import TerrainLikelihood
-from .trust import eigenvalues_2x2, largest_sigma
+from .moments import eigenvalues_2x2, largest_sigma
 from .velocity_bias import VelocityBiasFilter
 
 __all__ = ["PointMassFilter", "PMF_CELLS_PER_NODE"]

@@ -84,9 +84,9 @@ from collections import Counter, deque
 import numpy as np
 
 from .gate import CHI2_1_MEDIAN, CHI2_2_MEDIAN, LearnedGate
+from .moments import eigenvalues_2x2, largest_sigma, quadratic_form_2x2
 
-__all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "RESTART_CAUSES", "ins_position_sigma", "nis", "moments", "eigenvalues_2x2", "largest_sigma",
-           "Trust"]
+__all__ = ["SCHULER_PERIOD_S", "MISFIT_MEMORY", "RESTART_CAUSES", "ins_position_sigma", "nis", "Trust"]
 
 #: Accepted patches whose misfits set the running residual level.
 MISFIT_MEMORY = 50
@@ -130,44 +130,16 @@ def ins_position_sigma(t_s: float | np.ndarray, *, gyro_bias_rps: float, accel_b
     return np.sqrt((gyro * gyro_bias_rps) ** 2 + (accel * accel_bias_mps2) ** 2)
 
 
-def eigenvalues_2x2(covariance: np.ndarray) -> tuple[float, float]:
-    """The smaller and the larger eigenvalue of a symmetric 2 x 2 matrix, in closed form.
-
-    ``np.linalg.eigvalsh`` costs some 30 microseconds a call, and the filters ask several times a record.
-    """
-    a, b, c = float(covariance[0, 0]), float(covariance[0, 1]), float(covariance[1, 1])
-    centre, half = 0.5 * (a + c), math.hypot(0.5 * (a - c), b)
-    return centre - half, centre + half
-
-
-def largest_sigma(covariance: np.ndarray) -> float:
-    """The 1-sigma of a 2 x 2 covariance's widest axis."""
-    return math.sqrt(max(eigenvalues_2x2(covariance)[1], 0.0))
-
-
-def moments(weights: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and covariance of points weighted by normalized ``weights``."""
-    mx, my = float(np.sum(weights * x)), float(np.sum(weights * y))
-    dx, dy = x - mx, y - my
-    sxy = float(np.sum(weights * dx * dy))
-    cov = np.array([[float(np.sum(weights * dx * dx)), sxy], [sxy, float(np.sum(weights * dy * dy))]])
-    return np.array([mx, my]), cov
-
-
 def nis(prior_mean: np.ndarray, prior_cov: np.ndarray, post_mean: np.ndarray, post_cov: np.ndarray) -> float:
     """Normalized innovation squared of an update from its prior and posterior moments (see the module)."""
     d = post_mean - prior_mean
-    gain = prior_cov - post_cov
     # The information an update brings is at least a little in every direction it moves the estimate.
-    gain = gain + 1e-6 * np.trace(prior_cov) * np.eye(2)
-    try:
-        if eigenvalues_2x2(gain)[0] > 0:
-            return float(d @ np.linalg.solve(gain, d))
-        # A posterior wider than its prior (a density split between places) has no such bound: measure
-        # the shift against the prior alone, a lower bound of the NIS above.
-        return float(d @ np.linalg.solve(prior_cov, d))
-    except np.linalg.LinAlgError:
-        return float("inf")
+    gain = prior_cov - post_cov + 1e-6 * np.trace(prior_cov) * np.eye(2)
+    if eigenvalues_2x2(gain)[0] > 0:
+        return quadratic_form_2x2(d, gain)
+    # A posterior wider than its prior (a density split between places) has no such bound: measure
+    # the shift against the prior alone, a lower bound of the NIS above.
+    return quadratic_form_2x2(d, prior_cov)
 
 
 def _drift_covariance(prior_cov: np.ndarray, post_cov: np.ndarray) -> np.ndarray:
