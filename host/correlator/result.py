@@ -124,7 +124,8 @@ def valid_placements(
     left, right = max(j0, 0), min(j0 + cols, W - w + 1)
     valid = np.zeros((rows, cols), dtype=bool)
     inside = (slice(top - i0, bottom - i0), slice(left - j0, right - j0))
-    if bottom > top and right > left:
+    any_inside = bottom > top and right > left
+    if any_inside:
         valid[inside] = True
     if holes is None:
         return valid
@@ -135,7 +136,7 @@ def valid_placements(
         mask = np.asarray(mask)
         if mask.dtype != np.bool_ or mask.shape != (h, w):
             raise ValueError(f"mask must be a boolean array of the patch's shape {(h, w)}, got {mask.dtype} {mask.shape}")
-    if not (bottom > top and right > left) or not holes.any():
+    if not any_inside or not holes.any():
         return valid
     covered = holes[top : bottom - 1 + h, left : right - 1 + w]
     if not covered.any():

@@ -17,6 +17,7 @@ from scipy.stats import chi2
 from ..grid import Grid
 from .estimator import Estimate, Observation
 from .likelihood import TerrainLikelihood
+from .moments import quadratic_form_2x2
 from .trust import Trust, nis
 
 __all__ = ["BayesFilter", "RANGE_GATE", "ring_log_likelihood"]
@@ -42,8 +43,13 @@ def ring_log_likelihood(residual_m: np.ndarray, sigma_m: float, half_width_m: fl
     r = np.abs(np.asarray(residual_m, float))
     if half_width_m > sigma_m:
         r = np.maximum(r - half_width_m, 0.0)
-    q = (r / sigma_m) ** 2
-    return -0.5 * q if math.isinf(dof) else -0.5 * (dof + 1.0) * np.log1p(q / dof)
+    return _log_kernel((r / sigma_m) ** 2, dof, 1)
+
+
+def _log_kernel(q: np.ndarray, dof: float, dimensions: int) -> np.ndarray:
+    """The log-density, up to a constant, of a measurement whose squared Mahalanobis distance is ``q``: a Student-t of
+    ``dof`` degrees of freedom in ``dimensions`` (the Gaussian where ``dof`` is infinite)."""
+    return -0.5 * q if math.isinf(dof) else -0.5 * (dof + dimensions) * np.log1p(q / dof)
 
 
 class BayesFilter:
@@ -331,7 +337,7 @@ class BayesFilter:
         mean, cov = self._moments()
         fix, fix_cov = observation.fix_position_m, observation.fix_covariance_m2
         innovation = fix - mean
-        value = float(innovation @ np.linalg.solve(cov + fix_cov, innovation))
+        value = quadratic_form_2x2(innovation, cov + fix_cov)
         # While usable the gate takes what the fixes showed (learned over every fix, as the ranges' gate is).
         scale = self._trust.note_fix_innovation(value)
         if value > self._p.gate_nis * (scale if self._trust.usable else 1.0):
@@ -341,8 +347,7 @@ class BayesFilter:
         dx, dy = x - fix[0], y - fix[1]
         info = np.linalg.inv(fix_cov)
         q = info[0, 0] * dx * dx + 2.0 * info[0, 1] * dx * dy + info[1, 1] * dy * dy
-        dof = self._p.usbl_fix_dof
-        return self._apply(-0.5 * q if math.isinf(dof) else -0.5 * (dof + 2.0) * np.log1p(q / dof), terrain=False, kind="fix")
+        return self._apply(_log_kernel(q, self._p.usbl_fix_dof, 2), terrain=False, kind="fix")
 
     def _no_information(self, reason: str) -> None:
         self.counts[reason] += 1
